@@ -107,6 +107,8 @@ def cobs_decode(data):
 
 def build_body(msg_type, boot_id, seq, t_us, payload, flags=0):
     """Header, payload and CRC-32: the bytes that COBS wraps."""
+    if len(payload) > MAX_PAYLOAD:
+        raise ValueError("payload longer than %d bytes" % MAX_PAYLOAD)
     body = struct.pack(
         HEADER, MAGIC, VERSION, msg_type, flags, boot_id, seq & 0xFFFFFFFF, t_us, len(payload)
     ) + bytes(payload)
@@ -172,6 +174,14 @@ def pack_hello(fw, reset_cause, sample_period_us, ticks_bits, anemo_hz_per_mps, 
         + bytes([len(p)])
         + p
     )
+
+
+def _text(b):
+    """UTF-8 text that never raises: undecodable bytes become '?'."""
+    try:
+        return str(bytes(b), "utf-8")
+    except UnicodeError:
+        return "".join([chr(c) if c < 128 else "?" for c in b])
 
 
 class Frame:
@@ -253,11 +263,11 @@ def decode_payload(msg_type, payload):
             "count_bits": v[6],
             "anemo_hz_per_mps": v[7],
             "wheel_pulses_per_m": (v[8], v[9], v[10], v[11]),
-            "board": str(board, "utf-8"),
-            "pins": str(pins, "utf-8"),
+            "board": _text(board),
+            "pins": _text(pins),
         }
     if msg_type == LOG:
-        return {"text": str(bytes(payload), "utf-8")}
+        return {"text": _text(payload)}
     return None
 
 

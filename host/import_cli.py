@@ -1,0 +1,93 @@
+"""`forcemap import`: an NMEA 0183 capture or a MAVLink tlog into an MCAP log with the daemon's topics."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "file", metavar="FILE", help="NMEA 0183 capture (text) or MAVLink telemetry log (.tlog)"
+    )
+    parser.add_argument(
+        "--out", default=".", metavar="DIR", help="directory for the MCAP file (default: .)"
+    )
+    parser.add_argument(
+        "--format",
+        choices=("nmea", "tlog"),
+        default=None,
+        help="input format (default: from the name and the first bytes)",
+    )
+    parser.add_argument(
+        "--config", default=None, metavar="BOAT_TOML", help="calibration (default: built-in)"
+    )
+    parser.add_argument(
+        "--sync",
+        choices=("interpolate", "approximate"),
+        default=None,
+        help="boat-state matching (default: the config's sync.mode)",
+    )
+
+
+def _open_log(out: Path, stem: str) -> Any:
+    from host.mcap_log import McapLog
+
+    return McapLog(out, prefix=stem, rotate_bytes=1 << 62, rotate_seconds=float("inf"))
+
+
+def summary(res: Any) -> list[str]:
+    """Human-readable lines about an ImportResult."""
+    c = res.counters
+    out = [
+        f"{res.path}: {res.records} {'lines' if res.format == 'nmea' else 'packets'} ({res.format})"
+    ]
+    if res.format == "nmea":
+        n = c["depth"]
+        out.append(
+            f"  NMEA: {n['accepted']} accepted {dict(sorted(n['accepted_by_type'].items()))}"
+        )
+        out.append(
+            f"        {n['rejected']} rejected {dict(sorted(n['rejected_by_reason'].items()))}"
+        )
+    else:
+        m = c["mavlink"]
+        out.append(
+            f"  MAVLink: {m['messages']} messages, {m['bad_crc']} bad CRC, {m['junk_bytes']} junk bytes"
+        )
+        for key, n in sorted(m["bad_crc_by_sender_msgid"].items(), key=lambda kv: -kv[1])[:5]:
+            out.append(f"           bad CRC from sysid/compid/msgid {key}: {n}")
+    if c.get("last_fix"):
+        f = c["last_fix"]
+        out.append(f"  last fix: {f['lat']:.6f}, {f['lon']:.6f}")
+    out.extend("  " + note for note in res.notes)
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from host.calibration import ConfigError, load
+    from host.importers import ImportFailed, check_importable, import_file
+
+    path = Path(args.file)
+    try:
+        cal = load(args.config)
+        if not path.is_file():
+            raise ImportFailed(f"{path}: no such file")
+        fmt = check_importable(path, args.format)
+    except (ConfigError, ImportFailed) as e:
+        print(f"forcemap import: {e}", file=sys.stderr)
+        return 2
+    log = _open_log(Path(args.out), path.stem)
+    try:
+        res = import_file(path, log, fmt, cal, args.sync)
+    except ImportFailed as e:
+        print(f"forcemap import: {e}", file=sys.stderr)
+        return 2
+    finally:
+        log.close()
+    for line in summary(res):
+        print(line)
+    print(f"  -> {', '.join(str(p) for p in log.paths)}")
+    return 0

@@ -1,0 +1,220 @@
+"""Existing logs through the live pipeline: NMEA 0183 captures and MAVLink telemetry logs (tlog).
+
+NMEA captures carry no receive times. Each line gets one from the sentences' own UTC: every line
+where the UTC time of day (RMC, GGA, GLL, ZDA) moves forward is an anchor, and lines between
+anchors are spread evenly; the date comes from the first RMC or ZDA that has one (else 1970-01-01).
+A capture with no UTC at all is paced at 1 s per line. tlogs carry the ground station's receive
+time (8-byte big-endian UNIX microseconds) before each packet, used as the arrival time.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from host.calibration import Calibration
+from host.nmea import LineSplitter, NmeaParser
+from host.pipeline import Pipeline, Sink
+
+FORMATS = ("nmea", "tlog")
+DATAFLASH_MAGIC = b"\xa3\x95"
+DAY = 86400.0
+IMPORT_DIAG_PERIOD_S = 10.0  # /diagnostics every 10 s of log time (the daemon: every second)
+
+
+class ImportFailed(ValueError):
+    """A file that cannot be imported: the message is one line for the user."""
+
+
+@dataclass
+class ImportResult:
+    """What an import did: the pipeline's counters and the number of records read."""
+
+    path: str
+    format: str
+    records: int = 0
+    counters: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def detect_format(path: str | Path) -> str:
+    """``nmea`` or ``tlog`` from the name and the first bytes; ImportFailed for anything else."""
+    p = Path(path)
+    try:
+        with open(p, "rb") as f:
+            head = f.read(4096)
+    except OSError as e:
+        raise ImportFailed(f"{p}: cannot read: {e.strerror or e}") from None
+    if head.startswith(DATAFLASH_MAGIC) or p.suffix.lower() == ".bin":
+        raise ImportFailed(
+            f"{p.name}: an ArduPilot DataFlash (.BIN) log, not a MAVLink stream; import the telemetry .tlog instead"
+        )
+    if p.suffix.lower() == ".tlog":
+        return "tlog"
+    if len(head) > 8 and head[8] in (0xFD, 0xFE):
+        return "tlog"
+    lines = [ln.strip() for ln in head.splitlines()]
+    if sum(ln[:1] in (b"$", b"!") for ln in lines) >= max(1, len(lines) // 10):
+        return "nmea"
+    raise ImportFailed(
+        f"{p.name}: neither NMEA 0183 text nor a MAVLink tlog; give --format nmea|tlog"
+    )
+
+
+def check_importable(path: str | Path, fmt: str | None = None) -> str:
+    """The format to import ``path`` with: ``fmt`` if given (a DataFlash log is refused anyway)."""
+    if fmt is None:
+        return detect_format(path)
+    if fmt not in FORMATS:
+        raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
+    try:
+        with open(path, "rb") as f:
+            magic = f.read(2)
+    except OSError as e:
+        raise ImportFailed(f"{path}: cannot read: {e.strerror or e}") from None
+    if magic == DATAFLASH_MAGIC:
+        detect_format(path)  # raises the DataFlash error
+    return fmt
+
+
+def nmea_line_times(lines: list[bytes]) -> tuple[list[float], str]:
+    """A UNIX time for every line (see the module docstring) and how it was found."""
+    parser = NmeaParser()
+    tods: list[tuple[int, float]] = []
+    date0: float | None = None
+    for i, line in enumerate(lines):
+        if not any(k in line for k in (b"RMC,", b"GGA,", b"GLL,", b"ZDA,")):
+            continue
+        s = parser.parse(line)
+        if s is None or not s.valid or s.data.get("tod") is None:
+            continue
+        tod = s.data["tod"]
+        if date0 is None and s.data.get("utc") is not None:
+            date0 = s.data["utc"] - tod
+        tods.append((i, tod))
+    n = len(lines)
+    if not tods:
+        return [float(i) for i in range(n)], "no UTC in the file: 1 s per line from 1970-01-01"
+    base = date0 if date0 is not None else 0.0
+    anchors: list[tuple[int, float]] = []
+    day = 0.0
+    prev_tod = None
+    for i, tod in tods:
+        if prev_tod is not None and tod < prev_tod - DAY / 2:
+            day += DAY  # past midnight
+        t = base + day + tod
+        prev_tod = tod
+        if anchors and not (anchors[-1][1] < t <= anchors[-1][1] + 3600.0):
+            continue  # not moving forward, or a corrupt stamp
+        anchors.append((i, t))
+    if len(anchors) >= 2 and anchors[-1][0] > anchors[0][0]:
+        rate = (anchors[-1][1] - anchors[0][1]) / (anchors[-1][0] - anchors[0][0])
+    else:
+        rate = 1.0
+    times = [0.0] * n
+    k = 0
+    for i in range(n):
+        while k + 1 < len(anchors) and anchors[k + 1][0] <= i:
+            k += 1
+        i0, t0 = anchors[k]
+        if i < i0:
+            times[i] = t0 - (i0 - i) * rate
+        elif k + 1 < len(anchors):
+            i1, t1 = anchors[k + 1]
+            times[i] = t0 + (t1 - t0) * (i - i0) / (i1 - i0)
+        else:
+            times[i] = t0 + (i - i0) * rate
+    how = "UTC anchors from RMC/GGA/GLL/ZDA" + (
+        "" if date0 is not None else ", no date in the file: 1970-01-01"
+    )
+    return times, how
+
+
+def import_nmea(
+    path: str | Path, sink: Sink, calibration: Calibration | None = None, sync: str | None = None
+) -> ImportResult:
+    """An NMEA 0183 capture through the pipeline's NMEA path."""
+    data = Path(path).read_bytes()
+    splitter = LineSplitter()
+    lines = splitter.feed(data) + splitter.flush()
+    times, how = nmea_line_times(lines)
+    pipe = Pipeline(
+        calibration,
+        sink,
+        sync=sync,
+        config={"import": str(path), "format": "nmea", "timing": how},
+        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
+    )
+    for line, t in zip(lines, times, strict=True):
+        ns = int(t * 1e9)
+        pipe.feed("depth", ns, ns, line + b"\n")
+    pipe.close()
+    res = ImportResult(str(path), "nmea", len(lines), pipe.counters(), [how])
+    _check_errors(pipe, res)
+    return res
+
+
+def tlog_records(data: bytes) -> Iterator[tuple[int, bytes]]:
+    """(UNIX µs, packet bytes) for each record of a tlog. Bytes that don't frame are skipped."""
+    i, n = 0, len(data)
+    while i + 9 <= n:
+        magic = data[i + 8]
+        if magic == 0xFE:
+            size = data[i + 9] + 8 if i + 9 < n else 0
+        elif magic == 0xFD and i + 10 < n:
+            size = data[i + 9] + 12 + (13 if data[i + 10] & 0x01 else 0)
+        else:
+            i += 1
+            continue
+        (us,) = struct.unpack_from(">Q", data, i)
+        yield us, data[i + 8 : i + 8 + size]
+        i += 8 + size
+
+
+def import_tlog(
+    path: str | Path, sink: Sink, calibration: Calibration | None = None, sync: str | None = None
+) -> ImportResult:
+    """A MAVLink telemetry log through the pipeline's MAVLink path, at its recorded arrival times."""
+    data = Path(path).read_bytes()
+    pipe = Pipeline(
+        calibration,
+        sink,
+        sync=sync,
+        config={"import": str(path), "format": "tlog", "timing": "tlog receive times"},
+        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
+    )
+    records = 0
+    for us, packet in tlog_records(data):
+        records += 1
+        ns = us * 1000
+        pipe.feed("mavlink", ns, ns, packet)
+    pipe.close()
+    res = ImportResult(str(path), "tlog", records, pipe.counters())
+    _check_errors(pipe, res)
+    return res
+
+
+def _check_errors(pipe: Pipeline, res: ImportResult) -> None:
+    if pipe.errors:
+        res.notes.append(
+            f"internal errors: {dict(pipe.errors)}; last: {pipe.last_error.strip().splitlines()[-1]}"
+        )
+
+
+def import_file(
+    path: str | Path,
+    sink: Sink,
+    fmt: str | None = None,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+) -> ImportResult:
+    """Import one file in the given or detected format."""
+    fmt = check_importable(path, fmt)
+    if fmt == "nmea":
+        return import_nmea(path, sink, calibration, sync)
+    if fmt == "tlog":
+        return import_tlog(path, sink, calibration, sync)
+    raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")

@@ -1,0 +1,336 @@
+"""`forcemap log info|recover`: summarize an MCAP log, or rebuild a truncated one with its index."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from array import array
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+from mcap.records import Message, Metadata, Schema
+from mcap.writer import CompressionType, Writer
+
+from host.mcap_log import CHUNK_SIZE, LIBRARY, FileScan, iter_records
+from host.status import flatten
+
+# a topic has a gap where consecutive messages are further apart than this many mean periods
+GAP_FACTOR = 10.0
+MIN_GAP_S = 2.0
+# counters whose names contain one of these are shown by `info`
+ERROR_WORDS = (
+    "reject",
+    "error",
+    "bad",
+    "crc",
+    "junk",
+    "lost",
+    "gap",
+    "reset",
+    "drop",
+    "internal",
+    "without",
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="log_command", metavar="ACTION", required=True)
+    info = sub.add_parser("info", help="channels, counts, duration, gaps and error counters")
+    info.add_argument("files", nargs="+", metavar="FILE")
+    info.add_argument("--json", action="store_true", help="print the summary as JSON")
+    rec = sub.add_parser(
+        "recover", help="rewrite a truncated (killed) file as a complete one with index and summary"
+    )
+    rec.add_argument("file", metavar="FILE")
+    rec.add_argument(
+        "-o", "--output", metavar="OUT", help="output file (default: FILE with -recovered)"
+    )
+
+
+@dataclass
+class TopicInfo:
+    """Per-topic counts and the timing needed to find gaps."""
+
+    schema: str = ""
+    count: int = 0
+    first_ns: int = 0
+    last_ns: int = 0
+    times: array = field(default_factory=lambda: array("q"))
+
+
+@dataclass
+class LogInfo:
+    """What `log info` reports about one file."""
+
+    path: str
+    size: int
+    complete: bool
+    truncated: bool
+    error: str
+    library: str = ""
+    topics: dict[str, TopicInfo] = field(default_factory=dict)
+    metadata: list[str] = field(default_factory=list)
+    events: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
+    last_diagnostics: dict[str, Any] | None = None
+    last_status: dict[str, Any] | None = None
+
+    @property
+    def start_ns(self) -> int:
+        return min((t.first_ns for t in self.topics.values() if t.count), default=0)
+
+    @property
+    def end_ns(self) -> int:
+        return max((t.last_ns for t in self.topics.values() if t.count), default=0)
+
+    def gaps(self) -> list[tuple[str, float, float]]:
+        """(topic, start UNIX s, length s) where a regular topic went quiet.
+
+        Quiet means longer than GAP_FACTOR mean periods and at least MIN_GAP_S: sources that
+        send in bursts (an NMEA talker's sentences) are judged by their mean rate, not the median.
+        """
+        out = []
+        for topic, ti in self.topics.items():
+            if topic.startswith("/daemon/") or len(ti.times) < 10:
+                continue
+            times = sorted(ti.times)
+            mean = (times[-1] - times[0]) / (len(times) - 1)
+            limit = max(GAP_FACTOR * mean, MIN_GAP_S * 1e9)
+            for a, b in zip(times, times[1:], strict=False):
+                if b - a > limit:
+                    out.append((topic, a / 1e9, (b - a) / 1e9))
+        return sorted(out, key=lambda g: g[1])
+
+    def outages(self) -> list[dict[str, Any]]:
+        """Source disconnections recorded by the daemon, with how long each lasted."""
+        out: list[dict[str, Any]] = []
+        down: dict[str, tuple[int, str]] = {}
+        for t, ev in self.events:
+            source = ev.get("source")
+            if ev.get("event") == "disconnected" and source:
+                down.setdefault(source, (t, ev.get("reason", "")))
+            elif ev.get("event") == "connected" and source in down:
+                t0, reason = down.pop(source)
+                out.append(
+                    {"source": source, "start_ns": t0, "length_s": (t - t0) / 1e9, "reason": reason}
+                )
+        for source, (t0, reason) in down.items():
+            out.append({"source": source, "start_ns": t0, "length_s": None, "reason": reason})
+        return out
+
+    def error_counters(self) -> dict[str, Any]:
+        """Non-zero counters of errors, rejections and gaps: the pipeline's last /diagnostics
+        (or the daemon's last status if there is none) and the readers' errors by reason."""
+        out: dict[str, Any] = {}
+        counters = None
+        if self.last_diagnostics:
+            counters = self.last_diagnostics.get("counters", self.last_diagnostics)
+        elif self.last_status:
+            counters = self.last_status.get("pipeline")
+        for k, v in flatten(counters or {}).items():
+            if _nz(v) and any(w in k.lower() for w in ERROR_WORDS):
+                out[k] = v
+        if self.last_status:
+            for k, v in (self.last_status.get("errors") or {}).items():
+                out[f"daemon.{k}"] = v
+            for name, src in (self.last_status.get("sources") or {}).items():
+                for reason, n in (src.get("errors") or {}).items():
+                    out[f"port.{name}.{reason}"] = n
+        return out
+
+
+def _nz(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and v != 0
+
+
+def scan_file(path: str | os.PathLike[str]) -> LogInfo:
+    """Read a whole file (complete or truncated) and gather what `info` shows."""
+    scan = FileScan(Path(path))
+    info = LogInfo(str(path), os.path.getsize(path), False, False, "")
+    for record in iter_records(path, scan):
+        if isinstance(record, Message):
+            channel = scan.channels.get(record.channel_id)
+            if channel is None:
+                continue
+            ti = info.topics.get(channel.topic)
+            if ti is None:
+                schema = scan.schemas.get(channel.schema_id)
+                ti = info.topics[channel.topic] = TopicInfo(schema.name if schema else "")
+                ti.first_ns = record.log_time
+            ti.count += 1
+            ti.first_ns = min(ti.first_ns, record.log_time)
+            ti.last_ns = max(ti.last_ns, record.log_time)
+            ti.times.append(record.log_time)
+            if channel.topic in ("/diagnostics", "/daemon/status", "/daemon/event"):
+                try:
+                    msg = json.loads(record.data)
+                except ValueError:
+                    continue
+                if channel.topic == "/diagnostics":
+                    info.last_diagnostics = msg
+                elif channel.topic == "/daemon/status":
+                    info.last_status = msg
+                else:
+                    info.events.append((record.log_time, msg))
+        elif isinstance(record, Metadata):
+            info.metadata.append(record.name)
+    info.complete = scan.complete and not scan.truncated
+    info.truncated = scan.truncated
+    info.error = scan.error
+    return info
+
+
+def _fmt_time(ns: int) -> str:
+    import datetime as dt
+
+    return dt.datetime.fromtimestamp(ns / 1e9, dt.UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + "Z"
+
+
+def print_info(info: LogInfo, out: TextIO | None = None) -> None:
+    w = (out or sys.stdout).write
+    state = "complete" if info.complete else ("TRUNCATED" if info.truncated else "no summary")
+    w(f"{info.path}\n  {info.size} bytes, {state}")
+    if info.truncated:
+        w(f" (reading stopped: {info.error}); `forcemap log recover` rewrites it")
+    w("\n")
+    if info.start_ns:
+        dur = (info.end_ns - info.start_ns) / 1e9
+        w(f"  {_fmt_time(info.start_ns)} .. {_fmt_time(info.end_ns)}  ({dur:.1f} s)\n")
+    if info.metadata:
+        w(f"  metadata: {', '.join(info.metadata)}\n")
+    w(f"\n  {'topic':<30}{'schema':<28}{'messages':>10}{'rate/s':>9}\n")
+    for topic in sorted(info.topics):
+        ti = info.topics[topic]
+        span = (ti.last_ns - ti.first_ns) / 1e9
+        rate = (ti.count - 1) / span if span > 0 else 0.0
+        w(f"  {topic:<30}{ti.schema[:27]:<28}{ti.count:>10}{rate:>9.2f}\n")
+    outages = info.outages()
+    if outages:
+        w("\n  source outages:\n")
+        for o in outages:
+            length = "until the end" if o["length_s"] is None else f"{o['length_s']:.2f} s"
+            w(f"    {o['source']:<9}{_fmt_time(o['start_ns'])}  {length}  ({o['reason']})\n")
+    gaps = info.gaps()
+    if gaps:
+        w("\n  gaps in regular topics:\n")
+        for topic, start, length in gaps[:50]:
+            w(f"    {topic:<30}{_fmt_time(int(start * 1e9))}  {length:.2f} s\n")
+        if len(gaps) > 50:
+            w(f"    ... {len(gaps) - 50} more\n")
+    errors = info.error_counters()
+    if errors:
+        w("\n  errors, rejections and gaps (last recorded counters):\n")
+        for k in sorted(errors):
+            w(f"    {k:<50} {errors[k]}\n")
+    w("\n")
+
+
+def info_json(info: LogInfo) -> dict[str, Any]:
+    return {
+        "path": info.path,
+        "size": info.size,
+        "complete": info.complete,
+        "truncated": info.truncated,
+        "error": info.error,
+        "start_ns": info.start_ns,
+        "end_ns": info.end_ns,
+        "metadata": info.metadata,
+        "topics": {
+            t: {
+                "schema": ti.schema,
+                "count": ti.count,
+                "first_ns": ti.first_ns,
+                "last_ns": ti.last_ns,
+            }
+            for t, ti in info.topics.items()
+        },
+        "outages": info.outages(),
+        "gaps": [{"topic": t, "start": s, "length_s": g} for t, s, g in info.gaps()],
+        "errors": info.error_counters(),
+    }
+
+
+def recover(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> tuple[int, FileScan]:
+    """Copy every readable record of ``src`` into a new, complete ``dst``. Returns (messages, scan)."""
+    scan = FileScan(Path(src))
+    schema_ids: dict[int, int] = {}
+    channel_ids: dict[int, int] = {}
+    count = 0
+    tmp = Path(f"{dst}.tmp")
+    with open(tmp, "wb") as f:
+        writer = Writer(f, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
+        writer.start(profile="", library=f"{LIBRARY} log recover")
+        for record in iter_records(src, scan):
+            if isinstance(record, Schema):
+                if record.id not in schema_ids:
+                    schema_ids[record.id] = writer.register_schema(
+                        record.name, record.encoding, record.data
+                    )
+            elif isinstance(record, Message):
+                channel = scan.channels.get(record.channel_id)
+                if channel is None:
+                    continue
+                if channel.id not in channel_ids:
+                    channel_ids[channel.id] = writer.register_channel(
+                        channel.topic,
+                        channel.message_encoding,
+                        schema_ids.get(channel.schema_id, 0),
+                        dict(channel.metadata),
+                    )
+                writer.add_message(
+                    channel_ids[channel.id],
+                    record.log_time,
+                    record.data,
+                    record.publish_time,
+                    record.sequence,
+                )
+                count += 1
+            elif isinstance(record, Metadata):
+                writer.add_metadata(record.name, dict(record.metadata))
+        for att in scan.attachments:
+            writer.add_attachment(att.create_time, att.log_time, att.name, att.media_type, att.data)
+        writer.finish()
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, dst)
+    return count, scan
+
+
+def _default_output(path: str) -> str:
+    p = Path(path)
+    return str(p.with_name(p.stem + "-recovered" + p.suffix))
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.log_command == "info":
+        status = 0
+        infos: Iterable[LogInfo] = []
+        infos = []
+        for path in args.files:
+            try:
+                infos.append(scan_file(path))
+            except OSError as exc:
+                print(f"forcemap log info: {exc}", file=sys.stderr)
+                status = 1
+        if args.json:
+            json.dump([info_json(i) for i in infos], sys.stdout, indent=1)
+            sys.stdout.write("\n")
+        else:
+            for info in infos:
+                print_info(info)
+        return status
+    out = args.output or _default_output(args.file)
+    if os.path.abspath(out) == os.path.abspath(args.file):
+        print("forcemap log recover: the output must not be the input", file=sys.stderr)
+        return 2
+    try:
+        count, scan = recover(args.file, out)
+    except OSError as exc:
+        print(f"forcemap log recover: {exc}", file=sys.stderr)
+        return 1
+    state = f"truncated ({scan.error})" if scan.truncated else "complete"
+    print(f"{args.file}: {state}; wrote {count} messages to {out}")
+    return 0

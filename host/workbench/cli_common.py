@@ -1,0 +1,44 @@
+"""Shared CLI plumbing: table loading, error handling (one line, exit 2), JSON output."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from host.workbench.errors import WorkbenchError
+
+
+def add_table(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("table", type=Path, help="samples table: .csv, .parquet, or an .mcap log from `forcemap run`")
+
+
+def teach(parser: argparse.ArgumentParser, epilog: str) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = epilog
+
+
+def guarded(name: str, body: Callable[[], int]) -> int:
+    """Run a command body; bad input becomes one line on stderr and exit status 2, never a traceback."""
+    try:
+        return body()
+    except WorkbenchError as exc:
+        print(f"forcemap {name}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def write_json(path: Path | None, data: dict) -> None:
+    if path is None:
+        return
+    text = json.dumps(data, indent=2)
+    if str(path) == "-":
+        print(text)
+    else:
+        Path(path).write_text(text + "\n")
+
+
+def print_notes(survey) -> None:
+    for n in survey.notes:
+        print(f"note: {n}", file=sys.stderr)

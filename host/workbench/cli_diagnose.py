@@ -1,0 +1,68 @@
+"""`forcemap diagnose`: find which physical effect the current model of a target is missing."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from host.workbench.cli_common import add_table, guarded, print_notes, teach, write_json
+
+EPILOG = """\
+diagnose fits the current model of the target (the latest `forcemap fit` of it, or the paper's baseline),
+then adds a term in each candidate covariate in turn: every numeric column outside the target's own family,
+time (t), and derived ones (heading relative to the flow, a vector's own direction for its speed). It ranks
+them by how much the spatially blocked CV error falls, and tests whether the best gain is real (paired
+test over spatial blocks, Bonferroni over candidates, and at least a 5 % drop).
+
+Boat kinematics (sog, cog, crab, yaw_rate, throttle) respond to the current and wind being mapped, so at a
+held-out place they carry the answer: they are credited only with the gain that survives random folds,
+where the field around each held-out sample is known. Instrument errors that grow with boat speed or
+appear in turns survive that test; mere consequences do not.
+
+examples:
+  forcemap diagnose survey.csv --target current_speed
+  forcemap diagnose survey.csv --target wind_speed --json diag.json
+  forcemap fit survey.csv --target current_speed --effects depth   # add what diagnose found ...
+  forcemap diagnose survey.csv --target current_speed              # ... and look for the next effect
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    teach(parser, EPILOG)
+    add_table(parser)
+    parser.add_argument("--target", required=True, help="column to diagnose, e.g. current_speed")
+    parser.add_argument("--effects", help="start from baseline + these effects instead of the latest fit")
+    parser.add_argument("--model", help="start from this TOML model spec instead of the latest fit")
+    parser.add_argument("--baseline", action="store_true", help="start from the paper's baseline")
+    parser.add_argument("--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
+def run(args: argparse.Namespace) -> int:
+    def body() -> int:
+        from host.workbench.diagnose import diagnose
+        from host.workbench.fitting import resolve_terms
+        from host.workbench.model import small_blas
+        from host.workbench.spec import BASELINE
+        from host.workbench.table import load_survey
+        from host.workbench.workspace import current_terms, save_diagnosis, workspace_dir
+
+        survey = load_survey(args.table)
+        ws = workspace_dir(args.table)
+        if args.model or args.effects:
+            terms, _ = resolve_terms(args.model, args.effects, args.target)
+        elif args.baseline:
+            terms = list(BASELINE)
+        else:
+            terms = current_terms(ws, args.target) or list(BASELINE)
+        with small_blas():
+            result = diagnose(survey, args.target, terms, progress=not args.quiet)
+        print_notes(survey)
+        print(result.summary())
+        for name, why in result.skipped.items():
+            print(f"skipped {name}: {why}")
+        save_diagnosis(ws, args.target, result.details())
+        write_json(args.json, result.to_json())
+        return 0
+
+    return guarded("diagnose", body)

@@ -1,0 +1,47 @@
+"""`forcemap history`: every fit of a survey with its CV error, as a table and a PNG plot."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from host.workbench.cli_common import add_table, guarded, teach
+
+EPILOG = """\
+Every `forcemap fit` of the table is recorded in TABLE.forcemap/history.json. history prints them and
+plots the CV RMSE of each target relative to its first fit, so you see the error fall as effects are added.
+
+examples:
+  forcemap history survey.csv
+  forcemap history survey.csv --plot errors.png
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    teach(parser, EPILOG)
+    add_table(parser)
+    parser.add_argument("--plot", type=Path, help="where to write the plot (default TABLE.forcemap/history.png)")
+
+
+def run(args: argparse.Namespace) -> int:
+    def body() -> int:
+        from host.workbench.errors import WorkbenchError
+        from host.workbench.workspace import load_history, workspace_dir
+
+        ws = workspace_dir(args.table, create=False)
+        history = load_history(ws)
+        if not history:
+            raise WorkbenchError(f"no fits recorded for {args.table}; run `forcemap fit {args.table} --target ...` first")
+        print(f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms")
+        for h in history:
+            print(
+                f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "
+                f"{h['cv_mae']:>9.4g} {h['coverage95']:>6.1%}  {' + '.join(h['terms'])}"
+            )
+        from host.workbench import plots
+
+        path = plots.save(plots.history_figure(history), args.plot or ws / "history.png")
+        print(f"wrote {path}")
+        return 0
+
+    return guarded("history", body)

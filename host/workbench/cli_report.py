@@ -1,0 +1,45 @@
+"""`forcemap report`: write a self-contained HTML report of a survey's maps, residuals, diagnosis and history."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from host.workbench.cli_common import add_table, guarded, print_notes, teach
+
+EPILOG = """\
+The report shows the measurements on the map; the model's mean and uncertainty (wind and current as
+arrows, depth as contours); residual maps and residual-against-covariate panels of every fitted target;
+the ranked missing effects from `forcemap diagnose`; and the error history of `forcemap fit`.
+Images are embedded, so the one file can be mailed or archived.
+
+examples:
+  forcemap report survey.csv
+  forcemap report survey.csv -o river-2026-05-01.html
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    teach(parser, EPILOG)
+    add_table(parser)
+    parser.add_argument("-o", "--output", type=Path, help="HTML file to write (default TABLE.forcemap/report.html)")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
+def run(args: argparse.Namespace) -> int:
+    def body() -> int:
+        from host.workbench.model import small_blas
+        from host.workbench.report import build_report
+        from host.workbench.table import load_survey
+        from host.workbench.workspace import workspace_dir
+
+        survey = load_survey(args.table)
+        with small_blas():
+            text = build_report(args.table, survey, progress=not args.quiet)
+        print_notes(survey)
+        out = args.output or workspace_dir(args.table) / "report.html"
+        out.write_text(text)
+        print(f"wrote {out.resolve()}")
+        return 0
+
+    return guarded("report", body)

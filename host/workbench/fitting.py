@@ -1,0 +1,106 @@
+"""Fit a target on a survey, cross-validate it, describe where it fails, and record it in the workspace."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, random_folds
+from host.workbench.failures import failure_summary
+from host.workbench.progress import note
+from host.workbench.spec import BASELINE, read_spec_file, split_effects
+from host.workbench.table import Survey
+from host.workbench.targets import SurveyModel
+from host.workbench.workspace import record_fit, workspace_dir
+
+
+def resolve_terms(model: str | None, effects: str | None, target: str | None) -> tuple[list[str], str | None]:
+    """Terms from a TOML spec (or the paper's baseline), plus `--effects`; and the spec's target, if any."""
+    terms, spec_target = (read_spec_file(model) if model else (list(BASELINE), None))
+    terms = terms + [e for e in split_effects(effects) if e not in terms]
+    return terms, target or spec_target
+
+
+def make_folds(survey: Survey, kind: str, k: int = DEFAULT_FOLDS, seed: int = 0) -> np.ndarray:
+    return blocked_folds(survey.xy, k, seed)[0] if kind == "blocked" else random_folds(survey.n, k, seed)
+
+
+@dataclass
+class FitResult:
+    model: SurveyModel
+    cv: CVResult
+    folds: str
+    failures: list[str]
+
+    def to_json(self) -> dict:
+        """The stable machine-readable contract."""
+        return {
+            "target": self.model.target,
+            "terms": self.model.terms,
+            "cv_rmse": self.cv.rmse,
+            "cv_mae": self.cv.mae,
+            "coverage95": self.cv.coverage95,
+        }
+
+    def summary(self) -> str:
+        m = self.model
+        unit = " deg" if m.circular else ""
+        lines = [
+            f"target {m.target} ({m.survey.n} samples{', modelled through its east/north components' if m.secondary is not None else ''})",
+            f"model  {' + '.join(m.terms)}",
+            f"{self.folds} {DEFAULT_FOLDS}-fold CV: RMSE {self.cv.rmse:.4g}{unit}, MAE {self.cv.mae:.4g}{unit}, "
+            f"95 % interval coverage {self.cv.coverage95:.1%}",
+        ]
+        if self.folds == "random":
+            lines.append("  (random folds put along-track neighbours in the training set: they flatter every model)")
+        lines.append("fitted parameters:")
+        for term, params in m.primary.params_.items():
+            lines.append(f"  {term}: " + ", ".join(f"{k}={v:.4g}" for k, v in params.items()))
+        lines.append("where the model fails most (held-out residuals):")
+        lines += [f"  {s}" for s in self.failures]
+        return "\n".join(lines)
+
+
+def fit_target(
+    survey: Survey, target: str, terms: list[str], folds: str = "blocked", progress: bool = True
+) -> FitResult:
+    note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples ...", progress)
+    sm = SurveyModel(survey, target, terms).fit()
+    note(f"cross-validating ({folds} folds) ...", progress)
+    cv = sm.cv(make_folds(survey, folds))
+    unit = " deg" if sm.circular else ""
+    return FitResult(sm, cv, folds, failure_summary(survey, cv.error, unit))
+
+
+def record(table: Path, result: FitResult) -> dict:
+    """Save the fit in the survey workspace and append it to the history."""
+    ws = workspace_dir(table)
+    m = result.model
+    model = {
+        "params": m.primary.params_,
+        "theta": [float(v) for v in m.primary.theta_],
+        "log_marginal_likelihood": m.primary.log_marginal_likelihood_,
+        "n": m.survey.n,
+    }
+    entry = {**result.to_json(), "folds": result.folds, "n": m.survey.n}
+    return record_fit(ws, entry, model)
+
+
+def save_residual_plots(table: Path, result: FitResult, fit_no: int) -> list[Path]:
+    from host.workbench import plots
+
+    ws = workspace_dir(table)
+    m = result.model
+    stem = f"fit-{fit_no:03d}-{m.target}"
+    extra = [i for s in m.term_specs for i in s.inputs if i not in ("position",)]
+    p1 = plots.save(
+        plots.scatter_map(m.survey, result.cv.error, f"{m.target}: held-out residuals", "residual", "RdBu_r", True),
+        ws / f"{stem}-residual-map.png",
+    )
+    p2 = plots.save(
+        plots.residual_panels(m.survey, result.cv.error, extra, f"{m.target}: held-out residual against covariates"),
+        ws / f"{stem}-residual-panels.png",
+    )
+    return [p1, p2]

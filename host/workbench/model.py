@@ -1,0 +1,485 @@
+"""The estimator: a sum of terms fitted as Bayesian linear regression in their features, hyperparameters by
+type-II maximum likelihood (L-BFGS on log-parameters with analytic gradients from sufficient statistics).
+
+`Model(terms).fit(X, y)` / `.predict(X, return_std=True)` / `.params_`, scikit-learn style. `X` maps input
+names to arrays: "position" -> (n, 2) metres, any covariate -> (n,).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import math
+from collections.abc import Iterator, Mapping, Sequence
+
+import numpy as np
+from scipy import linalg
+from scipy.optimize import minimize
+
+from host.workbench.errors import WorkbenchError
+from host.workbench.terms import HilbertGPTerm, Term, TermSpec
+
+LOG_2PI = math.log(2 * math.pi)
+NOISE_BOUNDS = (math.log(1e-8), math.log(10.0))
+CHUNK = 8192
+
+
+@contextlib.contextmanager
+def blas_threads(n: int | None) -> Iterator[None]:
+    """Limit BLAS threads (None: no limit). Without threadpoolctl this is a no-op."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        yield
+        return
+    with threadpool_limits(limits=n, user_api="blas"):
+        yield
+
+
+def small_blas():
+    """One BLAS thread for the many small (M x M) factorizations: threads only add overhead there, and a lot
+    of it on a busy 2-core machine."""
+    return blas_threads(1)
+
+
+def term_inputs(term: Term, X: Mapping[str, np.ndarray]) -> np.ndarray:
+    if not term.inputs:
+        n = len(np.asarray(next(iter(X.values()))))
+        return np.zeros((n, 0))
+    cols = []
+    for name in term.inputs:
+        if name not in X:
+            raise WorkbenchError(f"term {term.describe()} needs input '{name}', which is not available")
+        v = np.asarray(X[name], float)
+        cols.append(v.reshape(len(v), -1))
+    return np.hstack(cols)
+
+
+class Design:
+    """Feature blocks of the training data with their Gram matrix, and cached per-fold Gram matrices."""
+
+    def __init__(self, blocks: list[np.ndarray]) -> None:
+        self.blocks = blocks
+        self.sizes = [b.shape[1] for b in blocks]
+        with blas_threads(None):
+            self.G = np.vstack([np.hstack([a.T @ b for b in blocks]) for a in blocks]) if blocks else np.zeros((0, 0))
+        self._folds: dict[str, list[np.ndarray]] = {}
+        self._fold_ids: dict[str, np.ndarray] = {}
+
+    @property
+    def n(self) -> int:
+        return self.blocks[0].shape[0]
+
+    @property
+    def M(self) -> int:
+        return sum(self.sizes)
+
+    def rmatvec(self, r: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        return np.concatenate([b[rows].T @ r for b in self.blocks])
+
+    def matvec(self, w: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        out, i = 0.0, 0
+        for b, m in zip(self.blocks, self.sizes, strict=True):
+            out = out + b[rows] @ w[i : i + m]
+            i += m
+        return out
+
+    def rows(self, rows: np.ndarray) -> np.ndarray:
+        return np.hstack([b[rows] for b in self.blocks])
+
+    def augment(self, new: np.ndarray) -> Design:
+        """The design with one more feature block; reuses this Gram matrix and its fold Grams."""
+        d = Design.__new__(Design)
+        d.blocks, d.sizes = self.blocks + [new], self.sizes + [new.shape[1]]
+        cross = np.vstack([b.T @ new for b in self.blocks])
+        d.G = np.block([[self.G, cross], [cross.T, new.T @ new]])
+        d._folds = {}
+        for key, grams in self._folds.items():
+            folds = self._fold_ids[key]
+            d._folds[key] = []
+            for f, Gf in zip(np.unique(folds), grams, strict=True):
+                idx = folds == f
+                nf = new[idx]
+                cf = np.vstack([b[idx].T @ nf for b in self.blocks])
+                d._folds[key].append(np.block([[Gf, cf], [cf.T, nf.T @ nf]]))
+        d._fold_ids = dict(self._fold_ids)
+        return d
+
+    def fold_grams(self, folds: np.ndarray) -> list[np.ndarray]:
+        key = hashlib.sha1(np.ascontiguousarray(folds).tobytes()).hexdigest()
+        if key not in self._folds:
+            grams = []
+            for f in np.unique(folds):
+                X = self.rows(folds == f)
+                grams.append(X.T @ X)
+            self._folds[key] = grams
+            self._fold_ids[key] = folds
+        return self._folds[key]
+
+
+def evidence(G, b, rr, n, loglam, logsn2, grad=True):
+    """Log marginal likelihood of y = Phi w + e, w ~ N(0, diag(lam)), e ~ N(0, sn2 I) from the statistics
+    G = Phi'Phi, b = Phi'y, rr = y'y; with its gradient by log(lam) and log(sn2), and the posterior."""
+    lam = np.exp(loglam)
+    s = np.sqrt(lam)
+    sn2 = math.exp(logsn2)
+    B = (s[:, None] * G * s[None, :]) / sn2
+    B[np.diag_indices_from(B)] += 1.0
+    L, _ = linalg.cho_factor(B, lower=True, check_finite=False)
+    c = s * b
+    alpha = linalg.cho_solve((L, True), c, check_finite=False)
+    quad = (rr - c @ alpha / sn2) / sn2
+    logdet = n * logsn2 + 2.0 * np.log(np.diag(L)).sum()
+    logp = -0.5 * (quad + logdet + n * LOG_2PI)
+    mu = s * alpha / sn2
+    post = {"L": L, "s": s, "mu": mu, "sn2": sn2}
+    if not grad:
+        return logp, None, None, post
+    Linv, info = linalg.lapack.dpotri(L, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("dpotri failed")
+    dBinv = np.diag(Linv).copy()
+    g_lam = 0.5 * (mu**2 / lam + dBinv - 1.0)
+    resid2 = rr - 2.0 * mu @ b + mu @ G @ mu
+    g_sn2 = 0.5 * (-n + resid2 / sn2 + len(mu) - dBinv.sum())
+    return logp, g_lam, g_sn2, post
+
+
+class Model:
+    """A sum of terms. Feature terms (GPs, linear, cosine) are Bayesian linear regression in fixed features;
+    mean terms (power law, user functions) are subtracted with parameters fitted by marginal likelihood."""
+
+    def __init__(self, terms: Sequence[Term | TermSpec | str], max_iter: int = 300) -> None:
+        from host.workbench.spec import build_term, parse_term
+        from host.workbench.table import is_circular
+
+        built: list[Term] = []
+        for t in terms:
+            if isinstance(t, str):
+                t = parse_term(t, is_circular)
+            if isinstance(t, TermSpec):
+                t = build_term(t, is_circular)
+            built.append(t)
+        if not built:
+            raise WorkbenchError("a model needs at least one term")
+        self.terms = built
+        self.max_iter = max_iter
+
+    # ---- layout of the parameter vector: [log noise] + feature-term log-hypers + mean-term thetas
+    def _layout(self) -> None:
+        self.feat_terms = [t for t in self.terms if not t.is_mean]
+        self.mean_terms = [t for t in self.terms if t.is_mean]
+        self.h_slices, i = [], 1
+        for t in self.feat_terms:
+            k = len(t.hypers())
+            self.h_slices.append(slice(i, i + k))
+            i += k
+        self.m_slices = []
+        for t in self.mean_terms:
+            k = len(t.theta_init())
+            self.m_slices.append(slice(i, i + k))
+            i += k
+        self.n_params = i
+
+    def _bounds(self) -> list[tuple[float, float]]:
+        b = [NOISE_BOUNDS]
+        for t in self.feat_terms:
+            b += [(h.lo, h.hi) for h in t.hypers()]
+        for t in self.mean_terms:
+            b += t.theta_bounds()
+        return b
+
+    def _init(self, y: np.ndarray) -> np.ndarray:
+        theta = [math.log(0.1)]
+        for t in self.feat_terms:
+            hs = t.hypers()
+            vals = [h.init for h in hs]
+            if t.describe() == "const":
+                vals[0] = math.log((np.mean(y) / self.y_scale) ** 2 + 1.0)
+            theta += vals
+        for t in self.mean_terms:
+            theta += list(t.theta_init())
+        return np.array(theta, float)
+
+    def _loglam(self, theta: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+        logs, ders = [], []
+        for t, sl in zip(self.feat_terms, self.h_slices, strict=True):
+            lv, d = t.log_prior_var(theta[sl])
+            logs.append(lv)
+            ders.append(d)
+        return np.concatenate(logs), ders
+
+    def _mean(self, Zs: list[np.ndarray], theta: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(Zs[0]) if Zs else 0)
+        for t, sl, Z in zip(self.mean_terms, self.m_slices, Zs, strict=True):
+            out = out + t.mean(Z, theta[sl])
+        return out
+
+    def _objective(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
+        loglam, ders = self._loglam(theta)
+        if self.mean_terms:
+            r = (self._y - self._mean(self._Zmean, theta)) / self.y_scale
+            b, rr = self.design.rmatvec(r), float(r @ r)
+        else:
+            r, b, rr = None, self._b, self._rr
+        try:
+            logp, g_lam, g_sn2, post = evidence(self.design.G, b, rr, self.design.n, loglam, theta[0])
+        except (np.linalg.LinAlgError, ValueError):
+            return 1e25, np.zeros_like(theta)
+        grad = np.zeros_like(theta)
+        grad[0] = g_sn2
+        i = 0
+        for sl, d in zip(self.h_slices, ders, strict=True):
+            m = d.shape[0]
+            grad[sl] = g_lam[i : i + m] @ d
+            i += m
+        if self.mean_terms:
+            sinv_r = (r - self.design.matvec(post["mu"])) / post["sn2"]
+            for t, sl, Z in zip(self.mean_terms, self.m_slices, self._Zmean, strict=True):
+                th = theta[sl]
+                base = t.mean(Z, th)
+                for k in range(len(th)):
+                    step = 1e-6 * max(1.0, abs(th[k]))
+                    th2 = th.copy()
+                    th2[k] += step
+                    dm = (t.mean(Z, th2) - base) / step / self.y_scale
+                    grad[sl.start + k] = sinv_r @ dm
+        if not np.isfinite(logp) or not np.all(np.isfinite(grad)):
+            return 1e25, np.zeros_like(theta)
+        return -logp, -grad
+
+    def _prepare(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design | None) -> None:
+        y = np.asarray(y, float)
+        if not np.all(np.isfinite(y)):
+            raise WorkbenchError("the target has missing or non-finite values")
+        self.y_scale = float(np.std(y)) or 1.0
+        self._y = y
+        if design is None:
+            blocks = []
+            for t in self.terms:
+                Z = term_inputs(t, X)
+                t.setup(Z)
+                if not t.is_mean:
+                    blocks.append(t.features(Z))
+            design = Design(blocks)
+        self._layout()
+        self._Zmean = [term_inputs(t, X) for t in self.mean_terms]
+        self.design = design
+        r = y / self.y_scale
+        self._b, self._rr = design.rmatvec(r), float(r @ r)
+
+    def _search_lengthscale(self, theta: np.ndarray) -> np.ndarray:
+        """Start L-BFGS from the best of a few lengthscales for the first GP term (avoids poor local optima)."""
+        for t, sl in zip(self.feat_terms, self.h_slices, strict=True):
+            if isinstance(t, HilbertGPTerm):
+                lo, hi = math.log(t.l_min * 1.1), math.log(2.0 * float(t.half.max()))
+                best, best_val = theta, self._objective(theta)[0]
+                for logl in np.linspace(lo, hi, 7):
+                    trial = theta.copy()
+                    trial[sl.start + 1] = logl
+                    val = self._objective(trial)[0]
+                    if val < best_val:
+                        best, best_val = trial, val
+                return best
+        return theta
+
+    def fit(
+        self,
+        X: Mapping[str, np.ndarray],
+        y: np.ndarray,
+        init: np.ndarray | None = None,
+        optimize: bool = True,
+        design: Design | None = None,
+    ) -> Model:
+        """Fit hyperparameters by marginal likelihood (from `init` if given) and the posterior over weights."""
+        self._prepare(X, y, design)
+        theta = self._init(y) if init is None else np.asarray(init, float).copy()
+        if len(theta) != self.n_params:
+            raise WorkbenchError("initial hyperparameters do not match the model's terms")
+        bounds = self._bounds()
+        theta = np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds])
+        if optimize:
+            with small_blas():
+                if init is None:
+                    theta = self._search_lengthscale(theta)
+                res = minimize(
+                    self._objective,
+                    theta,
+                    jac=True,
+                    method="L-BFGS-B",
+                    bounds=bounds,
+                    options={"maxiter": self.max_iter},
+                )
+            theta = res.x
+            self.n_iter_ = int(res.nit)
+        self._set_posterior(theta)
+        return self
+
+    def _set_posterior(self, theta: np.ndarray) -> None:
+        with small_blas():
+            self._set_posterior_inner(theta)
+
+    def _set_posterior_inner(self, theta: np.ndarray) -> None:
+        self.theta_ = theta
+        loglam, _ = self._loglam(theta)
+        if self.mean_terms:
+            r = (self._y - self._mean(self._Zmean, theta)) / self.y_scale
+            self._r = r
+            self._b, self._rr = self.design.rmatvec(r), float(r @ r)
+        else:
+            self._r = self._y / self.y_scale
+        logp, _, _, post = evidence(self.design.G, self._b, self._rr, self.design.n, loglam, theta[0], grad=False)
+        self.log_marginal_likelihood_ = float(logp)
+        self._post = post
+        self._loglam_ = loglam
+
+    @property
+    def noise_std_(self) -> float:
+        return math.sqrt(math.exp(self.theta_[0])) * self.y_scale
+
+    @property
+    def params_(self) -> dict[str, dict[str, float]]:
+        """Fitted parameters of every term, plus the noise standard deviation, in the target's units."""
+        out: dict[str, dict[str, float]] = {"noise": {"std": self.noise_std_}}
+        i = 0
+        for t, sl, m in zip(self.feat_terms, self.h_slices, self.design.sizes, strict=True):
+            w = self._post["mu"][i : i + m] * self.y_scale
+            p = t.params(self.theta_[sl], w)
+            if "variance" in p:
+                p["std"] = math.sqrt(p.pop("variance")) * self.y_scale
+            out[t.describe()] = p
+            i += m
+        for t, sl in zip(self.mean_terms, self.m_slices, strict=True):
+            out[t.describe()] = t.params(self.theta_[sl], np.zeros(0))
+        return out
+
+    def features(self, X: Mapping[str, np.ndarray]) -> list[np.ndarray]:
+        return [t.features(term_inputs(t, X)) for t in self.feat_terms]
+
+    def _predict_rows(self, blocks: list[np.ndarray], mean_part: np.ndarray, post: dict, return_std: bool):
+        Phi = np.hstack(blocks)
+        mu = Phi @ post["mu"] * self.y_scale + mean_part
+        if not return_std:
+            return mu, None
+        V = linalg.solve_triangular(post["L"], (Phi * post["s"]).T, lower=True, check_finite=False)
+        var = (V**2).sum(axis=0) * self.y_scale**2
+        return mu, np.sqrt(np.maximum(var, 0.0))
+
+    def predict(self, X: Mapping[str, np.ndarray], return_std: bool = False, include_noise: bool = False):
+        """Posterior mean (and standard deviation of the latent field, or of a new observation)."""
+        with small_blas():
+            return self._predict(X, return_std, include_noise)
+
+    def _predict(self, X, return_std, include_noise):
+        n = len(next(iter(X.values())))
+        means, stds = np.empty(n), np.empty(n)
+        for a in range(0, n, CHUNK):
+            Xc = {k: np.asarray(v)[a : a + CHUNK] for k, v in X.items()}
+            mean_part = self._mean([term_inputs(t, Xc) for t in self.mean_terms], self.theta_) if self.mean_terms else 0.0
+            mu, sd = self._predict_rows(self.features(Xc), mean_part, self._post, return_std)
+            means[a : a + CHUNK] = mu
+            if return_std:
+                stds[a : a + CHUNK] = sd
+        if not return_std:
+            return means
+        if include_noise:
+            stds = np.sqrt(stds**2 + self.noise_std_**2)
+        return means, stds
+
+    def cv_predict(self, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Held-out mean and latent std (add `noise_std_` for a new observation) for every sample, refitting the weights per fold
+        with the hyperparameters fixed: each fold costs O(M^3) via Gram downdates, not a new pass over the data."""
+        grams = self.design.fold_grams(folds)
+        sn2 = math.exp(self.theta_[0])
+        loglam = self._loglam_
+        mean_part = self._y - self._r * self.y_scale
+        mu_out, sd_out = np.empty(self.design.n), np.empty(self.design.n)
+        with small_blas():
+            self._cv_loop(folds, grams, loglam, sn2, mean_part, mu_out, sd_out)
+        return mu_out, sd_out
+
+    def _cv_loop(self, folds, grams, loglam, sn2, mean_part, mu_out, sd_out) -> None:
+        for f, Gf in zip(np.unique(folds), grams, strict=True):
+            test = folds == f
+            b_tr = self._b - self.design.rmatvec(self._r[test], test)
+            G_tr = self.design.G - Gf
+            rr = float(self._r[~test] @ self._r[~test])
+            _, _, _, post = evidence(G_tr, b_tr, rr, int((~test).sum()), loglam, self.theta_[0], grad=False)
+            blocks = [b[test] for b in self.design.blocks]
+            mu, sd = self._predict_rows(blocks, mean_part[test], post, True)
+            mu_out[test] = mu
+            sd_out[test] = sd
+
+    def extended(self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray, refit: str = "new") -> Model:
+        """A new model with one more feature term, sharing this model's design (only cross products are new).
+
+        refit="new": this model's hyperparameters stay fixed; the new term's and the noise are fitted by marginal
+        likelihood through an eigendecomposition of the old block and a Schur complement, O(M m^2) per
+        evaluation (forward selection). refit="all": every hyperparameter, from this model's values."""
+        if term.is_mean:
+            raise WorkbenchError("extended() takes a feature term")
+        Z = term_inputs(term, X)
+        term.setup(Z)
+        new = Model(self.feat_terms + [term] + self.mean_terms, max_iter=self.max_iter)
+        design = self.design.augment(term.features(Z))
+        cut = self.h_slices[-1].stop
+        init = np.concatenate([self.theta_[:cut], [h.init for h in term.hypers()], self.theta_[cut:]])
+        if refit == "all":
+            return new.fit(X, y, init=init, design=design)
+        new.fit(X, y, init=init, optimize=False, design=design)
+        k = len(term.hypers())
+        free = np.r_[0, np.arange(cut, cut + k)]
+        theta = self._fit_new_block(new, init, free, term)
+        new._set_posterior(theta)
+        return new
+
+    def _fit_new_block(self, new: Model, init: np.ndarray, free: np.ndarray, term: Term) -> np.ndarray:
+        M = self.design.M
+        G, b, rr, n = new.design.G, new._b, new._rr, new.design.n
+        if not hasattr(self, "_eig"):
+            sb = np.sqrt(np.exp(self._loglam_))
+            D, Q = np.linalg.eigh(sb[:, None] * self.design.G * sb[None, :])
+            self._eig = (np.maximum(D, 0.0), Q, sb)
+        D, Q, sb = self._eig
+        P = Q.T @ (sb[:, None] * G[:M, M:])
+        q = Q.T @ (sb * b[:M])
+        Gcc, bc = G[M:, M:], b[M:]
+
+        def neglogp(params: np.ndarray) -> float:
+            logsn2, h = params[0], params[1:]
+            sn2 = math.exp(logsn2)
+            logl, _ = term.log_prior_var(h)
+            sc = np.sqrt(np.exp(logl))
+            E = 1.0 + D / sn2
+            Bcb = sc[:, None] * P.T / sn2
+            S = np.eye(len(sc)) + (sc[:, None] * Gcc * sc[None, :]) / sn2 - (Bcb / E) @ Bcb.T
+            try:
+                L = linalg.cho_factor(S, lower=True, check_finite=False)
+            except np.linalg.LinAlgError:
+                return 1e25
+            c2 = sc * bc
+            x1 = q / E
+            y2 = linalg.cho_solve(L, c2 - Bcb @ x1, check_finite=False)
+            x1 = (q - Bcb.T @ y2) / E
+            quad = q @ x1 + c2 @ y2
+            logdet = np.log(E).sum() + 2.0 * np.log(np.diag(L[0])).sum()
+            val = 0.5 * ((rr - quad / sn2) / sn2 + n * logsn2 + logdet + n * LOG_2PI)
+            return float(val) if np.isfinite(val) else 1e25
+
+        bounds = [new._bounds()[i] for i in free]
+        start = init[free]
+        best = min(
+            (start.copy() for _ in range(1)),
+            key=neglogp,
+        )
+        if isinstance(term, HilbertGPTerm):
+            for logl in np.linspace(math.log(term.l_min * 1.1), math.log(2.0 * float(term.half.max())), 5):
+                trial = start.copy()
+                trial[2] = logl
+                if neglogp(trial) < neglogp(best):
+                    best = trial
+        with small_blas():
+            res = minimize(neglogp, best, method="L-BFGS-B", bounds=bounds, options={"maxiter": 100})
+        theta = init.copy()
+        theta[free] = res.x
+        return theta

@@ -1,0 +1,209 @@
+"""A small synthetic river survey with known hidden effects, for tests and the benchmark until the simulator lands.
+
+`make_survey(scenario, effects, seed, duration_s, out_dir)` has the signature of
+`sim_devices.offline.make_survey` and writes a samples table (CSV, the columns of docs/CONVENTIONS.md) with a
+`truth/effects.json` beside it. The boat is kinematic: it holds 3 m/s through the water, crabs to keep a
+lawnmower track parallel to the flow, and turns at a limited rate, so sog, cog and the crab angle respond to the
+current exactly as on the water.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+EFFECTS = (
+    "depth_current",
+    "dam_release",
+    "gusts",
+    "bank_shelter",
+    "wheel_misalignment",
+    "anemometer_upwash",
+    "compass_deviation",
+    "clock_offset",
+)
+LAT0, LON0, T0 = 33.95, -81.05, 1_700_000_000.0
+HALF_LENGTH, HALF_WIDTH = 300.0, 75.0
+BOAT_SPEED = 3.0
+MAX_TURN_RATE = 20.0  # deg/s
+RATE_HZ = 1.0
+
+
+def depth_field(x, y):
+    """Thalweg meandering along the reach, plus sand bars of ~80 m: 0.5-6 m."""
+    centre = 25.0 * np.sin(2 * np.pi * x / 500.0)
+    channel = 4.5 * np.exp(-(((y - centre) / 45.0) ** 2))
+    bars = 1.1 * np.sin(2 * np.pi * x / 85.0 + 0.7) * np.cos(2 * np.pi * y / 60.0)
+    return np.clip(0.8 + channel + bars, 0.5, 6.0)
+
+
+def current_field(x, y, t, effects, duration):
+    """Velocity of the water (m/s east, north): down the reach (east), strongest mid-channel."""
+    centre = 25.0 * np.sin(2 * np.pi * x / 500.0)
+    speed = 1.2 + 0.8 * np.exp(-(((y - centre) / 60.0) ** 2))
+    if "depth_current" in effects:
+        d = depth_field(x, y)
+        speed = speed * (d / 3.0) ** (2.0 / 3.0)
+    if "dam_release" in effects:
+        speed = speed * (0.75 + 0.5 / (1 + np.exp(-(t - 0.5 * duration) / (0.12 * duration))))
+    slope = 25.0 * 2 * np.pi / 500.0 * np.cos(2 * np.pi * x / 500.0)
+    ang = np.arctan(slope)
+    return speed * np.cos(ang), speed * np.sin(ang)
+
+
+def wind_field(x, y, t, effects, duration, rng_phase):
+    """Velocity of the air (m/s east, north). Wind FROM ~250 deg, 7 m/s, gently varying in space."""
+    from_dir = 250.0 + 8.0 * np.sin(x / 200.0)
+    if "bank_shelter" in effects:
+        from_dir = 200.0 + 200.0 * (t / duration)  # veers from SSW through W to NNE
+    speed = 7.0 + 0.6 * np.cos(y / 60.0 + 0.3) + 0.4 * np.sin(x / 150.0)
+    if "gusts" in effects:
+        g = sum(np.sin(2 * np.pi * t / p + ph) for p, ph in zip((900.0, 1500.0, 2300.0), rng_phase, strict=True))
+        speed = speed * (1.0 + 0.12 * g)
+    if "bank_shelter" in effects:
+        from_north = np.clip(np.cos(np.radians(from_dir)), 0.0, None)
+        lee = np.exp(-(HALF_WIDTH - y) / 50.0)
+        speed = speed * (1.0 - 0.6 * from_north * lee)
+    rad = np.radians(from_dir)
+    return -speed * np.sin(rad), -speed * np.cos(rad)
+
+
+def _waypoints(spacing: float = 15.0) -> list[tuple[float, float]]:
+    ys = np.arange(-HALF_WIDTH + 10.0, HALF_WIDTH - 9.0, spacing)
+    pts = []
+    for i, yy in enumerate(ys):
+        xs = (-HALF_LENGTH + 15.0, HALF_LENGTH - 15.0)
+        if i % 2:
+            xs = xs[::-1]
+        pts += [(xs[0], yy), (xs[1], yy)]
+    return pts
+
+
+def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str, np.ndarray]:
+    """Run the lawnmower mission and return the samples-table columns."""
+    rng = np.random.default_rng(seed)
+    effects = set(effects)
+    unknown = effects - set(EFFECTS)
+    if unknown:
+        raise ValueError(f"unknown effect(s): {sorted(unknown)}")
+    phase = rng.uniform(0, 2 * np.pi, 3)
+    dt = 1.0 / rate_hz
+    n = int(duration_s * rate_hz)
+    wps = _waypoints()
+    start = int(rng.integers(0, len(wps) // 2)) * 2
+    wps = wps[start:] + wps[:start]
+    p = np.array(wps[0], float)
+    h = 90.0 if wps[1][0] > wps[0][0] else 270.0
+    k = 1
+    P, H, VB, C = np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty((n, 2))
+    for i in range(n):
+        t = i * dt
+        ce, cn = current_field(p[0], p[1], t, effects, duration_s)
+        c = np.array([float(ce), float(cn)])
+        target = np.array(wps[k % len(wps)])
+        to = target - p
+        if np.hypot(*to) < 8.0:
+            k += 1
+            target = np.array(wps[k % len(wps)])
+            to = target - p
+        d = to / max(np.hypot(*to), 1e-9)
+        perp = np.array([d[1], -d[0]])
+        s = np.clip(-(c @ perp) / BOAT_SPEED, -0.9, 0.9)
+        course = math.degrees(math.atan2(d[0], d[1]))
+        desired = course + math.degrees(math.asin(s))
+        err = (desired - h + 180.0) % 360.0 - 180.0
+        h = (h + float(np.clip(err, -MAX_TURN_RATE * dt, MAX_TURN_RATE * dt))) % 360.0
+        hv = np.array([math.sin(math.radians(h)), math.cos(math.radians(h))])
+        vb = BOAT_SPEED * hv + c
+        P[i], H[i], VB[i], C[i] = p, h, vb, c
+        p = p + vb * dt
+    t = np.arange(n) * dt
+    x, y = P[:, 0], P[:, 1]
+    yaw = np.gradient(np.unwrap(np.radians(H))) / dt
+    yaw_rate = np.degrees(yaw)
+    # measured heading, with compass deviation if on
+    h_meas = H.copy()
+    if "compass_deviation" in effects:
+        h_meas = (H + 7.0 * np.sin(np.radians(H + 40.0))) % 360.0
+    dh = np.radians(h_meas - H)
+
+    def rot(v, a):
+        return np.column_stack([v[:, 0] * np.cos(a) + v[:, 1] * np.sin(a), -v[:, 0] * np.sin(a) + v[:, 1] * np.cos(a)])
+
+    # paddle wheels: water velocity relative to the hull, measured in the boat frame, rotated with the measured heading
+    F = C - VB
+    F_meas = rot(F, dh) + 0.06 * rng.standard_normal((n, 2))
+    if "wheel_misalignment" in effects:
+        starboard = np.column_stack([np.cos(np.radians(H)), -np.sin(np.radians(H))])
+        F_meas = F_meas + 0.25 * starboard
+    sog_true = np.hypot(VB[:, 0], VB[:, 1])
+    vb_meas = VB + 0.03 * rng.standard_normal((n, 2))
+    vb_used = vb_meas
+    if "clock_offset" in effects:
+        shift = int(round(1.0 * rate_hz)) or 1
+        vb_used = np.vstack([vb_meas[:1].repeat(shift, axis=0), vb_meas[:-shift]])
+    C_meas = F_meas + vb_used
+    # anemometer: the air's velocity relative to the boat
+    W = np.column_stack(wind_field(x, y, t, effects, duration_s, phase))
+    R = W - VB
+    R_meas = rot(R, dh) + 0.25 * rng.standard_normal((n, 2))
+    if "anemometer_upwash" in effects:
+        R_meas = R_meas * (1.0 + 0.09 * sog_true)[:, None]
+    W_meas = R_meas + vb_meas
+    depth_true = depth_field(x, y)
+    depth = depth_true + 0.05 * rng.standard_normal(n)
+    sog = np.hypot(vb_meas[:, 0], vb_meas[:, 1])
+    cog = np.degrees(np.arctan2(vb_meas[:, 0], vb_meas[:, 1])) % 360.0
+    app_from = np.degrees(np.arctan2(-R_meas[:, 0], -R_meas[:, 1]))
+    app_angle = (app_from - h_meas + 180.0) % 360.0 - 180.0
+    F_boat = rot(F_meas, np.radians(h_meas))  # (starboard, forward) components of the relative water
+    axes = np.radians([45.0, 135.0, 225.0, 315.0])
+    wheels = {f"wheel{i + 1}_speed": np.abs(F_boat[:, 0] * np.sin(a) + F_boat[:, 1] * np.cos(a)) for i, a in enumerate(axes)}
+    lat = LAT0 + np.degrees(y / 6_371_008.8) + 2e-6 * rng.standard_normal(n) * 0.1
+    lon = LON0 + np.degrees(x / (6_371_008.8 * math.cos(math.radians(LAT0))))
+    cols = {
+        "t": T0 + t,
+        "lat": lat,
+        "lon": lon,
+        "heading": h_meas,
+        "yaw_rate": yaw_rate + 0.3 * rng.standard_normal(n),
+        "sog": sog,
+        "cog": cog,
+        "depth": depth,
+        "water_temp": 18.0 + 0.4 * np.sin(x / 250.0) + 0.002 * t / 60.0 + 0.02 * rng.standard_normal(n),
+        "wind_speed": np.hypot(W_meas[:, 0], W_meas[:, 1]),
+        "wind_dir": np.degrees(np.arctan2(-W_meas[:, 0], -W_meas[:, 1])) % 360.0,
+        "wind_east": W_meas[:, 0],
+        "wind_north": W_meas[:, 1],
+        "app_wind_speed": np.hypot(R_meas[:, 0], R_meas[:, 1]),
+        "app_wind_angle": app_angle,
+        "current_speed": np.hypot(C_meas[:, 0], C_meas[:, 1]),
+        "current_dir": np.degrees(np.arctan2(C_meas[:, 0], C_meas[:, 1])) % 360.0,
+        "current_east": C_meas[:, 0],
+        "current_north": C_meas[:, 1],
+        **wheels,
+        "throttle": 55.0 + 2.0 * rng.standard_normal(n),
+    }
+    return cols
+
+
+def make_survey(scenario: str, effects: list[str], seed: int, duration_s: float, out_dir) -> Path:
+    """Write `survey.csv` and `truth/effects.json` into `out_dir`; return the CSV's path."""
+    out = Path(out_dir)
+    (out / "truth").mkdir(parents=True, exist_ok=True)
+    cols = simulate(effects, seed, duration_s)
+    path = out / "survey.csv"
+    names = list(cols)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(names)
+        for row in zip(*(cols[k] for k in names), strict=True):
+            w.writerow([f"{v:.7f}" if abs(v) < 1e6 else f"{v:.3f}" for v in row])
+    meta = {"scenario": scenario, "seed": seed, "effects": list(effects), "lat0": LAT0, "lon0": LON0, "t0": T0,
+            "duration": duration_s, "generator": "host.workbench.synth"}
+    (out / "truth" / "effects.json").write_text(json.dumps(meta, indent=2))
+    return path

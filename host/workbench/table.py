@@ -1,0 +1,293 @@
+"""Read a samples table (CSV, Parquet or the daemon's MCAP) into a validated `Survey` in a local metric frame."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from host.workbench.errors import WorkbenchError
+
+EARTH_RADIUS_M = 6_371_008.8
+MIN_ROWS = 30
+MAX_MISSING_FRACTION = 0.05
+REQUIRED = ("t", "lat", "lon")
+# columns that are bookkeeping, never covariates
+NOT_COVARIATES = {"t", "lat", "lon", "x", "y"}
+VECTOR_PREFIXES = ("wind", "current", "current_paper")
+KINEMATIC = ("sog", "cog", "yaw_rate", "throttle", "crab")
+
+
+def is_circular(name: str) -> bool:
+    """Angles (degrees) that wrap at 360: heading, cog, app_wind_angle, *_dir and derived relative headings."""
+    return name in {"heading", "cog", "app_wind_angle", "crab"} or name.endswith("_dir") or "_rel_" in name
+
+
+def family(name: str) -> str | None:
+    """The column family of CONVENTIONS.md: wind, current, depth, or None."""
+    if name.startswith("wind_") or name.startswith("app_wind_"):
+        return "wind"
+    if name.startswith("current_") or re.fullmatch(r"wheel\d+_speed", name):
+        return "current"
+    if name == "depth":
+        return "depth"
+    return None
+
+
+@dataclass
+class VectorTarget:
+    """A target that is one aspect (speed, dir or a component) of a 2-D vector field."""
+
+    prefix: str  # "wind", "current", "current_paper"
+    aspect: str  # "speed", "dir", "east", "north"
+
+    @property
+    def name(self) -> str:
+        if self.prefix == "current_paper":
+            return f"current_{self.aspect}_paper"
+        return f"{self.prefix}_{self.aspect}"
+
+    @property
+    def is_from(self) -> bool:
+        """Wind directions say where the air comes FROM; currents where the water goes TO."""
+        return self.prefix == "wind"
+
+    @property
+    def family(self) -> str:
+        return "wind" if self.prefix == "wind" else "current"
+
+
+@dataclass
+class Survey:
+    """A samples table in SI units with positions in metres east/north of the survey's centre."""
+
+    columns: dict[str, np.ndarray]
+    lat0: float
+    lon0: float
+    t0: float
+    source: Path
+    notes: list[str] = field(default_factory=list)
+    non_numeric: set[str] = field(default_factory=set)
+    cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.columns["t"])
+
+    @property
+    def xy(self) -> np.ndarray:
+        return np.column_stack([self.columns["x"], self.columns["y"]])
+
+    @property
+    def trel(self) -> np.ndarray:
+        return self.columns["t"] - self.t0
+
+    def numeric_columns(self) -> list[str]:
+        return [c for c in self.columns if c not in NOT_COVARIATES]
+
+    def subset(self, mask: np.ndarray) -> Survey:
+        cols = {k: v[mask] for k, v in self.columns.items()}
+        return Survey(cols, self.lat0, self.lon0, self.t0, self.source, list(self.notes), set(self.non_numeric))
+
+    def column(self, name: str) -> np.ndarray:
+        """A numeric column, or a clear error saying why it cannot be used."""
+        if name == "t":
+            return self.trel
+        if name in self.non_numeric:
+            raise WorkbenchError(f"column '{name}' is not numeric; only numeric columns can be modelled")
+        if name not in self.columns:
+            raise WorkbenchError(
+                f"unknown column '{name}'; numeric columns are: {', '.join(sorted(self.numeric_columns()))}"
+            )
+        return self.columns[name]
+
+    def vector_target(self, name: str) -> VectorTarget | None:
+        """If `name` is the speed, direction or a component of wind or current, the vector it belongs to."""
+        m = re.fullmatch(r"(wind|current)_(speed|dir|east|north)(_paper)?", name)
+        if not m:
+            return None
+        prefix = m.group(1) + ("_paper" if m.group(3) else "")
+        vt = VectorTarget(prefix, m.group(2))
+        e, nn = self.components(vt)
+        return vt if e is not None and nn is not None else None
+
+    def components(self, vt: VectorTarget) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """East and north components (m/s) of a vector, from the table's components or its speed and dir."""
+        pre = "current" if vt.prefix == "current_paper" else vt.prefix
+        suffix = "_paper" if vt.prefix == "current_paper" else ""
+        e, nn = self.columns.get(f"{pre}_east{suffix}"), self.columns.get(f"{pre}_north{suffix}")
+        if e is not None and nn is not None:
+            return e, nn
+        s, d = self.columns.get(f"{pre}_speed{suffix}"), self.columns.get(f"{pre}_dir{suffix}")
+        if s is None or d is None:
+            return None, None
+        sign = -1.0 if vt.is_from else 1.0
+        rad = np.radians(d)
+        return sign * s * np.sin(rad), sign * s * np.cos(rad)
+
+
+def _read_csv(path: Path) -> dict[str, list[str]]:
+    with path.open(newline="") as f:
+        reader = csv.reader(f)
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise WorkbenchError(f"{path}: the file is empty") from None
+        header = [h.strip() for h in header]
+        rows = list(reader)
+    cols: dict[str, list[str]] = {h: [] for h in header}
+    for i, row in enumerate(rows):
+        if len(row) != len(header):
+            if not any(cell.strip() for cell in row):
+                continue
+            raise WorkbenchError(f"{path}: row {i + 2} has {len(row)} cells, the header has {len(header)}")
+        for h, cell in zip(header, row, strict=True):
+            cols[h].append(cell)
+    return cols
+
+
+def _to_float(name: str, cells: list) -> np.ndarray | None:
+    """Floats with NaN for empty cells, or None if the column is not numeric."""
+    out = np.empty(len(cells))
+    for i, c in enumerate(cells):
+        if c is None or (isinstance(c, str) and c.strip() in ("", "nan", "NaN", "null", "None")):
+            out[i] = np.nan
+            continue
+        if isinstance(c, bool):
+            out[i] = float(c)
+            continue
+        try:
+            out[i] = float(c)
+        except (TypeError, ValueError):
+            return None
+    return out
+
+
+def _read_parquet(path: Path) -> dict[str, list]:
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:  # pyarrow raises many types for a bad file
+        raise WorkbenchError(f"{path}: not a readable Parquet file ({exc})") from None
+    return {name: table.column(name).to_pylist() for name in table.column_names}
+
+
+def _read_mcap(path: Path) -> dict[str, list]:
+    from mcap.reader import make_reader
+
+    rows: list[dict] = []
+    try:
+        with path.open("rb") as f:
+            for _schema, _channel, message in make_reader(f).iter_messages(topics=["/samples"]):
+                rows.append(json.loads(message.data))
+    except Exception as exc:
+        raise WorkbenchError(f"{path}: could not read /samples from the MCAP log ({exc})") from None
+    if not rows:
+        raise WorkbenchError(f"{path}: the MCAP log has no /samples messages; was it written by `forcemap run`?")
+    names: list[str] = []
+    for r in rows:
+        for k in r:
+            if k not in names:
+                names.append(k)
+    return {k: [r.get(k) for r in rows] for k in names}
+
+
+def read_raw(path: str | Path) -> dict[str, list]:
+    """The table's cells by column, from CSV, Parquet or MCAP (chosen by the file's extension)."""
+    path = Path(path)
+    if not path.exists():
+        raise WorkbenchError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".parquet" or suffix == ".pq":
+        return _read_parquet(path)
+    if suffix == ".mcap":
+        return _read_mcap(path)
+    return _read_csv(path)
+
+
+def local_frame(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> tuple[np.ndarray, np.ndarray]:
+    """Metres east and north of (lat0, lon0), equirectangular (exact enough over a few km)."""
+    x = np.radians(lon - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
+    y = np.radians(lat - lat0) * EARTH_RADIUS_M
+    return x, y
+
+
+def _fill_nearest_in_time(values: np.ndarray) -> np.ndarray:
+    good = np.flatnonzero(np.isfinite(values))
+    idx = np.arange(len(values))
+    pos = np.clip(np.searchsorted(good, idx), 1, len(good) - 1) if len(good) > 1 else np.zeros_like(idx)
+    if len(good) == 1:
+        return np.full_like(values, values[good[0]])
+    left, right = good[pos - 1], good[pos]
+    nearest = np.where(np.abs(idx - left) <= np.abs(right - idx), left, right)
+    return np.where(np.isfinite(values), values, values[nearest])
+
+
+def load_survey(path: str | Path) -> Survey:
+    """Read and validate a samples table; positions become metres east/north of the survey centre."""
+    path = Path(path)
+    raw = read_raw(path)
+    missing = [c for c in REQUIRED if c not in raw]
+    if missing:
+        raise WorkbenchError(f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)")
+    columns: dict[str, np.ndarray] = {}
+    non_numeric: set[str] = set()
+    for name, cells in raw.items():
+        values = _to_float(name, cells)
+        if values is None:
+            non_numeric.add(name)
+        else:
+            columns[name] = values
+    for c in REQUIRED:
+        if c in non_numeric:
+            raise WorkbenchError(f"{path}: column '{c}' is not numeric")
+    notes: list[str] = []
+    keep = np.ones(len(columns["t"]), bool)
+    for c in REQUIRED:
+        bad = ~np.isfinite(columns[c])
+        if bad.mean() > MAX_MISSING_FRACTION:
+            raise WorkbenchError(f"{path}: column '{c}' has {bad.mean():.0%} missing values; every row needs t, lat, lon")
+        if bad.any():
+            notes.append(f"dropped {bad.sum()} row(s) with missing '{c}'")
+        keep &= ~bad
+    columns = {k: v[keep] for k, v in columns.items()}
+    n = int(keep.sum())
+    if n < MIN_ROWS:
+        raise WorkbenchError(f"{path}: only {n} usable rows; the workbench needs at least {MIN_ROWS}")
+    order = np.argsort(columns["t"], kind="stable")
+    columns = {k: v[order] for k, v in columns.items()}
+    lat, lon = columns["lat"], columns["lon"]
+    lat0 = 0.5 * (float(lat.min()) + float(lat.max()))
+    lon0 = 0.5 * (float(lon.min()) + float(lon.max()))
+    columns["x"], columns["y"] = local_frame(lat, lon, lat0, lon0)
+    if "heading" in columns and "cog" in columns:
+        columns["crab"] = (columns["heading"] - columns["cog"] + 180.0) % 360.0 - 180.0
+    survey = Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
+    return survey
+
+
+def prepare_column(survey: Survey, name: str, role: str) -> np.ndarray:
+    """A column ready for modelling: numeric, not constant, few enough gaps (filled nearest in time, with a note)."""
+    values = survey.column(name)
+    bad = ~np.isfinite(values)
+    if bad.all():
+        raise WorkbenchError(f"{role} '{name}' has no values")
+    if bad.mean() > MAX_MISSING_FRACTION:
+        raise WorkbenchError(
+            f"{role} '{name}' has {bad.mean():.0%} missing values (at most {MAX_MISSING_FRACTION:.0%} can be filled)"
+        )
+    if bad.any():
+        values = _fill_nearest_in_time(values)
+        note = f"filled {bad.sum()} missing value(s) of '{name}' with the nearest sample in time"
+        if note not in survey.notes:
+            survey.notes.append(note)
+    finite = values[np.isfinite(values)]
+    if np.ptp(finite) <= 1e-12 * max(1.0, float(np.abs(finite).max())):
+        raise WorkbenchError(f"{role} '{name}' is constant ({finite[0]:g}); there is nothing to model")
+    return values

@@ -1,0 +1,151 @@
+"""The autopilot's telemetry: MAVLink 2 from pymavlink's encoders at ArduPilot Rover's stream rates."""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from .geo import Geo
+
+# (message, period s): ArduPilot Rover's default SRx_ stream rates
+RATES = {
+    "HEARTBEAT": 1.0,
+    "SYSTEM_TIME": 1.0,
+    "GPS_RAW_INT": 0.2,
+    "GLOBAL_POSITION_INT": 0.2,
+    "ATTITUDE": 0.1,
+    "VFR_HUD": 0.25,
+}
+ROVER_MODE_AUTO = 10
+BASE_MODE = (
+    mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    | mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+    | mavlink2.MAV_MODE_FLAG_AUTO_ENABLED
+    | mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
+)
+
+
+@dataclass
+class NavState:
+    """What the autopilot knows at one instant (true values; noise is added here)."""
+
+    t: float  # s since the run started
+    x: float
+    y: float
+    heading_deg: float  # true heading of the bow
+    yaw_rate: float  # rad/s clockwise
+    ve: float
+    vn: float
+    throttle: float  # 0..1
+
+
+class Autopilot:
+    """Encodes the boat's state as the Pixhawk would send it; time fields are on the autopilot's clocks."""
+
+    def __init__(
+        self,
+        geo: Geo,
+        t0_unix: float,
+        seed: int = 0,
+        boot_before_s: float = 6.0,
+        gps_fix_after_s: float = 8.0,
+        deviation: tuple[float, float] | None = None,
+    ) -> None:
+        self.geo = geo
+        self.t0_unix = t0_unix
+        self.rng = random.Random(seed)
+        self.boot_before = boot_before_s
+        self.fix_at = gps_fix_after_s
+        self.deviation = deviation  # (amplitude deg, phase deg) of compass deviation
+        self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        self.next_due = dict.fromkeys(RATES, 0.0)
+        self.gps_lost = False
+        self.time_jump_s = 0.0  # a clock-jump fault steps the autopilot's clocks
+        self._err = [0.0, 0.0]  # slowly wandering GPS position error (m)
+        self._last_vel = (0.0, 0.0)
+        self._dr: tuple[float, float] | None = None
+        self._last_t = 0.0
+
+    def _pack(self, msg) -> bytes:  # type: ignore[no-untyped-def]
+        buf = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return bytes(buf)
+
+    def _heading(self, true_deg: float) -> float:
+        if self.deviation is None:
+            return true_deg % 360.0
+        a, ph = self.deviation
+        return (true_deg + a * math.sin(math.radians(true_deg + ph))) % 360.0
+
+    def messages(self, s: NavState) -> list[bytes]:
+        """Every message due at ``s.t``, encoded."""
+        out: list[bytes] = []
+        dt = s.t - self._last_t
+        self._last_t = s.t
+        k = min(dt / 30.0, 1.0)
+        for i in range(2):
+            self._err[i] += k * (self.rng.gauss(0.0, 0.5) * math.sqrt(2.0 / max(k, 1e-9)) - self._err[i])
+        boot_ms = int((s.t + self.boot_before + self.time_jump_s) * 1000.0)
+        has_fix = s.t >= self.fix_at and not self.gps_lost
+        unix_us = int((self.t0_unix + s.t + self.time_jump_s) * 1e6) if s.t >= self.fix_at else 0
+        if has_fix:
+            gx, gy = s.x + self._err[0], s.y + self._err[1]
+            self._dr = (gx, gy)
+            self._last_vel = (s.ve, s.vn)
+        elif self._dr is not None:
+            # no GPS: the estimate coasts on the last GPS velocity and drifts off the true track
+            self._dr = (self._dr[0] + self._last_vel[0] * dt, self._dr[1] + self._last_vel[1] * dt)
+            gx, gy = self._dr
+        else:
+            gx = gy = None
+        heading = self._heading(s.heading_deg + self.rng.gauss(0.0, 0.3))
+        sog = math.hypot(s.ve, s.vn)
+        for name, period in RATES.items():
+            if s.t + 1e-9 < self.next_due[name]:
+                continue
+            self.next_due[name] = max(self.next_due[name] + period, s.t)
+            if name == "HEARTBEAT":
+                msg = self.mav.heartbeat_encode(
+                    mavlink2.MAV_TYPE_SURFACE_BOAT,
+                    mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                    BASE_MODE,
+                    ROVER_MODE_AUTO,
+                    mavlink2.MAV_STATE_ACTIVE,
+                )
+            elif name == "SYSTEM_TIME":
+                msg = self.mav.system_time_encode(unix_us, boot_ms)
+            elif name == "GPS_RAW_INT":
+                if has_fix:
+                    lat, lon = self.geo.to_latlon(gx, gy)
+                    cog = math.degrees(math.atan2(s.ve, s.vn)) % 360.0
+                    msg = self.mav.gps_raw_int_encode(
+                        unix_us, 3, int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)), 45_000,
+                        90, 150, int(round(sog * 100)), int(round(cog * 100)) % 36000, 14,
+                    )
+                else:
+                    msg = self.mav.gps_raw_int_encode(unix_us, 1, 0, 0, 0, 9999, 9999, 0, 65535, 0)
+            elif name == "GLOBAL_POSITION_INT":
+                if gx is None:
+                    lat = lon = 0.0
+                else:
+                    lat, lon = self.geo.to_latlon(gx, gy)
+                msg = self.mav.global_position_int_encode(
+                    boot_ms, int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)), 45_000, 0,
+                    int(round(s.vn * 100)), int(round(s.ve * 100)), 0, int(round(heading * 100)) % 36000,
+                )
+            elif name == "ATTITUDE":
+                yaw = math.radians(heading)
+                if yaw > math.pi:
+                    yaw -= 2 * math.pi
+                msg = self.mav.attitude_encode(
+                    boot_ms, self.rng.gauss(0.0, 0.02), self.rng.gauss(0.0, 0.02), yaw, 0.0, 0.0, s.yaw_rate
+                )
+            else:
+                msg = self.mav.vfr_hud_encode(
+                    sog, sog, int(round(heading)) % 360, int(round(s.throttle * 100)), 0.0, 0.0
+                )
+            out.append(self._pack(msg))
+        return out

@@ -1,0 +1,107 @@
+"""Waypoint guidance and PID heading and speed control, tuned in calm water like a stock ArduPilot Rover."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def wrap_pi(a: float) -> float:
+    """Angle wrapped to (-pi, pi]."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass
+class PID:
+    kp: float
+    ki: float
+    kd: float
+    i_limit: float
+    integral: float = 0.0
+
+    def update(self, error: float, rate: float, dt: float) -> float:
+        """PID output; ``rate`` is the measured rate of the controlled variable (derivative on measurement)."""
+        self.integral = min(max(self.integral + self.ki * error * dt, -self.i_limit), self.i_limit)
+        return self.kp * error + self.integral - self.kd * rate
+
+
+@dataclass
+class Gains:
+    """Tuned on the lake at cruise speed; nothing here knows about current."""
+
+    steer_kp: float = 2.5  # per rad of heading error
+    steer_ki: float = 0.05
+    steer_kd: float = 1.0  # per rad/s of yaw rate
+    speed_kp: float = 0.25  # throttle per m/s of ground-speed error
+    speed_ki: float = 0.05
+    throttle_ff: float = 0.19  # throttle per m/s of target speed (calm-water cruise feed-forward)
+    lookahead_m: float = 10.0  # line-of-sight guidance
+    wp_radius_m: float = 3.0
+    turn_radius_m: float = 4.5  # calm-water turning radius at cruise, for turning before a waypoint
+
+
+class Navigator:
+    """Follows a waypoint list leg by leg with line-of-sight guidance, like ArduPilot's AUTO mode."""
+
+    def __init__(self, waypoints: np.ndarray, loop: bool = True, gains: Gains | None = None) -> None:
+        self.wps = np.asarray(waypoints, dtype=float)
+        self.loop = loop
+        self.g = gains or Gains()
+        self.leg = 1  # heading from wps[leg-1] to wps[leg]
+        self.legs_done = 0
+        self.done = False
+
+    def _advance(self) -> None:
+        self.legs_done += 1
+        self.leg += 1
+        if self.leg >= len(self.wps):
+            if not self.loop:
+                self.done = True
+                self.leg = len(self.wps) - 1
+                return
+            self.wps = self.wps[::-1].copy()  # survey the pattern again in reverse
+            self.leg = 1
+
+    def _switch_distance(self, tx: float, ty: float) -> float:
+        """How far before a waypoint to start the turn onto the next leg (calm-water turn anticipation)."""
+        nxt = self.wps[self.leg + 1] if self.leg + 1 < len(self.wps) else self.wps[self.leg - 1]
+        b = self.wps[self.leg]
+        n = math.hypot(nxt[0] - b[0], nxt[1] - b[1]) or 1e-9
+        turn = math.acos(max(-1.0, min(1.0, ((nxt[0] - b[0]) * tx + (nxt[1] - b[1]) * ty) / n)))
+        return max(self.g.wp_radius_m, self.g.turn_radius_m * math.tan(min(turn, math.radians(120)) / 2))
+
+    def update(self, x: float, y: float) -> tuple[float, float]:
+        """Desired heading (compass rad) and signed cross-track error (m, right of track positive)."""
+        for _ in range(len(self.wps)):
+            a, b = self.wps[self.leg - 1], self.wps[self.leg]
+            dx, dy = b[0] - a[0], b[1] - a[1]
+            length = math.hypot(dx, dy) or 1e-9
+            tx, ty = dx / length, dy / length
+            along = (x - a[0]) * tx + (y - a[1]) * ty
+            early = self._switch_distance(tx, ty)
+            if self.done or (length - along > early and math.hypot(b[0] - x, b[1] - y) > self.g.wp_radius_m):
+                break
+            self._advance()
+        xte = -(x - a[0]) * ty + (y - a[1]) * tx  # left of track positive here
+        bearing = math.atan2(tx, ty)
+        return (bearing + math.atan2(xte, self.g.lookahead_m)) % (2 * math.pi), -xte
+
+
+class Controller:
+    """Heading PID on the nozzle, speed PID on GPS ground speed (as ArduPilot does) on the throttle."""
+
+    def __init__(self, cruise_speed: float, gains: Gains | None = None) -> None:
+        self.g = gains or Gains()
+        self.cruise = cruise_speed
+        self.heading = PID(self.g.steer_kp, self.g.steer_ki, self.g.steer_kd, 0.3)
+        self.speed = PID(self.g.speed_kp, self.g.speed_ki, 0.0, 0.4)
+
+    def update(
+        self, dt: float, psi: float, r: float, psi_target: float, sog: float
+    ) -> tuple[float, float]:
+        """(throttle 0..1, steer -1..1) for the measured heading, yaw rate and ground speed."""
+        steer = self.heading.update(wrap_pi(psi_target - psi), r, dt)
+        throttle = self.g.throttle_ff * self.cruise + self.speed.update(self.cruise - sog, 0.0, dt)
+        return min(max(throttle, 0.0), 1.0), min(max(steer, -1.0), 1.0)

@@ -1,0 +1,126 @@
+"""Named effects: composable world and instrument terms, each with its physical story and parameters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """One catalogue entry: what the effect is and its default parameters."""
+
+    name: str
+    kind: str  # "world" or "instrument"
+    story: str
+    does: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+CATALOGUE: dict[str, EffectSpec] = {
+    e.name: e
+    for e in (
+        EffectSpec(
+            "depth_current",
+            "world",
+            "continuity and bed friction (Manning)",
+            "current speed ~ depth^(2/3) locally: slow over sand bars and shoals, fast over the thalweg",
+            {"exponent": 2.0 / 3.0},
+        ),
+        EffectSpec(
+            "dam_release",
+            "world",
+            "unsteady discharge from an upstream dam",
+            "discharge, and with it the current, ramps up smoothly by `increase` between two times",
+            {"increase": 0.6, "start_frac": 0.15, "end_frac": 0.85},
+        ),
+        EffectSpec(
+            "gusts",
+            "world",
+            "gusty wind",
+            "wind speed x gust factor: slow swell over tens of minutes plus fast gusts carried downwind, peaks >= peak_factor (12 m/s on the river)",
+            {"slow_amplitude": 0.18, "slow_period_s": 1500.0, "fast_std": 0.16, "peak_factor": 1.65},
+        ),
+        EffectSpec(
+            "bank_shelter",
+            "world",
+            "lee of a wooded bank",
+            "wind reduced near the wooded bank when it blows from over it; the wind veers, so the shelter comes and goes",
+            {"strength": 0.65, "length_m": 45.0, "veer_from_deg": 110.0, "veer_to_deg": 270.0},
+        ),
+        EffectSpec(
+            "wheel_misalignment",
+            "instrument",
+            "a paddle wheel mounted some degrees off its nominal angle",
+            "one wheel's axis is rotated by `angle_deg` from its nominal mounting angle",
+            {"wheel": 1, "angle_deg": 20.0},
+        ),
+        EffectSpec(
+            "anemometer_upwash",
+            "instrument",
+            "anemometer in the hull's upwash",
+            "measured apparent wind speed x (1 + k * boat speed over ground)",
+            {"k": 0.12},
+        ),
+        EffectSpec(
+            "compass_deviation",
+            "instrument",
+            "uncompensated magnetic deviation",
+            "reported heading = true + A sin(heading + phase)",
+            {"amplitude_deg": 10.0, "phase_deg": 30.0},
+        ),
+        EffectSpec(
+            "clock_offset",
+            "instrument",
+            "one source's clock is off",
+            "the autopilot's data and time stamps run `offset_s` late relative to the bridge",
+            {"offset_s": 1.5},
+        ),
+    )
+}
+
+
+@dataclass
+class Effect:
+    """An effect switched on for a run, with its parameters resolved."""
+
+    name: str
+    params: dict[str, Any]
+
+    @property
+    def spec(self) -> EffectSpec:
+        return CATALOGUE[self.name]
+
+
+def parse(spec: str | Effect) -> Effect:
+    """``name`` or ``name:key=value:key=value`` to an Effect with defaults filled in."""
+    if isinstance(spec, Effect):
+        return spec
+    name, *kvs = spec.strip().split(":")
+    if name not in CATALOGUE:
+        raise ValueError(f"unknown effect {name!r}; known: {', '.join(CATALOGUE)}")
+    params = dict(CATALOGUE[name].params)
+    for kv in kvs:
+        k, _, v = kv.partition("=")
+        if k not in params:
+            raise ValueError(f"effect {name} has no parameter {k!r}; it has {', '.join(params)}")
+        params[k] = type(params[k])(float(v)) if isinstance(params[k], int | float) else v
+    return Effect(name, params)
+
+
+def parse_list(specs: str | list[str | Effect] | None) -> list[Effect]:
+    """Effects from a comma-separated string or a list; ``none`` or empty gives []."""
+    if specs is None:
+        return []
+    if isinstance(specs, str):
+        specs = [s for s in specs.split(",") if s.strip() and s.strip() != "none"]
+    out = [parse(s) for s in specs]
+    names = [e.name for e in out]
+    if len(set(names)) != len(names):
+        raise ValueError(f"effect given twice: {names}")
+    return out
+
+
+def lines() -> list[str]:
+    """One line per effect for ``forcemap sim --list``."""
+    return [f"{e.name:20s} {e.kind:10s} {e.story}: {e.does}" for e in CATALOGUE.values()]

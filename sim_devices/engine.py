@@ -1,0 +1,379 @@
+"""The core loop: world, boat, autopilot and instruments stepped in virtual time, bytes out to a sink.
+
+    sim = Simulation(scenario="river", mission="lawnmower", effects=["depth_current"], seed=0)
+    sim.run(600.0, sink)     # sink(source, t_ns, data) with source in bridge, depth, mavlink
+
+``t_ns`` is the virtual UNIX time in ns at which the bytes leave the instrument; calls come in
+non-decreasing ``t_ns`` order. No transport and no host clock: offline it runs as fast as it can.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import random
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import effects as fx
+from . import faults as fl
+from . import mission as ms
+from . import scenario as sc
+from .autopilot import Autopilot, NavState
+from .boat import Boat, BoatParams, BoatState
+from .bridge_emu import EmulatedBridge
+from .control import Controller, Navigator
+from .fields import World
+from .geo import Geo
+from .instruments import InstrumentConfig, Readings, Sensors
+from .machine_emu import PWRON_RESET
+from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
+from .truth import COLUMNS, compass, write_all
+
+Sink = Callable[[str, int, bytes], Any]
+Progress = Callable[[float, float], Any]
+# events(kind, source, t_ns): "unplug" and "plug" for cable pulls, "reset" for a board reset
+Events = Callable[[str, str, int], Any]
+
+DT = 0.05  # s, boat step (20 Hz)
+TRUTH_EVERY = 2  # truth rows at 10 Hz
+MAVLINK_BYTES_PER_S = 11_520.0  # 115200 baud telemetry port
+
+
+class Simulation:
+    """One simulated survey: scenario, mission, effects, faults and seed fix every byte it produces."""
+
+    def __init__(
+        self,
+        scenario: str | sc.Scenario = "river",
+        mission: str | ms.Mission | None = None,
+        effects: str | list[str | fx.Effect] | None = None,
+        faults: str | list[str | fl.Fault] | None = None,
+        seed: int = 0,
+        truth_dir: str | Path | None = None,
+        *,
+        bridge_writable: Callable[[], bool] | None = None,
+        events: Events | None = None,
+        instruments: bool = True,
+    ) -> None:
+        self.scenario = sc.load(scenario)
+        self.mission = ms.load(mission or "lawnmower", self.scenario)
+        self.effects = fx.parse_list(self.scenario.default_effects if effects is None else effects)
+        self.faults = fl.parse(faults)
+        self.seed = seed
+        self.truth_dir = truth_dir
+        self.bridge_writable = bridge_writable
+        self.events = events
+        self.instruments = instruments  # False: world, boat and truth only (fast, no bytes)
+        self.geo = Geo(self.scenario.lat0, self.scenario.lon0)
+        self.t0_ns = int(round(self.scenario.t0 * 1e9))
+        self.world: World | None = None
+        self.track: dict[str, np.ndarray] = {}
+        self.fault_log: list[tuple[float, str, str]] = []  # (t s, kind, source) as they happened
+        self.stats: dict[str, int] = {}
+
+    # ---- set-up ---------------------------------------------------------------------------
+    def _effect(self, name: str) -> dict[str, Any] | None:
+        for e in self.effects:
+            if e.name == name:
+                return e.params
+        return None
+
+    def start(self, duration_s: float, sink: Sink) -> None:
+        """Build everything for a run of ``duration_s`` (the time-dependent effects scale with it)."""
+        self.duration = float(duration_s)
+        self.sink = sink
+        tables = self.scenario.tables
+        self.world = World(self.scenario, self.effects, self.duration, self.seed)
+        wps = self.mission.waypoints
+        a, b = wps[0], wps[1]
+        psi = math.atan2(b[0] - a[0], b[1] - a[1]) % (2 * math.pi)
+        self.boat = Boat(BoatParams(), BoatState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
+        cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
+        self.nav = Navigator(wps, loop=self.mission.loop)
+        self.ctl = Controller(cruise)
+        icfg = InstrumentConfig.from_table(tables.get("instruments", {}))
+        mis = self._effect("wheel_misalignment")
+        up = self._effect("anemometer_upwash")
+        self.sensors = Sensors(
+            icfg,
+            seed=self.seed * 1000 + 11,
+            misalign={int(mis["wheel"]) - 1: float(mis["angle_deg"])} if mis else {},
+            upwash_k=float(up["k"]) if up else 0.0,
+        )
+        self.heap: list[tuple[int, int, str, bytes | None]] = []
+        self._seq = 0
+        self.bridge_on = True
+        self.__dict__.pop("bridge", None)
+        bcfg = tables.get("bridge", {})
+        self.ppm = float(bcfg.get("clock_ppm", 25.0))
+        self.bridge = EmulatedBridge(
+            self._bridge_write,
+            seed=self.seed * 1000 + 3,
+            wheel_ppm=icfg.wheel_pulses_per_m,
+            anemo_hz_per_mps=icfg.anemo_hz_per_mps,
+            writable=self.bridge_writable,
+        )
+        dev = self._effect("compass_deviation")
+        apcfg = tables.get("autopilot", {})
+        self.autopilot = Autopilot(
+            self.geo,
+            self.scenario.t0,
+            seed=self.seed * 1000 + 5,
+            boot_before_s=float(apcfg.get("boot_before_s", 6.0)),
+            gps_fix_after_s=float(apcfg.get("gps_fix_after_s", 8.0)),
+            deviation=(dev["amplitude_deg"], dev["phase_deg"]) if dev else None,
+        )
+        off = self._effect("clock_offset")
+        self.mav_latency_ns = int(float(off["offset_s"]) * 1e9) if off else 0
+        snd = tables.get("sounder", {})
+        self.sounder = Sounder(self.seed * 1000 + 7, float(snd.get("offset_m", 0.2)), float(snd.get("noise_m", 0.03)))
+        self.garble_rng = random.Random(self.seed * 1000 + 9)
+        self.uart_depth = Uart(BAUD_BYTES_PER_S)
+        self.uart_mav = Uart(MAVLINK_BYTES_PER_S, chunk=64)
+        self.damage = {s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES}
+        self._schedule_faults()
+        self.t = 0.0
+        self.k = 0
+        self.next_sound = 1.0
+        self.next_progress = 0.0
+        self.pulled: set[str] = set()
+        self.rows: list[tuple[float, ...]] = []
+        self.extra: list[tuple[float, ...]] = []
+        self.throttle = 0.0
+        self.stats = {"bridge": 0, "depth": 0, "mavlink": 0}
+        self._update_point()
+
+    def _schedule_faults(self) -> None:
+        """Time-ordered (t s, action, fault) list for the step loop."""
+        acts: list[tuple[float, str, fl.Fault]] = []
+        for f in self.faults:
+            a, b = f.start(self.duration), f.end(self.duration)
+            if f.kind == "pull":
+                acts += [(a, "unplug", f), (b, "plug", f)]
+            elif f.kind == "reset":
+                acts.append((a, "reset", f))
+            elif f.kind == "gps_loss":
+                acts += [(a, "gps_off", f), (b, "gps_on", f)]
+            elif f.kind == "clock_jump":
+                acts.append((a, "clock_jump", f))
+            elif f.kind == "nmea_garbage":
+                acts += [(a, "garble_on", f)] + ([(b, "garble_off", f)] if math.isfinite(b) else [])
+        acts.sort(key=lambda x: x[0])
+        self.actions = acts
+        self.garbler: Garbler | None = None
+
+    # ---- time bases -----------------------------------------------------------------------
+    def _ns(self, t_s: float) -> int:
+        return self.t0_ns + int(round(t_s * 1e9))
+
+    def _bridge_us(self, t_s: float) -> int:
+        """The bridge's timeline (its crystal runs ``ppm`` fast) at sim time ``t_s``."""
+        return int(math.ceil(t_s * 1e6 * (1.0 + self.ppm * 1e-6)))
+
+    def _bridge_write(self, data: bytes) -> int | None:
+        bridge = getattr(self, "bridge", None)  # HELLO goes out while the bridge is being built
+        t_s = (bridge.now_us if bridge is not None else 0) / (1e6 * (1.0 + self.ppm * 1e-6))
+        if self.bridge_on:
+            self._push(self._ns(t_s), "bridge", bytes(data))
+        return len(data)
+
+    def _push(self, t_ns: int, source: str, data: bytes | None) -> None:
+        self._seq += 1
+        heapq.heappush(self.heap, (t_ns, self._seq, source, data))
+
+    def _flush(self, until_ns: int) -> None:
+        heap, sink = self.heap, self.sink
+        while heap and heap[0][0] <= until_ns:
+            t_ns, _, source, data = heapq.heappop(heap)
+            if isinstance(data, bytes):
+                if source in self.pulled:
+                    continue
+                data = self.damage[source].apply((t_ns - self.t0_ns) * 1e-9, data)
+                if data:
+                    self.stats[source] += len(data)
+                    sink(source, t_ns, data)
+            elif self.events is not None:
+                self.events(source.split(":")[0], source.split(":")[1], t_ns)
+
+    # ---- the loop -------------------------------------------------------------------------
+    def _update_point(self) -> None:
+        s = self.boat.s
+        self.p = self.world.at(s.x, s.y, self.t)  # type: ignore[union-attr]
+
+    def _fault_actions(self, t_end: float) -> None:
+        while self.actions and self.actions[0][0] <= t_end:
+            at, act, f = self.actions.pop(0)
+            at = max(at, self.t)
+            src = f.source
+            if act in ("unplug", "plug", "reset"):
+                self.bridge.advance_to(max(self._bridge_us(at), self.bridge.now_us))
+            if act == "unplug":
+                self.pulled.add(src)
+                if src == "bridge":
+                    self.bridge_on = False
+                self._push(self._ns(at), f"unplug:{src}", None)
+            elif act == "plug":
+                self.pulled.discard(src)
+                self._push(self._ns(at), f"plug:{src}", None)
+                if src == "bridge":
+                    self.bridge_on = True
+                    self.bridge.reset(PWRON_RESET)  # the board was unpowered: it boots again
+            elif act == "reset":
+                self.bridge.reset(f.cause)
+                self._push(self._ns(at), "reset:bridge", None)
+            elif act == "gps_off":
+                self.autopilot.gps_lost = True
+            elif act == "gps_on":
+                self.autopilot.gps_lost = False
+            elif act == "clock_jump":
+                self.autopilot.time_jump_s += f.jump
+            elif act == "garble_on":
+                self.garbler = Garbler(self.garble_rng, f.rate)
+            elif act == "garble_off":
+                self.garbler = None
+            self.fault_log.append((at, act, src))
+
+    def step(self) -> None:
+        """Advance one boat step (DT) with every instrument."""
+        dt = DT
+        s, p = self.boat.s, self.p
+        psi_d, xte = self.nav.update(s.x, s.y)
+        sog = math.hypot(s.ve, s.vn)
+        self.throttle, steer = self.ctl.update(dt, s.psi, s.r, psi_d, sog)
+        t_prev = self.t
+        self.k += 1
+        self.t = t_new = self.k * dt
+        self._fault_actions(t_new)
+        self.boat.step(dt, self.throttle, steer, (p.current_east, p.current_north), (p.wind_east, p.wind_north))
+        self._update_point()
+        p = self.p
+        sog = math.hypot(s.ve, s.vn)
+        # air relative to the boat in body axes (forward, starboard)
+        sp, cp = math.sin(s.psi), math.cos(s.psi)
+        rel_e, rel_n = p.wind_east - s.ve, p.wind_north - s.vn
+        rel_f, rel_s = rel_e * sp + rel_n * cp, rel_e * cp - rel_n * sp
+        truth = self.sensors.truth(s.u, s.v, s.r, rel_f, rel_s)
+        heading_deg = math.degrees(s.psi) % 360.0
+        if self.instruments:
+            self._instruments(t_prev, t_new, truth, sog, heading_deg)
+        if self.k % TRUTH_EVERY == 0:
+            self.rows.append((
+                t_new, s.x, s.y, heading_deg, math.degrees(s.r), sog, s.ve, s.vn, p.depth, p.water_temp,
+                p.wind_east, p.wind_north, p.current_east, p.current_north, *truth.wheels,
+                truth.app_speed, truth.app_angle,
+            ))  # fmt: skip
+            self.extra.append((xte, self.nav.legs_done, self.throttle, s.u, s.v))
+        self._flush(self._ns(t_new))
+
+    def _instruments(self, t_prev: float, t_new: float, truth: Readings, sog: float, heading_deg: float) -> None:
+        """Bridge edges and firmware, the sounder's sentences and the autopilot's messages for one step."""
+        s, p = self.boat.s, self.p
+        # bridge: pulse edges for this step, the vane, then run the firmware up to the step's end
+        u0, u1 = self._bridge_us(t_prev), self._bridge_us(t_new)
+        u0 = max(u0, self.bridge.now_us)
+        rates = self.sensors.rates(s.u, s.v, s.r, truth.app_speed, sog, DT)
+        if self.bridge_on:
+            for ch, times in enumerate(self.sensors.edges(rates, u0, u1)):
+                if times:
+                    self.bridge.add_edges(ch, times)
+            self.bridge.set_vane_voltage(self.sensors.vane_volts(truth.app_angle))
+        self.bridge.advance_to(u1)
+        if t_new + 1e-9 >= self.next_sound:
+            self.next_sound += 1.0
+            lines = self.sounder.sentences(p.depth, p.water_temp)
+            if self.garbler is not None:
+                lines = self.garbler.apply(lines)
+            data = "".join(x + "\r\n" for x in lines).encode("ascii", "replace")
+            for t_ns, piece in self.uart_depth.send(self._ns(t_new), data):
+                self._push(t_ns, "depth", piece)
+        msgs = self.autopilot.messages(
+            NavState(t_new, s.x, s.y, heading_deg, s.r, s.ve, s.vn, self.throttle)
+        )
+        if msgs:
+            for t_ns, piece in self.uart_mav.send(self._ns(t_new), b"".join(msgs)):
+                self._push(t_ns + self.mav_latency_ns, "mavlink", piece)
+
+    def advance(self, t_s: float, progress: Progress | None = None) -> None:
+        """Step until sim time ``t_s`` (s since the start), capped at the run's duration."""
+        end = min(t_s, self.duration)
+        while self.t + 0.5 * DT < end:
+            self.step()
+            if progress is not None and self.t >= self.next_progress:
+                self.next_progress += 10.0
+                progress(self.t, self.duration)
+
+    def finish(self) -> None:
+        """Flush every byte still queued and write the truth if a truth directory was given."""
+        self._flush(2**62)
+        self.track = self._track()
+        if self.truth_dir is not None:
+            write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
+
+    def run(self, duration_s: float, sink: Sink, progress: Progress | None = None) -> Simulation:
+        """The whole survey, offline, as fast as it goes."""
+        self.start(duration_s, sink)
+        self.advance(duration_s, progress)
+        self.finish()
+        return self
+
+    # ---- results --------------------------------------------------------------------------
+    def _track(self) -> dict[str, np.ndarray]:
+        if not self.rows:
+            return {}
+        r = np.array(self.rows)
+        e = np.array(self.extra)
+        names = ("t", "x", "y", "heading", "yaw_rate", "sog", "boat_east", "boat_north", "depth",
+                 "water_temp", "wind_east", "wind_north", "current_east", "current_north", "wheel1_speed",
+                 "wheel2_speed", "wheel3_speed", "wheel4_speed", "app_wind_speed", "app_wind_angle")  # fmt: skip
+        out = {n: r[:, i] for i, n in enumerate(names)}
+        for i, n in enumerate(("xte", "leg", "throttle", "u", "v")):
+            out[n] = e[:, i]
+        return out
+
+    def truth_table(self) -> np.ndarray:
+        """The samples.csv table: one row per 0.1 s, columns as ``truth.COLUMNS``."""
+        tr = self.track or self._track()
+        lat, lon = self.geo.to_latlon(tr["x"], tr["y"])
+        cols = {
+            **tr,
+            "t": self.scenario.t0 + tr["t"],
+            "lat": lat,
+            "lon": lon,
+            "cog": compass(tr["boat_east"], tr["boat_north"]),
+            "wind_speed": np.hypot(tr["wind_east"], tr["wind_north"]),
+            "wind_dir": compass(-tr["wind_east"], -tr["wind_north"]),
+            "current_speed": np.hypot(tr["current_east"], tr["current_north"]),
+            "current_dir": compass(tr["current_east"], tr["current_north"]),
+        }
+        return np.column_stack([cols[c] for c in COLUMNS])
+
+    def meta(self) -> dict[str, Any]:
+        """What effects.json holds."""
+        return {
+            "scenario": self.scenario.name,
+            "scenario_path": self.scenario.path,
+            "mission": self.mission.name,
+            "seed": self.seed,
+            "lat0": self.scenario.lat0,
+            "lon0": self.scenario.lon0,
+            "t0": self.scenario.t0,
+            "duration": self.t,
+            "effects": [
+                {"name": e.name, "kind": e.spec.kind, "story": e.spec.story, "params": e.params}
+                for e in self.effects
+            ],
+            "faults": [f.resolved(self.duration) for f in self.faults],
+            "fault_log": [{"t": t, "action": a, "source": s} for t, a, s in self.fault_log],
+            "instruments": {
+                "wheel_angles_deg": list(self.sensors.cfg.wheel_angles_deg),
+                "wheel_pulses_per_m": list(self.sensors.cfg.wheel_pulses_per_m),
+                "anemo_hz_per_mps": self.sensors.cfg.anemo_hz_per_mps,
+                "bridge_clock_ppm": self.ppm,
+                "mavlink_latency_s": self.mav_latency_ns * 1e-9,
+                "sounder_offset_m": self.sounder.offset,
+            },
+        }

@@ -1,0 +1,172 @@
+"""Per-run fault schedules: damaged bytes, cable pulls, board resets, GPS loss, NMEA garbage, clock jumps."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+SOURCES = ("bridge", "depth", "mavlink")
+
+KINDS: dict[str, str] = {
+    "corrupt": "bytes replaced by random values at `rate` per byte (source=all|bridge|depth|mavlink)",
+    "drop": "bytes lost at `rate` per byte",
+    "pull": "cable pull: the port disappears for `for` s and comes back under the same path (a bridge re-boots)",
+    "reset": "bridge board reset (watchdog by default: cause=3) at `at`",
+    "gps_loss": "the autopilot loses GPS for `for` s: no fix, the position coasts",
+    "nmea_garbage": "the sounder line gets spliced sentences, bad checksum digits and junk lines at `rate` per sentence",
+    "clock_jump": "the autopilot's clocks (time_boot_ms, UNIX time) step by `jump` s at `at`",
+}
+
+
+@dataclass
+class Fault:
+    """One scheduled fault. Times are seconds from the start; ``at_frac`` places it by run fraction."""
+
+    kind: str
+    source: str = "all"
+    at: float | None = None
+    at_frac: float | None = None
+    dur: float = 0.0  # "for" in specs
+    rate: float = 0.0
+    jump: float = 0.0
+    cause: int = 3
+    params: dict[str, float] = field(default_factory=dict)
+
+    def start(self, duration_s: float) -> float:
+        if self.at is not None:
+            return self.at
+        if self.at_frac is not None:
+            return self.at_frac * duration_s
+        return 0.0
+
+    def end(self, duration_s: float) -> float:
+        if self.kind in ("corrupt", "drop", "nmea_garbage") and self.dur <= 0:
+            return float("inf")
+        return self.start(duration_s) + self.dur
+
+    def applies_to(self, source: str) -> bool:
+        return self.source in ("all", source)
+
+    def resolved(self, duration_s: float) -> dict[str, object]:
+        d = asdict(self)
+        d["at"] = self.start(duration_s)
+        d["end"] = min(self.end(duration_s), duration_s)
+        d.pop("at_frac")
+        d["for"] = d.pop("dur")
+        return d
+
+
+def default_set() -> list[Fault]:
+    """The `default` fault set: a bit of everything, placed by fraction of the run."""
+    return [
+        Fault("corrupt", "all", rate=2e-5),
+        Fault("drop", "all", rate=1e-5),
+        Fault("nmea_garbage", "depth", rate=0.02),
+        Fault("pull", "bridge", at_frac=0.30, dur=5.0),
+        Fault("reset", "bridge", at_frac=0.50),
+        Fault("gps_loss", "mavlink", at_frac=0.65, dur=15.0),
+        Fault("pull", "depth", at_frac=0.75, dur=4.0),
+        Fault("clock_jump", "mavlink", at_frac=0.85, jump=2.0),
+    ]
+
+
+SETS = {"default": default_set, "none": list}
+
+
+def parse_one(spec: str) -> Fault:
+    """``kind:key=value:...``, e.g. ``pull:source=bridge:at=120:for=5`` or ``corrupt:rate=1e-3``."""
+    kind, *kvs = spec.strip().split(":")
+    if kind not in KINDS:
+        raise ValueError(f"unknown fault {kind!r}; known: {', '.join(KINDS)}")
+    f = Fault(kind, source={"reset": "bridge", "gps_loss": "mavlink", "clock_jump": "mavlink", "nmea_garbage": "depth"}.get(kind, "all"))
+    for kv in kvs:
+        k, _, v = kv.partition("=")
+        if k == "source":
+            if v not in SOURCES + ("all",):
+                raise ValueError(f"fault source must be one of {SOURCES} or all, not {v!r}")
+            f.source = v
+        elif k in ("at", "at_frac", "rate", "jump"):
+            setattr(f, k, float(v))
+        elif k in ("for", "dur"):
+            f.dur = float(v)
+        elif k == "cause":
+            f.cause = int(v)
+        else:
+            raise ValueError(f"fault {kind} has no parameter {k!r}")
+    if kind == "pull" and f.source == "all":
+        raise ValueError("a pull needs source=bridge|depth|mavlink")
+    return f
+
+
+def parse(spec: str | list[str | Fault] | None) -> list[Fault]:
+    """Faults from None, a set name (default, none), a TOML file, comma-separated specs or a list."""
+    if spec is None:
+        return []
+    if isinstance(spec, list):
+        return [s if isinstance(s, Fault) else parse_one(s) for s in spec]
+    if spec in SETS:
+        return SETS[spec]()
+    p = Path(spec)
+    if p.suffix == ".toml" and p.exists():
+        data = tomllib.loads(p.read_text())
+        out = []
+        for t in data.get("fault", []):
+            kvs = [f"{k}={v}" for k, v in t.items() if k != "kind"]
+            out.append(parse_one(":".join([t["kind"], *kvs])))
+        return out
+    out = []
+    for part in spec.split(","):
+        part = part.strip()
+        if part in SETS:
+            out += SETS[part]()
+        elif part:
+            out.append(parse_one(part))
+    return out
+
+
+def lines() -> list[str]:
+    """One line per fault kind, and the sets, for ``forcemap sim --list``."""
+    out = [f"{k:14s} {v}" for k, v in KINDS.items()]
+    out.append(f"{'default':14s} set: " + ", ".join(
+        f"{f.kind}({f.source}{'' if f.at_frac is None else f' at {f.at_frac:.0%}'})" for f in default_set()
+    ))
+    return out
+
+
+class ByteDamage:
+    """Applies corruption and drops to one source's chunks, deterministically per seed."""
+
+    def __init__(self, source: str, faults: list[Fault], duration_s: float, seed: int) -> None:
+        self.rng = np.random.default_rng([seed, 7, SOURCES.index(source)])
+        self.windows = [
+            (f.kind, f.rate, f.start(duration_s), f.end(duration_s))
+            for f in faults
+            if f.kind in ("corrupt", "drop") and f.applies_to(source) and f.rate > 0
+        ]
+        self.corrupted = 0
+        self.dropped = 0
+        self.log: list[tuple[float, str, int]] = []  # (t s, kind, bytes) for tests and truth
+
+    def apply(self, t_s: float, data: bytes) -> bytes:
+        if not self.windows:
+            return data
+        for kind, rate, a, b in self.windows:
+            if not a <= t_s < b or not data:
+                continue
+            n = int(self.rng.binomial(len(data), rate))
+            if n == 0:
+                continue
+            pos = self.rng.choice(len(data), size=min(n, len(data)), replace=False)
+            arr = np.frombuffer(data, dtype=np.uint8).copy()
+            if kind == "corrupt":
+                arr[pos] ^= self.rng.integers(1, 256, size=len(pos), dtype=np.uint8)
+                self.corrupted += len(pos)
+            else:
+                arr = np.delete(arr, pos)
+                self.dropped += len(pos)
+            self.log.append((t_s, kind, len(pos)))
+            data = arr.tobytes()
+        return data

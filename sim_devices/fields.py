@@ -1,0 +1,230 @@
+"""The true world: depth(x, y), current(x, y, t) and wind(x, y, t) as numpy-vectorised fields."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .effects import Effect
+from .scenario import Scenario
+
+ArrayLike = float | np.ndarray
+
+
+def smoothstep(u: ArrayLike) -> ArrayLike:
+    """0 before 0, 1 after 1, a smooth S between."""
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+@dataclass
+class Point:
+    """Every true field at one place and time (SI, vectors as velocities of the medium)."""
+
+    depth: float
+    current_east: float
+    current_north: float
+    wind_east: float
+    wind_north: float
+    water_temp: float
+
+
+class World:
+    """Depth, current, wind and water temperature for one scenario with its world effects switched on.
+
+    Times ``t`` are seconds since the start of the run.
+    """
+
+    def __init__(
+        self, scenario: Scenario, effects: list[Effect], duration_s: float, seed: int = 0
+    ) -> None:
+        self.sc = scenario
+        self.duration_s = max(float(duration_s), 1.0)
+        self.on = {e.name: e.params for e in effects if e.spec.kind == "world"}
+        rng = np.random.default_rng([seed, 101])
+        x0, x1, y0, y1 = scenario.extent
+        self.half_span_x = 0.5 * (x1 - x0)
+        self.is_river = scenario.kind == "river"
+        self._init_geometry()
+        self._init_wind(rng)
+
+    # ---- geometry and depth -------------------------------------------------------------
+    def _init_geometry(self) -> None:
+        t = self.sc.tables
+        if self.is_river:
+            ch, d, c = t["channel"], t["depth"], t["current"]
+            self.k = 2.0 * math.pi / float(ch["meander_wavelength"])
+            self.amp = float(ch["meander_amplitude"])
+            self.phase = math.radians(float(ch.get("meander_phase_deg", 0.0)))
+            self.half_width = float(ch["half_width"])
+            self.th_amp = float(ch["thalweg_amplitude"])
+            self.th_phase = math.radians(float(ch.get("thalweg_phase_deg", 0.0)))
+            self.d_bank, self.d_th = float(d["bank"]), float(d["thalweg"])
+            self.d_width = float(d["width"])
+            self.d_min, self.d_max = float(d["min"]), float(d["max"])
+            bars = np.array(d.get("bars", []), dtype=float).reshape(-1, 4)
+            self.bars = bars
+            self.u_bank, self.u_th = float(c["bank"]), float(c["thalweg"])
+        else:
+            b = t["basin"]
+            self.deep = (float(b["deep_x"]), float(b["deep_y"]))
+            self.d_centre, self.d_edge = float(b["depth_centre"]), float(b["depth_edge"])
+            self.radius = float(b["radius"])
+            self.drift = float(b["drift"])
+            self.d_min, self.d_max = 0.5, self.d_centre
+            self.bars = np.zeros((0, 4))
+        self.manning = float(self.on.get("depth_current", {}).get("exponent", 2.0 / 3.0))
+
+    def _bank_coords(self, x: ArrayLike, y: ArrayLike) -> tuple[ArrayLike, ArrayLike]:
+        """Cross-channel offset n from the centreline, and the centreline's direction (math rad)."""
+        arg = self.k * x + self.phase
+        n = y - self.amp * np.sin(arg)
+        theta = np.arctan(self.amp * self.k * np.cos(arg))
+        return n, theta
+
+    def _smooth_depth(self, x: ArrayLike, y: ArrayLike) -> ArrayLike:
+        if self.is_river:
+            n, _ = self._bank_coords(x, y)
+            nt = self.th_amp * np.sin(self.k * x + self.th_phase)
+            return self.d_bank + (self.d_th - self.d_bank) * np.exp(-(((n - nt) / self.d_width) ** 2))
+        r2 = (x - self.deep[0]) ** 2 + (y - self.deep[1]) ** 2
+        return np.clip(self.d_centre - (self.d_centre - self.d_edge) * r2 / self.radius**2, 0.5, None)
+
+    def depth(self, x: ArrayLike, y: ArrayLike) -> ArrayLike:
+        """Water depth below the surface (m)."""
+        return self._depth(x, y, self._smooth_depth(x, y))
+
+    def _depth(self, x: ArrayLike, y: ArrayLike, ds: ArrayLike) -> ArrayLike:
+        d = ds
+        for xb, yb, rb, hb in self.bars:
+            d = d - hb * np.exp(-((x - xb) ** 2 + (y - yb) ** 2) / (rb * rb))
+        return np.clip(d, self.d_min, self.d_max)
+
+    # ---- current ------------------------------------------------------------------------
+    def discharge_factor(self, t: ArrayLike) -> ArrayLike:
+        """Discharge relative to the start: 1 unless dam_release is on."""
+        p = self.on.get("dam_release")
+        if p is None:
+            return np.ones_like(np.asarray(t, dtype=float)) if np.ndim(t) else 1.0
+        ta, tb = p["start_frac"] * self.duration_s, p["end_frac"] * self.duration_s
+        return 1.0 + p["increase"] * smoothstep((np.asarray(t, dtype=float) - ta) / (tb - ta))
+
+    def current(self, x: ArrayLike, y: ArrayLike, t: ArrayLike) -> tuple[ArrayLike, ArrayLike]:
+        """Surface current (east, north) in m/s: the water's velocity."""
+        ds = self._smooth_depth(x, y)
+        return self._current(x, y, t, ds, self._depth(x, y, ds))
+
+    def _current(self, x, y, t, ds, d):  # type: ignore[no-untyped-def]
+        q = self.discharge_factor(t)
+        if self.is_river:
+            frac = (ds - self.d_bank) / (self.d_th - self.d_bank)
+            speed = (self.u_bank + (self.u_th - self.u_bank) * frac) * q
+            if "depth_current" in self.on:
+                speed = speed * (d / ds) ** self.manning
+            _, theta = self._bank_coords(x, y)
+            return speed * np.cos(theta), speed * np.sin(theta)
+        a = math.radians(self.sc.flow_dir_deg)
+        speed = self.drift * q * (1.0 + 0.1 * np.sin(0.03 * x) * np.cos(0.03 * y))
+        if "depth_current" in self.on:
+            speed = speed * (d / ds) ** self.manning
+        return speed * math.sin(a), speed * math.cos(a)
+
+    # ---- wind ---------------------------------------------------------------------------
+    def _init_wind(self, rng: np.random.Generator) -> None:
+        w = self.sc.tables["wind"]
+        self.w_speed = float(w["speed"])
+        self.w_from = float(w["from_deg"])
+        self.w_grad = float(w.get("gradient", 0.0))
+        self.shelter_bank = str(w.get("shelter_bank", "none"))
+        self.shelter_static = float(w.get("shelter_static", 0.0))
+        self.shelter_len = float(w.get("shelter_length", 50.0))
+        g = self.on.get("gusts")
+        self.gust_events = np.zeros((0, 3))
+        if g is None:
+            return
+        nk = 24
+        periods = np.exp(rng.uniform(math.log(8.0), math.log(150.0), nk))
+        self.g_omega = 2 * math.pi / periods
+        self.g_phase = rng.uniform(0, 2 * math.pi, nk)
+        amp = periods**0.5
+        self.g_amp = amp * g["fast_std"] / math.sqrt(0.5 * float(np.sum(amp * amp)))
+        self.g_slow_phase = float(rng.uniform(0, 2 * math.pi))
+        # strong gust events so the gust factor reaches peak_factor in every run, one per ~6 minutes
+        n_ev = max(1, int(self.duration_s // 360))
+        times = (np.arange(n_ev) + rng.uniform(0.25, 0.75, n_ev)) * self.duration_s / n_ev
+        ev = []
+        for te in times:
+            g0 = float(self._gust_factor_at(np.array([te]))[0])
+            need = max(0.0, g["peak_factor"] * 1.04 - g0)
+            ev.append((te, need, rng.uniform(5.0, 9.0)))
+        self.gust_events = np.array(ev)
+
+    def _gust_factor_at(self, tau: np.ndarray) -> np.ndarray:
+        g = self.on["gusts"]
+        slow = g["slow_amplitude"] * np.sin(2 * math.pi * tau / g["slow_period_s"] + self.g_slow_phase)
+        fast = np.sin(np.multiply.outer(tau, self.g_omega) + self.g_phase) @ self.g_amp
+        out = 1.0 + slow + fast
+        for te, a, width in self.gust_events:
+            out = out + a * np.exp(-(((tau - te) / width) ** 2))
+        return np.maximum(out, 0.2)
+
+    def wind_from_deg(self, t: ArrayLike) -> ArrayLike:
+        """Direction the wind comes from (compass deg) at time t; veers only with bank_shelter."""
+        p = self.on.get("bank_shelter")
+        if p is None:
+            return self.w_from + 0.0 * np.asarray(t, dtype=float)
+        u = smoothstep(np.asarray(t, dtype=float) / self.duration_s)
+        return p["veer_from_deg"] + (p["veer_to_deg"] - p["veer_from_deg"]) * u
+
+    def _bank_distance(self, x: ArrayLike, y: ArrayLike) -> tuple[ArrayLike, float]:
+        """Distance to the sheltering bank (m) and the direction (compass deg) the bank lies in."""
+        if not self.is_river or self.shelter_bank == "none":
+            return np.full_like(np.asarray(x, dtype=float), 1e9), 0.0
+        n, _ = self._bank_coords(x, y)
+        if self.shelter_bank == "south":
+            return np.maximum(n + self.half_width, 0.0), 180.0
+        return np.maximum(self.half_width - n, 0.0), 0.0
+
+    def wind(self, x: ArrayLike, y: ArrayLike, t: ArrayLike) -> tuple[ArrayLike, ArrayLike]:
+        """True wind (east, north) in m/s: the air's velocity over ground."""
+        x = np.asarray(x, dtype=float)
+        y = np.asarray(y, dtype=float)
+        t = np.asarray(t, dtype=float)
+        frm = np.radians(self.wind_from_deg(t))
+        speed = self.w_speed * (1.0 + self.w_grad * x / self.half_span_x)
+        dist, bank_dir = self._bank_distance(x, y)
+        p = self.on.get("bank_shelter")
+        if p is None:
+            speed = speed * (1.0 - self.shelter_static * np.exp(-dist / self.shelter_len))
+        else:
+            facing = np.maximum(np.cos(frm - math.radians(bank_dir)), 0.0)
+            speed = speed * (1.0 - p["strength"] * facing * np.exp(-dist / p["length_m"]))
+        if "gusts" in self.on:
+            # gusts travel with the wind: the gust at a point arrives later further downwind
+            along = -(x * np.sin(frm) + y * np.cos(frm))
+            tau = np.asarray(t - along / self.w_speed, dtype=float)
+            speed = speed * self._gust_factor_at(tau.reshape(-1)).reshape(tau.shape)
+        return -speed * np.sin(frm), -speed * np.cos(frm)
+
+    # ---- water temperature --------------------------------------------------------------
+    def water_temp(self, x: ArrayLike, y: ArrayLike) -> ArrayLike:
+        w = self.sc.tables.get("water", {})
+        return float(w.get("temp", 25.0)) + float(w.get("temp_gradient", 0.0)) * (
+            np.asarray(x, dtype=float) / self.half_span_x
+        )
+
+    # ---- everything at once (the hot path of the boat loop) -----------------------------
+    def at(self, x: float, y: float, t: float) -> Point:
+        ds = self._smooth_depth(x, y)
+        d = self._depth(x, y, ds)
+        ce, cn = self._current(x, y, t, ds, d)
+        we, wn = self.wind(x, y, t)
+        return Point(
+            float(d), float(ce), float(cn), float(we), float(wn), float(self.water_temp(x, y))
+        )
+
+    def grid(self, nx: int = 121, ny: int = 41) -> tuple[np.ndarray, np.ndarray]:
+        x0, x1, y0, y1 = self.sc.extent
+        return np.linspace(x0, x1, nx), np.linspace(y0, y1, ny)

@@ -1,0 +1,95 @@
+"""The depth sounder: NMEA 0183 DPT, DBT and MTW with talker SD, paced at 4800 baud."""
+
+from __future__ import annotations
+
+import random
+
+import pynmea2
+
+BAUD_BYTES_PER_S = 480.0  # 4800 baud, 8N1: ten bits a byte
+
+# junk seen in real captures (NeutronDance.log: an Arduino multiplexer's status lines and boot text)
+GARBAGE_LINES = (
+    "!!VER:1.9,UID:MEGA,APX:0,APS:C,AAX:0,AAR:14.00,WSX:0,WSK:99,",
+    "Initializing..",
+    "SPI started",
+    "Start nmea Rx - serial2 at 4800",
+)
+
+
+def sentence(talker: str, kind: str, fields: tuple[str, ...]) -> str:
+    """One NMEA sentence with its checksum, built by pynmea2, without the line ending."""
+    return pynmea2.TalkerSentence.sentence_types[kind](talker, kind, fields).render()
+
+
+class Sounder:
+    """A single-beam sounder: depth below the transducer (DPT with offset, DBT) and water temperature."""
+
+    def __init__(self, seed: int = 0, offset_m: float = 0.2, noise_m: float = 0.03, max_range: float = 100.0) -> None:
+        self.rng = random.Random(seed)
+        self.offset = offset_m
+        self.noise = noise_m
+        self.max_range = max_range
+
+    def sentences(self, depth: float, temp: float) -> list[str]:
+        """DPT, DBT and MTW for the true depth below the surface and the water temperature."""
+        d = max(depth - self.offset + self.rng.gauss(0.0, self.noise), 0.1)
+        return [
+            sentence("SD", "DPT", (f"{d:.2f}", f"{self.offset:.2f}", f"{self.max_range:.1f}")),
+            sentence("SD", "DBT", (f"{d / 0.3048:.1f}", "f", f"{d:.2f}", "M", f"{d / 1.8288:.2f}", "F")),
+            sentence("SD", "MTW", (f"{temp + self.rng.gauss(0.0, 0.05):.1f}", "C")),
+        ]
+
+
+class Garbler:
+    """NMEA damage like the real captures: spliced fragments, bad checksum digits, junk lines."""
+
+    def __init__(self, rng: random.Random, rate: float) -> None:
+        self.rng = rng
+        self.rate = rate
+        self.events = 0
+
+    def apply(self, lines: list[str]) -> list[str]:
+        out = []
+        for i, s in enumerate(lines):
+            r = self.rng.random()
+            if r >= self.rate:
+                out.append(s)
+                continue
+            self.events += 1
+            kind = self.rng.randrange(4)
+            if kind == 0:
+                # a middle section lost: "$S" + the tail of this or the next sentence ($S1.62,F*39)
+                other = lines[(i + 1) % len(lines)]
+                cut = self.rng.randrange(2, 8)
+                out.append(s[:cut] + other[self.rng.randrange(cut, len(other) - 4) :])
+            elif kind == 1:
+                # a sentence cut short runs into the next one ($SDDPT,2.56GPRMC...)
+                out.append(s[: self.rng.randrange(8, len(s) - 3)] + lines[(i + 1) % len(lines)][1:])
+            elif kind == 2:
+                # one checksum digit garbled ($SDDPT,2.53,0.00,100.0*5V)
+                out.append(s[:-1] + self.rng.choice(",.VW3"))
+            else:
+                out.append(self.rng.choice(GARBAGE_LINES))
+                out.append(s)
+        return out
+
+
+class Uart:
+    """Paces bytes at a serial line's rate: each chunk leaves when the one before it has gone."""
+
+    def __init__(self, bytes_per_s: float, chunk: int = 16) -> None:
+        self.ns_per_byte = 1e9 / bytes_per_s
+        self.free_ns = 0
+        self.chunk = chunk
+
+    def send(self, t_ns: int, data: bytes) -> list[tuple[int, bytes]]:
+        """(time the chunk's last byte leaves, chunk) pieces of ``data`` queued at ``t_ns``."""
+        t = max(t_ns, self.free_ns)
+        out = []
+        for i in range(0, len(data), self.chunk):
+            piece = data[i : i + self.chunk]
+            t += int(len(piece) * self.ns_per_byte)
+            out.append((t, piece))
+        self.free_ns = t
+        return out

@@ -1,0 +1,113 @@
+"""Live transport: one pty per instrument behind stable symlinks, paced to real time x speed."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from . import clockfile
+from .engine import Simulation
+from .usb_cdc import UsbCdc
+
+SOURCES = ("bridge", "depth", "mavlink")
+
+
+class PortSet:
+    """The ports directory: ``bridge``, ``depth`` and ``mavlink`` symlinks to ptys, plus ``clock``."""
+
+    def __init__(self, ports_dir: str | os.PathLike[str]) -> None:
+        self.dir = Path(ports_dir)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.ports: dict[str, UsbCdc | None] = {s: UsbCdc(str(self.dir / s)) for s in SOURCES}
+        self.bytes_written = dict.fromkeys(SOURCES, 0)
+        self.dropped = dict.fromkeys(SOURCES, 0)
+        self.reanchors = 0  # times the clock file was re-anchored because the simulator fell behind
+
+    def path(self, source: str) -> str:
+        return str(self.dir / source)
+
+    @property
+    def clock_path(self) -> str:
+        return str(self.dir / "clock")
+
+    def write(self, source: str, data: bytes) -> None:
+        port = self.ports.get(source)
+        if port is None:
+            return
+        n = port.write(data)
+        if n is None:
+            self.dropped[source] += 1
+        else:
+            self.bytes_written[source] += n
+
+    def bridge_writable(self) -> bool:
+        port = self.ports.get("bridge")
+        return True if port is None else port.writable()
+
+    def unplug(self, source: str) -> None:
+        """The cable is pulled: the pty and its symlink disappear (a reader gets an error)."""
+        port = self.ports.get(source)
+        if port is not None:
+            port.close()
+            self.ports[source] = None
+
+    def plug(self, source: str) -> None:
+        """The cable is back: a new pty under the same symlink path."""
+        if self.ports.get(source) is None:
+            self.ports[source] = UsbCdc(self.path(source))
+
+    def event(self, kind: str, source: str, t_ns: int) -> None:
+        if kind == "unplug":
+            self.unplug(source)
+        elif kind == "plug":
+            self.plug(source)
+
+    def close(self) -> None:
+        for s in SOURCES:
+            self.unplug(s)
+
+
+def run_live(
+    sim_factory: Callable[..., Simulation],
+    ports: PortSet,
+    duration_s: float,
+    speed: float = 1.0,
+    stop: threading.Event | None = None,
+    tick_s: float = 0.002,
+    max_lag_s: float = 0.5,
+    on_progress: Callable[[float, float], None] | None = None,
+) -> Simulation:
+    """Drive a simulation in real time x ``speed``, writing each instrument's bytes to its pty.
+
+    ``sim_factory(bridge_writable=..., events=...)`` builds the Simulation wired to these ports.
+    The clock file is anchored at the start so a daemon with ``--clock sim:DIR/clock`` stamps
+    arrivals in virtual time; if the simulator falls more than ``max_lag_s`` (virtual) behind, the
+    anchor moves so the clock never runs ahead of the bytes. Returns when the run ends or ``stop`` is set; the truth is written either way.
+    """
+    sim = sim_factory(bridge_writable=ports.bridge_writable, events=ports.event)
+    v_anchor, mono_anchor = 0.0, time.monotonic_ns()
+    clockfile.write_anchor(ports.clock_path, sim.t0_ns, mono_anchor, speed)
+    sim.start(duration_s, lambda source, t_ns, data: ports.write(source, data))
+    next_report = 0.0
+    try:
+        while sim.t < duration_s and not (stop is not None and stop.is_set()):
+            target = v_anchor + (time.monotonic_ns() - mono_anchor) * 1e-9 * speed
+            if target > sim.t:
+                sim.advance(min(target, sim.t + max_lag_s, duration_s))
+            target = v_anchor + (time.monotonic_ns() - mono_anchor) * 1e-9 * speed
+            if target - sim.t > max_lag_s:
+                # the machine cannot keep up with this speed: re-anchor so the clock file stays true
+                v_anchor, mono_anchor = sim.t, time.monotonic_ns()
+                clockfile.write_anchor(ports.clock_path, sim.t0_ns + int(sim.t * 1e9), mono_anchor, speed)
+                ports.reanchors += 1
+            if on_progress is not None and sim.t >= next_report:
+                next_report = sim.t + 10.0
+                on_progress(sim.t, duration_s)
+            if target <= sim.t:
+                time.sleep(tick_s)
+    finally:
+        sim.finish()
+    return sim

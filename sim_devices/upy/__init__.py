@@ -1,0 +1,1 @@
+"""Harness that runs the bridge firmware under the real unix-port ``micropython`` binary."""

@@ -1,0 +1,177 @@
+"""Shared helpers for the daemon tests: real ptys, instrument traffic, and a daemon subprocess."""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+import tty
+from pathlib import Path
+
+from protocol import wire
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def nmea_checksum(body: str) -> str:
+    c = 0
+    for ch in body.encode():
+        c ^= ch
+    return f"{c:02X}"
+
+
+def nmea_line(body: str) -> bytes:
+    return f"${body}*{nmea_checksum(body)}\r\n".encode()
+
+
+def depth_sentence(i: int) -> bytes:
+    return nmea_line(f"SDDPT,{2.0 + (i % 50) / 10:.1f},0.3")
+
+
+def bridge_frame(seq: int, t_us: int, boot_id: int = 0x1234ABCD) -> bytes:
+    chans = [(seq * (k + 1), t_us, 1000) for k in range(5)]
+    return wire.encode(wire.SAMPLE, boot_id, seq, t_us, wire.pack_sample(2000, chans))
+
+
+@functools.cache
+def _mav():
+    from pymavlink.dialects.v20 import ardupilotmega as mav
+
+    return mav, mav.MAVLink(None, srcSystem=1, srcComponent=1)
+
+
+def mavlink_packet(i: int) -> bytes:
+    mav, m = _mav()
+    msg = mav.MAVLink_global_position_int_message(
+        i * 100, 473_977_420 + i, 85_455_940 + i, 500, 0, 100, 50, 0, 9000
+    )
+    return msg.pack(m)
+
+
+class PtyPort:
+    """A pty whose slave is reachable at ``path`` (a symlink), like the simulator's ports.
+
+    The test writes to the master. ``pull()`` removes it as a cable pull does; ``plug()`` makes a
+    new pty under the same path.
+    """
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        self.master = -1
+        self.slave = -1
+        self.plug()
+
+    def plug(self) -> None:
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        tmp = self.path.with_suffix(".new")
+        if tmp.exists() or tmp.is_symlink():
+            tmp.unlink()
+        os.symlink(os.ttyname(self.slave), tmp)
+        os.replace(tmp, self.path)
+
+    def pull(self) -> None:
+        if self.path.is_symlink():
+            self.path.unlink()
+        for fd in (self.master, self.slave):
+            if fd >= 0:
+                os.close(fd)
+        self.master = self.slave = -1
+
+    def write(self, data: bytes) -> None:
+        if self.master >= 0:
+            os.write(self.master, data)
+
+    def close(self) -> None:
+        self.pull()
+
+
+class DaemonProcess:
+    """`forcemap run` as a subprocess; stderr (one JSON line per event) is collected as events."""
+
+    def __init__(self, out: Path, ports: dict[str, str], *extra: str, quiet: bool = True):
+        args = [sys.executable, "-m", "host.cli", "run", "--out", str(out)]
+        for name, port in ports.items():
+            args += [f"--{name}", port]
+        args += list(extra)
+        if quiet:
+            args.append("--quiet")
+        self.proc = subprocess.Popen(
+            args, cwd=ROOT, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True
+        )
+        self.events: list[dict] = []
+        self.lines: list[str] = []
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._collect, daemon=True)
+        self._thread.start()
+
+    def _collect(self) -> None:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:
+            with self._cond:
+                self.lines.append(line)
+                try:
+                    self.events.append(json.loads(line))
+                except ValueError:
+                    pass
+                self._cond.notify_all()
+
+    def wait_for(self, pred, timeout: float = 20.0) -> dict:
+        """The first event matching ``pred``, waiting for it."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                for e in self.events:
+                    if pred(e):
+                        return e
+                left = deadline - time.monotonic()
+                if left <= 0 or self.proc.poll() is not None and not self._thread.is_alive():
+                    raise TimeoutError(f"no matching event; stderr:\n{''.join(self.lines)}")
+                self._cond.wait(min(left, 0.1))
+
+    def wait_connected(self, sources, timeout: float = 20.0) -> None:
+        for s in sources:
+            self.wait_for(
+                lambda e, s=s: e.get("event") == "connected" and e.get("source") == s, timeout
+            )
+
+    def stop(self, sig: int, timeout: float = 20.0) -> int:
+        self.proc.send_signal(sig)
+        rc = self.proc.wait(timeout)
+        self._thread.join(5)
+        return rc
+
+
+def wait_drained(ports, timeout: float = 30.0) -> None:
+    """Wait until the daemon has read everything written to the ptys."""
+    import fcntl
+    import struct as _struct
+    import termios
+
+    deadline = time.monotonic() + timeout
+    for port in ports:
+        while time.monotonic() < deadline:
+            n = _struct.unpack("i", fcntl.ioctl(port.slave, termios.FIONREAD, b"\0\0\0\0"))[0]
+            if n == 0:
+                break
+            time.sleep(0.02)
+    time.sleep(0.3)
+
+
+def mcap_files(out: Path) -> list[Path]:
+    return sorted(Path(out).glob("*.mcap"))
+
+
+def last_status(out: Path) -> dict:
+    """The last /daemon/status the daemon recorded (its final one after a clean stop)."""
+    from host.mcap_log import read_messages
+
+    status = None
+    for m in read_messages(mcap_files(out), "/daemon/status"):
+        status = m.message
+    assert status is not None, "no /daemon/status recorded"
+    return status

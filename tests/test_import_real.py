@@ -1,0 +1,291 @@
+"""Every real capture in ../shared/data/real goes through `forcemap import`; the counts are pinned.
+
+The NMEA captures go through the NMEA path and the tlogs through the MAVLink path. One small
+capture, and the first 3000 packets of a tlog, are written to real MCAP and read back; for the
+large files (plaka.log is 4 hours) the command runs the same way but writes to an in-memory counting
+log, to keep the suite fast.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from host import import_cli
+from host.cli import main
+from host.importers import tlog_records
+from host.mcap_log import read_messages
+
+REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+if not REAL.is_dir():
+    pytest.skip("../shared/data/real is not here", allow_module_level=True)
+
+NMEA = {
+    "PacCupStartNMEA.txt": (
+        59887,
+        59887,
+        {
+            "DBT": 2212,
+            "GGA": 1106,
+            "GLL": 1105,
+            "HDM": 2212,
+            "MTW": 2211,
+            "RMC": 1105,
+            "VHW": 2212,
+            "VTG": 1106,
+            "VWR": 2211,
+            "ZDA": 1106,
+            "other": 43301,
+        },
+        {},
+    ),
+    "plaka.log": (
+        116000,
+        116000,
+        {
+            "DBT": 7250,
+            "GLL": 7250,
+            "HDM": 7250,
+            "HDT": 14500,
+            "MWD": 7250,
+            "MWV": 7250,
+            "VHW": 7250,
+            "VTG": 7250,
+            "ZDA": 7250,
+            "other": 43500,
+        },
+        {},
+    ),
+    "bundg_zeus_9.log": (
+        5007,
+        4999,  # 8 comment lines
+        {
+            "DBT": 148,
+            "DPT": 149,
+            "GGA": 138,
+            "GLL": 147,
+            "HDG": 1457,
+            "MTW": 149,
+            "MWD": 150,
+            "MWV": 300,
+            "RMC": 146,
+            "VHW": 150,
+            "VTG": 148,
+            "ZDA": 154,
+            "other": 1763,
+        },
+        {},
+    ),
+    "NeutronDance.log": (
+        19493,
+        19493,
+        {"DBT": 3702, "DPT": 5208, "GGA": 322, "MWV": 1354, "RMC": 1428, "VHW": 1692, "other": 859},
+        {
+            "bad_checksum": 939,
+            "field_count": 25,
+            "no_checksum": 638,
+            "no_start": 27,
+            "parse_error": 3,
+            "spliced": 3296,
+        },
+    ),
+}
+TLOG = {
+    "ardusub_2023-05-04_bluerov_small.tlog": (
+        35916,
+        35912,
+        {"1/100/259": 1, "1/100/260": 1, "1/100/262": 1, "1/100/269": 1},
+        792,
+    ),
+    "ardusub_2023-04-18_bluerov_distance_sensor_badcrc.tlog": (
+        52103,
+        50136,
+        {
+            "1/194/132": 1949,
+            "255/0/21": 6,
+            "255/0/76": 4,
+            "1/100/77": 4,
+            "1/100/259": 1,
+            "1/100/260": 1,
+            "1/100/262": 1,
+            "1/100/269": 1,
+        },
+        0,  # no GPS fix in this log
+    ),
+    "copter_2015-07-05_droneshare_flight.tlog": (76792, 75477, {"255/0/142": 1314}, 2684),
+}
+TO_MCAP = {"bundg_zeus_9.log"}
+
+
+class CountingLog:
+    """Stands in for McapLog: counts messages per topic."""
+
+    def __init__(self, out, **kw):
+        self.counts: Counter[str] = Counter()
+        self.meta: dict[str, dict] = {}
+        self.paths = [Path(out) / "in-memory"]
+
+    def write(self, topic, log_time_ns, message):
+        self.counts[topic] += 1
+
+    def metadata(self, name, data):
+        self.meta[name] = data
+
+    def close(self):
+        pass
+
+
+@pytest.fixture
+def run_import(tmp_path, monkeypatch):
+    logs = []
+
+    def run(name, *extra):
+        if name not in TO_MCAP:
+
+            def fake(out, stem):
+                logs.append(CountingLog(out))
+                return logs[-1]
+
+            monkeypatch.setattr(import_cli, "_open_log", fake)
+        path = next(REAL.glob(f"*/{name}"))
+        rc = main(["import", str(path), "--out", str(tmp_path), *extra])
+        return rc, (logs[-1] if logs else None), tmp_path
+
+    return run
+
+
+def test_every_real_file_is_covered():
+    data = {p.name for p in REAL.glob("*/*") if p.suffix.lower() not in (".md", ".csv")}
+    assert data == set(NMEA) | set(TLOG) | {"ardusub_4.1_bluerov_small.BIN"}
+
+
+@pytest.mark.parametrize("name", sorted(NMEA))
+def test_nmea_capture(name, run_import, capsys):
+    records, lines, accepted, rejected = NMEA[name]
+    rc, log, out = run_import(name)
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert f"{records} lines (nmea)" in text
+    assert f"{sum(accepted.values())} accepted {dict(sorted(accepted.items()))}" in text
+    assert f"{sum(rejected.values())} rejected {dict(sorted(rejected.items()))}" in text
+    if log is not None:
+        counts = log.counts
+    else:
+        files = list(out.glob("*.mcap"))
+        assert len(files) == 1
+        counts = Counter(m.topic for m in read_messages(files[0]))
+    assert counts["/nmea/sentence"] == lines
+    assert counts["/fix"] > 0 and counts["/depth"] > 0
+
+
+@pytest.mark.parametrize("name", sorted(TLOG))
+def test_tlog(name, run_import, capsys):
+    packets, good, bad, gpi_fixes = TLOG[name]
+    rc, log, out = run_import(name)
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert f"{packets} packets (tlog)" in text
+    assert f"MAVLink: {good} messages, {sum(bad.values())} bad CRC" in text
+    worst = max(bad, key=bad.get)
+    assert f"sysid/compid/msgid {worst}: {bad[worst]}" in text
+    if log is not None:
+        counts = log.counts
+    else:
+        files = list(out.glob("*.mcap"))
+        counts = Counter(m.topic for m in read_messages(files[0]))
+    assert sum(n for t, n in counts.items() if t.startswith("/mavlink/")) == good
+    assert counts["/boat/state"] == gpi_fixes
+
+
+def test_dataflash_bin_is_refused_in_one_line(run_import, capsys):
+    rc, _, out = run_import("ardusub_4.1_bluerov_small.BIN")
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert err.count("\n") == 1 and "DataFlash" in err and ".tlog" in err
+    rc, _, out = run_import("ardusub_4.1_bluerov_small.BIN", "--format", "tlog")
+    assert rc == 2 and "DataFlash" in capsys.readouterr().err
+    assert not list(out.glob("*.mcap"))
+
+
+def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
+    junk = tmp_path / "junk.dat"
+    junk.write_bytes(b"\x01\x02 hello")
+    assert main(["import", str(junk), "--out", str(tmp_path)]) == 2
+    assert main(["import", str(tmp_path / "missing.log"), "--out", str(tmp_path)]) == 2
+    bad_cfg = tmp_path / "boat.toml"
+    bad_cfg.write_text('[vane]\nvref = "x"\n')
+    assert (
+        main(
+            [
+                "import",
+                str(junk),
+                "--config",
+                str(bad_cfg),
+                "--format",
+                "nmea",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 2
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and "vane.vref" in err[2]
+
+
+def test_tlog_to_mcap_round_trip(tmp_path, capsys):
+    src = REAL / "mavlink" / "ardusub_2023-05-04_bluerov_small.tlog"
+    data = src.read_bytes()
+    end = 0
+    for n, (_, pkt) in enumerate(tlog_records(data)):
+        end = data.index(pkt, end) + len(pkt)
+        if n == 2999:
+            break
+    part = tmp_path / "part.tlog"
+    part.write_bytes(data[:end])
+    assert main(["import", str(part), "--out", str(tmp_path / "out")]) == 0
+    text = capsys.readouterr().out
+    assert "3000 packets (tlog)" in text
+    good, bad = (
+        int(x) for x in re.search(r"MAVLink: (\d+) messages, (\d+) bad CRC", text).groups()
+    )
+    assert good + bad == 3000
+    files = list((tmp_path / "out").glob("part-*.mcap"))
+    assert len(files) == 1
+    msgs = list(read_messages(files[0]))
+    counts = Counter(m.topic for m in msgs)
+    assert sum(n for t, n in counts.items() if t.startswith("/mavlink/")) == good
+    assert counts["/fix"] > 0 and counts["/boat/state"] > 0 and counts["/diagnostics"] > 0
+    fix = next(m.message for m in msgs if m.topic == "/fix")
+    assert fix["latitude"] == pytest.approx(48.386, abs=0.01)
+    # log times are the GCS receive times of 2023-05-04 (SYSTEM_TIME has no UTC in this log)
+    assert all(1683200000e9 < m.log_time_ns < 1683300000e9 for m in msgs)
+
+
+def test_paccup_true_wind_through_the_import_path():
+    """The pipeline's own /wind/true from the capture matches OpenCPN's true wind (SOG along COG,
+    which is forcemap's W = R + V) on the reference rows, within 0.1 kn and 1 deg."""
+    import csv
+
+    from host.compensation import wrap180
+    from host.importers import import_nmea
+    from host.nmea import KNOT
+    from host.pipeline import ListSink
+
+    sink = ListSink()
+    import_nmea(REAL / "nmea" / "PacCupStartNMEA.txt", sink)
+    line, by_line = 0, {}
+    for topic, _, m in sink.messages:
+        if topic == "/nmea/sentence":
+            line += 1
+        elif topic == "/wind/true" and m["source"] == "nmea":
+            by_line[line] = m
+    rows = list(csv.DictReader(open(REAL / "nmea" / "reference_true_wind.csv")))
+    for r in rows:
+        m = by_line[int(r["wind_line"])]
+        assert abs(m["speed"] / KNOT - float(r["opencpn_tws_kn"])) < 0.1
+        assert abs(wrap180(m["dir"] - float(r["opencpn_twd_deg"]))) < 1.0
+        assert m["heading"] == pytest.approx(float(r["hdt_deg"]))
