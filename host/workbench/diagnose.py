@@ -41,6 +41,7 @@ class Candidate:
     consequence: bool
     explanation: str = ""
     significant: bool = False
+    note: str = ""
 
 
 @dataclass
@@ -156,6 +157,16 @@ def diagnose(
             gain, p = min(gain_b, gain_r), max(p_b, p_r)
         return Candidate(name, str(spec), cv_b.rmse, gain, p, gain_b, gain_r, is_consequence)
 
+    def evaluate_pair(first: str, then: str) -> float:
+        """Blocked-CV gain of adding `then` to the model that already has `first`."""
+        X = dict(sm.X)
+        X.update(survey_inputs(survey, {first, then}))
+        a = sm.primary.extended(build_term(parse_term(first, is_circular), is_circular), X, sm.y_primary, refit="all")
+        ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, sm.y_primary, refit="all")
+        cv_a = sm.cv(fold_id, primary=a, secondary_cv=sec_b)
+        cv_ab = sm.cv(fold_id, primary=ab, secondary_cv=sec_b)
+        return paired_test(cv_a.error**2, cv_ab.error**2, blocks)[0]
+
     results: list[Candidate] = []
     skipped: dict[str, str] = {}
     for name in names:
@@ -171,14 +182,31 @@ def diagnose(
     for i in range(min(REFINE, len(results))):
         bar.step(f"refit {results[i].covariate}")
         results[i] = evaluate(results[i].covariate, "all")
-    bar.close()
     results.sort(key=lambda c: -c.improvement)
+    results = _demote_time_proxy(results, evaluate_pair, min_gain)
+    bar.close()
     threshold = alpha / max(len(results), 1)
     for c in results:
         c.significant = c.improvement >= min_gain and c.p_value <= threshold
         c.explanation = _explain(c, sm)
     found = bool(results) and results[0].significant
     return Diagnosis(target, sm.terms, base_b.rmse, results, found, skipped)
+
+
+def _demote_time_proxy(results: list[Candidate], evaluate_pair, min_gain: float) -> list[Candidate]:
+    """Time is a proxy for everything that changes along the track (legs alternate heading, speed, wind angle).
+    If t leads, but a specific covariate close behind leaves t nothing to add once it is in the model, the
+    specific covariate is the explanation and goes first."""
+    if not results or results[0].covariate != "t" or results[0].improvement <= 0:
+        return results
+    t = results[0]
+    for i, c in enumerate(results[1:REFINE], start=1):
+        if c.improvement < 0.5 * t.improvement or c.improvement < min_gain:
+            continue
+        if evaluate_pair(c.covariate, "t") < min_gain:
+            c.note = f"ranked above t: once {c.covariate} is in the model, a time term adds less than {min_gain:.0%}"
+            return [c] + [r for j, r in enumerate(results) if j != i]
+    return results
 
 
 def _explain(c: Candidate, sm: SurveyModel) -> str:
@@ -198,4 +226,5 @@ def _explain(c: Candidate, sm: SurveyModel) -> str:
     verdict = (
         "significant" if c.significant else f"not significant (needs a gain >= {MIN_GAIN:.0%} and a small p-value)"
     )
-    return f"{head}; p = {c.p_value:.1e}, {verdict}. Likely cause: {cause}. Suggested term: {term}."
+    extra = f" ({c.note})" if c.note else ""
+    return f"{head}; p = {c.p_value:.1e}, {verdict}{extra}. Likely cause: {cause}. Suggested term: {term}."

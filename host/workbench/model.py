@@ -162,6 +162,10 @@ class Model:
             built.append(t)
         if not built:
             raise WorkbenchError("a model needs at least one term")
+        if all(t.is_mean for t in built):
+            from host.workbench.terms import ConstTerm
+
+            built.insert(0, ConstTerm())  # the weights need at least one feature; a level is the natural one
         self.terms = built
         self.max_iter = max_iter
 

@@ -66,8 +66,8 @@ def wind_field(x, y, t, effects, duration, rng_phase):
         speed = speed * (1.0 + 0.12 * g)
     if "bank_shelter" in effects:
         from_north = np.clip(np.cos(np.radians(from_dir)), 0.0, None)
-        lee = np.exp(-(HALF_WIDTH - y) / 50.0)
-        speed = speed * (1.0 - 0.6 * from_north * lee)
+        lee = np.exp(-(HALF_WIDTH - y) / 70.0)
+        speed = speed * (1.0 - 0.85 * from_north * lee)
     rad = np.radians(from_dir)
     return -speed * np.sin(rad), -speed * np.cos(rad)
 

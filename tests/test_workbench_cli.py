@@ -1,0 +1,203 @@
+"""Reading tables (CSV, Parquet, MCAP), clear one-line errors, and the fit/diagnose/history/report commands."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.cli import main
+from host.workbench.synth import make_survey
+from host.workbench.table import load_survey
+
+
+@pytest.fixture(scope="module")
+def survey_csv(tmp_path_factory) -> Path:
+    return make_survey("river", ["depth_current"], 11, 1200.0, tmp_path_factory.mktemp("survey"))
+
+
+def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
+    with path.open() as f:
+        r = list(csv.reader(f))
+    return r[0], r[1:]
+
+
+def _write(path: Path, header: list[str], rows: list[list[str]]) -> Path:
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(rows)
+    return path
+
+
+def test_csv_parquet_and_mcap_read_the_same(survey_csv, tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from mcap.writer import Writer
+
+    s = load_survey(survey_csv)
+    header, rows = _rows(survey_csv)
+    cols = {h: [float(r[i]) for r in rows] for i, h in enumerate(header)}
+    pq.write_table(pa.table(cols), tmp_path / "s.parquet")
+    with (tmp_path / "s.mcap").open("wb") as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema(name="sample", encoding="jsonschema", data=b"{}")
+        cid = w.register_channel(topic="/samples", message_encoding="json", schema_id=sid)
+        for i in range(len(rows)):
+            msg = {h: cols[h][i] for h in header}
+            ns = int(msg["t"] * 1e9)
+            w.add_message(channel_id=cid, log_time=ns, publish_time=ns, data=json.dumps(msg).encode())
+        w.finish()
+    for other in (tmp_path / "s.parquet", tmp_path / "s.mcap"):
+        o = load_survey(other)
+        assert o.n == s.n
+        assert np.allclose(o.xy, s.xy)
+        assert np.allclose(o.columns["current_speed"], s.columns["current_speed"])
+
+
+def test_local_frame_is_metres_about_the_centre(survey_csv):
+    s = load_survey(survey_csv)
+    # the synthetic reach is 600 m x 150 m around its centre
+    span = np.ptp(s.xy, axis=0)
+    assert 500 < span[0] < 620 and 30 < span[1] < 160  # legs 570 m long, 15 m apart
+    assert abs(s.xy[:, 0].min() + s.xy[:, 0].max()) < 1.0
+    lat, lon = s.columns["lat"][0], s.columns["lon"][0]
+    dy = math.radians(lat - s.lat0) * 6_371_008.8
+    assert s.xy[0, 1] == pytest.approx(dy, abs=0.01)
+    assert s.xy[0, 0] * (lon - s.lon0) >= 0
+
+
+def _run(capsys, argv):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _one_line_error(code, err, pattern):
+    assert code == 2
+    assert "Traceback" not in err
+    lines = [ln for ln in err.strip().splitlines() if ln.startswith("forcemap")]
+    assert len(lines) == 1 and re.search(pattern, lines[0]), err
+
+
+def test_unknown_target(survey_csv, capsys):
+    code, _, err = _run(capsys, ["fit", str(survey_csv), "--target", "salinity", "--quiet"])
+    _one_line_error(code, err, "unknown target 'salinity'")
+
+
+def test_angle_target_is_refused(survey_csv, capsys):
+    code, _, err = _run(capsys, ["fit", str(survey_csv), "--target", "heading", "--quiet"])
+    _one_line_error(code, err, "angle")
+
+
+def test_constant_target(survey_csv, tmp_path, capsys):
+    header, rows = _rows(survey_csv)
+    i = header.index("water_temp")
+    for r in rows:
+        r[i] = "18.0"
+    p = _write(tmp_path / "c.csv", header, rows)
+    code, _, err = _run(capsys, ["fit", str(p), "--target", "water_temp", "--quiet"])
+    _one_line_error(code, err, "constant")
+
+
+def test_non_numeric_target(survey_csv, tmp_path, capsys):
+    header, rows = _rows(survey_csv)
+    i = header.index("depth")
+    rows[5][i] = "deep"
+    p = _write(tmp_path / "n.csv", header, rows)
+    code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
+    _one_line_error(code, err, "not numeric")
+
+
+def test_missing_values_in_target(survey_csv, tmp_path, capsys):
+    header, rows = _rows(survey_csv)
+    i = header.index("depth")
+    for r in rows[::3]:
+        r[i] = ""
+    p = _write(tmp_path / "m.csv", header, rows)
+    code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
+    _one_line_error(code, err, "missing values")
+
+
+def test_too_few_rows(survey_csv, tmp_path, capsys):
+    header, rows = _rows(survey_csv)
+    p = _write(tmp_path / "few.csv", header, rows[:10])
+    code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
+    _one_line_error(code, err, "only 10 usable rows")
+
+
+def test_missing_position_column(survey_csv, tmp_path, capsys):
+    header, rows = _rows(survey_csv)
+    i = header.index("lat")
+    p = _write(tmp_path / "nolat.csv", header[:i] + header[i + 1 :], [r[:i] + r[i + 1 :] for r in rows])
+    code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
+    _one_line_error(code, err, "required column")
+
+
+def test_fit_history_report(survey_csv, tmp_path, capsys):
+    table = tmp_path / "survey.csv"
+    table.write_bytes(survey_csv.read_bytes())
+    out_json = tmp_path / "fit.json"
+    code, out, _ = _run(capsys, ["fit", str(table), "--target", "current_speed", "--json", str(out_json), "--quiet"])
+    assert code == 0
+    base = json.loads(out_json.read_text())
+    assert set(base) == {"target", "terms", "cv_rmse", "cv_mae", "coverage95"}
+    assert base["target"] == "current_speed" and base["terms"] == ["const", "gp(position, matern32)"]
+    assert 0.0 <= base["coverage95"] <= 1.0 and base["cv_mae"] <= base["cv_rmse"]
+    assert "where the model fails most" in out
+    code, _, _ = _run(capsys, ["fit", str(table), "--target", "current_speed", "--effects", "depth", "--json", str(out_json), "--quiet"])
+    assert code == 0
+    with_depth = json.loads(out_json.read_text())
+    assert with_depth["terms"][-1] == "gp(depth, matern32)"
+    assert with_depth["cv_rmse"] < 0.7 * base["cv_rmse"]
+    code, out, _ = _run(capsys, ["history", str(table)])
+    assert code == 0
+    assert len([ln for ln in out.splitlines() if re.match(r"\s+\d+\s+\d{4}-", ln)]) == 2
+    assert (tmp_path / "survey.csv.forcemap" / "history.png").stat().st_size > 1000
+    report = tmp_path / "r.html"
+    code, _, _ = _run(capsys, ["report", str(table), "-o", str(report), "--quiet"])
+    assert code == 0
+    text = report.read_text()
+    assert text.count("data:image/png;base64,") >= 6
+    assert not re.search(r"""src=["']https?:""", text)
+    assert "Error history" in text and "gp(depth, matern32)" in text
+
+
+def test_direction_target_is_modelled_through_components(survey_csv):
+    from host.workbench.fitting import fit_target
+
+    s = load_survey(survey_csv)
+    r = fit_target(s, "current_dir", ["const", "gp(position, matern32)"], progress=False)
+    assert r.model.secondary is not None  # along/across-flow components, not a scalar angle
+    assert r.cv.circular
+    assert 0 < r.cv.rmse < 30  # degrees, wrapped
+    assert 0.5 < r.cv.coverage95 <= 1.0
+
+
+def test_diagnose_json_contract(survey_csv, tmp_path, capsys):
+    table = tmp_path / "survey.csv"
+    table.write_bytes(survey_csv.read_bytes())
+    out_json = tmp_path / "d.json"
+    code, out, _ = _run(capsys, ["diagnose", str(table), "--target", "current_speed", "--json", str(out_json), "--quiet"])
+    assert code == 0
+    d = json.loads(out_json.read_text())
+    assert set(d) == {"target", "baseline", "missing_effect_found", "candidates"}
+    assert set(d["baseline"]) == {"terms", "cv_rmse"}
+    assert d["candidates"] and all(set(c) == {"covariate", "cv_rmse", "improvement", "explanation"} for c in d["candidates"])
+    gains = [c["improvement"] for c in d["candidates"]]
+    assert gains[1:] == sorted(gains[1:], reverse=True)
+    assert d["missing_effect_found"] is True and d["candidates"][0]["covariate"] == "depth"
+    assert "continuity" in d["candidates"][0]["explanation"]
+
+
+def test_help_teaches_with_examples(capsys):
+    with pytest.raises(SystemExit):
+        main(["fit", "--help"])
+    out = capsys.readouterr().out
+    assert "examples:" in out and "--effects depth" in out
