@@ -99,12 +99,16 @@ def all_targets(n: int) -> None:
             SurveyModel(s, target).fit()
             dt = time.perf_counter() - t
             total += dt
-            print(f"  {target:<14} {dt:6.1f} s  (components and flow frame shared with the other aspect)")
+            print(
+                f"  {target:<14} {dt:6.1f} s  (components and flow frame shared with the other aspect)"
+            )
     print(f"  total fit time for {len(targets)} targets: {total:.1f} s")
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--sizes", default="1000,2000,4000,8000,16000,43000")
     ap.add_argument("--sklearn-max", type=int, default=4000)
     ap.add_argument("--target", default="depth")
@@ -112,8 +116,12 @@ def main() -> None:
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
-    print("forcemap: const + gp(position, matern32), Hilbert-space reduced rank (400 basis functions)")
-    print("sklearn : ConstantKernel*Matern(nu=1.5) + WhiteKernel, normalize_y, default optimizer (exact GP)\n")
+    print(
+        "forcemap: const + gp(position, matern32), Hilbert-space reduced rank (400 basis functions)"
+    )
+    print(
+        "sklearn : ConstantKernel*Matern(nu=1.5) + WhiteKernel, normalize_y, default optimizer (exact GP)\n"
+    )
     head = f"{'n':>6} {'forcemap s':>10} {'sklearn s':>10} {'speed-up':>9} {'CV RMSE fm':>11} {'CV RMSE sk':>11} {'fm/sk':>6}"
     print(head)
     print("-" * len(head))
@@ -125,10 +133,18 @@ def main() -> None:
         if n <= args.sklearn_max:
             _, t_sk = timed(sklearn_fit_predict, xy, y, xy)
             cv_sk = blocked_cv_rmse(sklearn_fit_predict, xy, y)
-            print(f"{n:>6} {t_fm:>10.2f} {t_sk:>10.1f} {t_sk / t_fm:>8.0f}x {cv_fm:>11.4f} {cv_sk:>11.4f} {cv_fm / cv_sk:>6.3f}", flush=True)
+            print(
+                f"{n:>6} {t_fm:>10.2f} {t_sk:>10.1f} {t_sk / t_fm:>8.0f}x {cv_fm:>11.4f} {cv_sk:>11.4f} {cv_fm / cv_sk:>6.3f}",
+                flush=True,
+            )
         else:
-            print(f"{n:>6} {t_fm:>10.2f} {'skipped':>10} {'-':>9} {cv_fm:>11.4f} {'-':>11} {'-':>6}   (exact GP: n^3, infeasible)", flush=True)
-    print(f"\nload average at the end {os.getloadavg()[0]:.1f} (other work on the machine slows both methods)")
+            print(
+                f"{n:>6} {t_fm:>10.2f} {'skipped':>10} {'-':>9} {cv_fm:>11.4f} {'-':>11} {'-':>6}   (exact GP: n^3, infeasible)",
+                flush=True,
+            )
+    print(
+        f"\nload average at the end {os.getloadavg()[0]:.1f} (other work on the machine slows both methods)"
+    )
     if not args.skip_all_targets:
         all_targets(43_000)
 

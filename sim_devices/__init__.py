@@ -1,0 +1,1 @@
+"""The simulated world, boat and instruments, down to the bytes on virtual serial ports."""

@@ -87,7 +87,9 @@ class Autopilot:
         self._last_t = s.t
         k = min(dt / 30.0, 1.0)
         for i in range(2):
-            self._err[i] += k * (self.rng.gauss(0.0, 0.5) * math.sqrt(2.0 / max(k, 1e-9)) - self._err[i])
+            self._err[i] += k * (
+                self.rng.gauss(0.0, 0.5) * math.sqrt(2.0 / max(k, 1e-9)) - self._err[i]
+            )
         boot_ms = int((s.t + self.boot_before + self.time_jump_s) * 1000.0)
         has_fix = s.t >= self.fix_at and not self.gps_lost
         unix_us = int((self.t0_unix + s.t + self.time_jump_s) * 1e6) if s.t >= self.fix_at else 0
@@ -122,8 +124,16 @@ class Autopilot:
                     lat, lon = self.geo.to_latlon(gx, gy)
                     cog = math.degrees(math.atan2(s.ve, s.vn)) % 360.0
                     msg = self.mav.gps_raw_int_encode(
-                        unix_us, 3, int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)), 45_000,
-                        90, 150, int(round(sog * 100)), int(round(cog * 100)) % 36000, 14,
+                        unix_us,
+                        3,
+                        int(round(float(lat) * 1e7)),
+                        int(round(float(lon) * 1e7)),
+                        45_000,
+                        90,
+                        150,
+                        int(round(sog * 100)),
+                        int(round(cog * 100)) % 36000,
+                        14,
                     )
                 else:
                     msg = self.mav.gps_raw_int_encode(unix_us, 1, 0, 0, 0, 9999, 9999, 0, 65535, 0)
@@ -133,15 +143,28 @@ class Autopilot:
                 else:
                     lat, lon = self.geo.to_latlon(gx, gy)
                 msg = self.mav.global_position_int_encode(
-                    boot_ms, int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)), 45_000, 0,
-                    int(round(s.vn * 100)), int(round(s.ve * 100)), 0, int(round(heading * 100)) % 36000,
+                    boot_ms,
+                    int(round(float(lat) * 1e7)),
+                    int(round(float(lon) * 1e7)),
+                    45_000,
+                    0,
+                    int(round(s.vn * 100)),
+                    int(round(s.ve * 100)),
+                    0,
+                    int(round(heading * 100)) % 36000,
                 )
             elif name == "ATTITUDE":
                 yaw = math.radians(heading)
                 if yaw > math.pi:
                     yaw -= 2 * math.pi
                 msg = self.mav.attitude_encode(
-                    boot_ms, self.rng.gauss(0.0, 0.02), self.rng.gauss(0.0, 0.02), yaw, 0.0, 0.0, s.yaw_rate
+                    boot_ms,
+                    self.rng.gauss(0.0, 0.02),
+                    self.rng.gauss(0.0, 0.02),
+                    yaw,
+                    0.0,
+                    0.0,
+                    s.yaw_rate,
                 )
             else:
                 msg = self.mav.vfr_hud_encode(

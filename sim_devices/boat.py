@@ -28,7 +28,9 @@ class BoatParams:
     area_front: float = 0.5  # m^2 above water
     area_side: float = 1.2
     cd_air: float = 0.9
-    weathervane: float = 0.35  # m, lever of the side wind force about the centre (bow turns off the wind)
+    weathervane: float = (
+        0.35  # m, lever of the side wind force about the centre (bow turns off the wind)
+    )
 
 
 @dataclass
@@ -73,10 +75,17 @@ class Boat:
         thrust = p.thrust_max * min(max(throttle, 0.0), 1.0) ** 2  # a jet pump: thrust ~ rpm^2
         delta = math.radians(p.nozzle_max_deg) * min(max(steer, -1.0), 1.0)
         u, v, r = s.u, s.v, s.r
-        du = (thrust * math.cos(delta) - p.x_u * u - p.x_uu * u * abs(u) + p.m_sway * v * r + fw_x) / p.m_surge
+        du = (
+            thrust * math.cos(delta) - p.x_u * u - p.x_uu * u * abs(u) + p.m_sway * v * r + fw_x
+        ) / p.m_surge
         dv = (-p.y_v * v - p.y_vv * v * abs(v) - p.m_surge * u * r + fw_y) / p.m_sway
         n_damp = p.n_r + p.n_ru * abs(u)
-        dr = (thrust * math.sin(delta) * p.jet_arm - n_damp * r - p.n_rr * r * abs(r) - p.weathervane * fw_y) / p.inertia
+        dr = (
+            thrust * math.sin(delta) * p.jet_arm
+            - n_damp * r
+            - p.n_rr * r * abs(r)
+            - p.weathervane * fw_y
+        ) / p.inertia
         s.u = u + du * dt
         s.v = v + dv * dt
         s.r = r + dr * dt

@@ -49,14 +49,35 @@ def parse_duration(text: str) -> float:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
-    parser.add_argument("--list", action="store_true", help="list scenarios, missions, effects and faults, then exit")
-    parser.add_argument("--scenario", default="river", help="built-in name (river, lake) or a scenario TOML path")
-    parser.add_argument("--mission", default="lawnmower", help="built-in name or a mission TOML path")
-    parser.add_argument("--duration", type=parse_duration, default=parse_duration("30m"), help="simulated time (default 30m)")
-    parser.add_argument("--speed", type=float, default=1.0, help="virtual clock x N (default 1: real time)")
-    parser.add_argument("--effects", default=None, help="comma-separated effects to switch on (default: the scenario's)")
+    parser.add_argument(
+        "--list",
+        action="store_true",
+        help="list scenarios, missions, effects and faults, then exit",
+    )
+    parser.add_argument(
+        "--scenario", default="river", help="built-in name (river, lake) or a scenario TOML path"
+    )
+    parser.add_argument(
+        "--mission", default="lawnmower", help="built-in name or a mission TOML path"
+    )
+    parser.add_argument(
+        "--duration",
+        type=parse_duration,
+        default=parse_duration("30m"),
+        help="simulated time (default 30m)",
+    )
+    parser.add_argument(
+        "--speed", type=float, default=1.0, help="virtual clock x N (default 1: real time)"
+    )
+    parser.add_argument(
+        "--effects",
+        default=None,
+        help="comma-separated effects to switch on (default: the scenario's)",
+    )
     parser.add_argument("--faults", default="none", help="fault set or specs (default none)")
-    parser.add_argument("--ports", metavar="DIR", help="directory for the port symlinks and the clock file")
+    parser.add_argument(
+        "--ports", metavar="DIR", help="directory for the port symlinks and the clock file"
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--truth", metavar="DIR", help="write the ground truth here")
 
@@ -97,6 +118,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     ports = PortSet(args.ports)
     stop = threading.Event()
+    # Ctrl-C and SIGTERM end the run between steps: the truth is written and the ports are removed
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
 
     def factory(**kw: object) -> Simulation:
@@ -105,20 +128,22 @@ def run(args: argparse.Namespace) -> int:
     for s in SOURCES:
         print(f"{s:8s} {ports.path(s)}")
     print(f"clock    {ports.clock_path}  (daemon: --clock sim:{ports.clock_path})")
-    print(f"{scen.name} / {mis.name}, {args.duration:.0f} s at x{args.speed:g}; Ctrl-C stops", flush=True)
+    print(
+        f"{scen.name} / {mis.name}, {args.duration:.0f} s at x{args.speed:g}; Ctrl-C stops",
+        flush=True,
+    )
     t_start = time.monotonic()
 
     def progress(t: float, total: float) -> None:
-        print(f"  t={t:7.1f} s of {total:.0f} s ({time.monotonic() - t_start:.1f} s wall)", flush=True)
+        print(
+            f"  t={t:7.1f} s of {total:.0f} s ({time.monotonic() - t_start:.1f} s wall)", flush=True
+        )
 
     try:
         sim = run_live(factory, ports, args.duration, args.speed, stop, on_progress=progress)
-    except KeyboardInterrupt:
-        print("stopped", file=sys.stderr)
-        return 130
     finally:
         ports.close()
-    print(f"done: {sim.t:.1f} s simulated; bytes {sim.stats}")
+    print(f"{'stopped' if stop.is_set() else 'done'}: {sim.t:.1f} s simulated; bytes {sim.stats}")
     if args.truth:
         print(f"truth in {args.truth}")
     return 0

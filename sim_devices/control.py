@@ -37,6 +37,7 @@ class Gains:
     speed_kp: float = 0.25  # throttle per m/s of ground-speed error
     speed_ki: float = 0.05
     throttle_ff: float = 0.19  # throttle per m/s of target speed (calm-water cruise feed-forward)
+    throttle_min: float = 0.25  # MOT_THR_MIN: keep some jet flow for steering
     lookahead_m: float = 10.0  # line-of-sight guidance
     wp_radius_m: float = 3.0
     turn_radius_m: float = 4.5  # calm-water turning radius at cruise, for turning before a waypoint
@@ -45,7 +46,9 @@ class Gains:
 class Navigator:
     """Follows a waypoint list leg by leg with line-of-sight guidance, like ArduPilot's AUTO mode."""
 
-    def __init__(self, waypoints: np.ndarray, loop: bool = True, gains: Gains | None = None) -> None:
+    def __init__(
+        self, waypoints: np.ndarray, loop: bool = True, gains: Gains | None = None
+    ) -> None:
         self.wps = np.asarray(waypoints, dtype=float)
         self.loop = loop
         self.g = gains or Gains()
@@ -70,7 +73,9 @@ class Navigator:
         b = self.wps[self.leg]
         n = math.hypot(nxt[0] - b[0], nxt[1] - b[1]) or 1e-9
         turn = math.acos(max(-1.0, min(1.0, ((nxt[0] - b[0]) * tx + (nxt[1] - b[1]) * ty) / n)))
-        return max(self.g.wp_radius_m, self.g.turn_radius_m * math.tan(min(turn, math.radians(120)) / 2))
+        return max(
+            self.g.wp_radius_m, self.g.turn_radius_m * math.tan(min(turn, math.radians(120)) / 2)
+        )
 
     def update(self, x: float, y: float) -> tuple[float, float]:
         """Desired heading (compass rad) and signed cross-track error (m, right of track positive)."""
@@ -81,7 +86,9 @@ class Navigator:
             tx, ty = dx / length, dy / length
             along = (x - a[0]) * tx + (y - a[1]) * ty
             early = self._switch_distance(tx, ty)
-            if self.done or (length - along > early and math.hypot(b[0] - x, b[1] - y) > self.g.wp_radius_m):
+            if self.done or (
+                length - along > early and math.hypot(b[0] - x, b[1] - y) > self.g.wp_radius_m
+            ):
                 break
             self._advance()
         xte = -(x - a[0]) * ty + (y - a[1]) * tx  # left of track positive here
@@ -104,4 +111,4 @@ class Controller:
         """(throttle 0..1, steer -1..1) for the measured heading, yaw rate and ground speed."""
         steer = self.heading.update(wrap_pi(psi_target - psi), r, dt)
         throttle = self.g.throttle_ff * self.cruise + self.speed.update(self.cruise - sog, 0.0, dt)
-        return min(max(throttle, 0.0), 1.0), min(max(steer, -1.0), 1.0)
+        return min(max(throttle, self.g.throttle_min), 1.0), min(max(steer, -1.0), 1.0)

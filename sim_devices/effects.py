@@ -39,7 +39,12 @@ CATALOGUE: dict[str, EffectSpec] = {
             "world",
             "gusty wind",
             "wind speed x gust factor: slow swell over tens of minutes plus fast gusts carried downwind, peaks >= peak_factor (12 m/s on the river)",
-            {"slow_amplitude": 0.18, "slow_period_s": 1500.0, "fast_std": 0.16, "peak_factor": 1.65},
+            {
+                "slow_amplitude": 0.18,
+                "slow_period_s": 1500.0,
+                "fast_std": 0.16,
+                "peak_factor": 1.65,
+            },
         ),
         EffectSpec(
             "bank_shelter",
@@ -52,7 +57,7 @@ CATALOGUE: dict[str, EffectSpec] = {
             "wheel_misalignment",
             "instrument",
             "a paddle wheel mounted some degrees off its nominal angle",
-            "one wheel's axis is rotated by `angle_deg` from its nominal mounting angle",
+            "wheel `wheel` (1-4)'s axis is rotated by `angle_deg` from its nominal mounting angle",
             {"wheel": 1, "angle_deg": 20.0},
         ),
         EffectSpec(

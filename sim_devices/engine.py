@@ -130,11 +130,15 @@ class Simulation:
         off = self._effect("clock_offset")
         self.mav_latency_ns = int(float(off["offset_s"]) * 1e9) if off else 0
         snd = tables.get("sounder", {})
-        self.sounder = Sounder(self.seed * 1000 + 7, float(snd.get("offset_m", 0.2)), float(snd.get("noise_m", 0.03)))
+        self.sounder = Sounder(
+            self.seed * 1000 + 7, float(snd.get("offset_m", 0.2)), float(snd.get("noise_m", 0.03))
+        )
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)
         self.uart_mav = Uart(MAVLINK_BYTES_PER_S, chunk=64)
-        self.damage = {s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES}
+        self.damage = {
+            s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES
+        }
         self._schedule_faults()
         self.t = 0.0
         self.k = 0
@@ -196,28 +200,33 @@ class Simulation:
                 if data:
                     self.stats[source] += len(data)
                     sink(source, t_ns, data)
-            elif self.events is not None:
-                self.events(source.split(":")[0], source.split(":")[1], t_ns)
+            else:
+                # a port event, in time order with the bytes: bytes after an unplug are lost
+                kind, src = source.split(":")
+                if kind == "unplug":
+                    self.pulled.add(src)
+                elif kind == "plug":
+                    self.pulled.discard(src)
+                if self.events is not None:
+                    self.events(kind, src, t_ns)
 
     # ---- the loop -------------------------------------------------------------------------
     def _update_point(self) -> None:
         s = self.boat.s
         self.p = self.world.at(s.x, s.y, self.t)  # type: ignore[union-attr]
 
-    def _fault_actions(self, t_end: float) -> None:
+    def _fault_actions(self, t_start: float, t_end: float) -> None:
         while self.actions and self.actions[0][0] <= t_end:
             at, act, f = self.actions.pop(0)
-            at = max(at, self.t)
+            at = max(at, t_start)
             src = f.source
             if act in ("unplug", "plug", "reset"):
                 self.bridge.advance_to(max(self._bridge_us(at), self.bridge.now_us))
             if act == "unplug":
-                self.pulled.add(src)
                 if src == "bridge":
                     self.bridge_on = False
                 self._push(self._ns(at), f"unplug:{src}", None)
             elif act == "plug":
-                self.pulled.discard(src)
                 self._push(self._ns(at), f"plug:{src}", None)
                 if src == "bridge":
                     self.bridge_on = True
@@ -246,9 +255,12 @@ class Simulation:
         self.throttle, steer = self.ctl.update(dt, s.psi, s.r, psi_d, sog)
         t_prev = self.t
         self.k += 1
-        self.t = t_new = self.k * dt
-        self._fault_actions(t_new)
-        self.boat.step(dt, self.throttle, steer, (p.current_east, p.current_north), (p.wind_east, p.wind_north))
+        t_new = self.k * dt
+        self._fault_actions(t_prev, t_new)
+        self.t = t_new
+        self.boat.step(
+            dt, self.throttle, steer, (p.current_east, p.current_north), (p.wind_east, p.wind_north)
+        )
         self._update_point()
         p = self.p
         sog = math.hypot(s.ve, s.vn)
@@ -269,7 +281,9 @@ class Simulation:
             self.extra.append((xte, self.nav.legs_done, self.throttle, s.u, s.v))
         self._flush(self._ns(t_new))
 
-    def _instruments(self, t_prev: float, t_new: float, truth: Readings, sog: float, heading_deg: float) -> None:
+    def _instruments(
+        self, t_prev: float, t_new: float, truth: Readings, sog: float, heading_deg: float
+    ) -> None:
         """Bridge edges and firmware, the sounder's sentences and the autopilot's messages for one step."""
         s, p = self.boat.s, self.p
         # bridge: pulse edges for this step, the vane, then run the firmware up to the step's end
@@ -337,6 +351,8 @@ class Simulation:
     def truth_table(self) -> np.ndarray:
         """The samples.csv table: one row per 0.1 s, columns as ``truth.COLUMNS``."""
         tr = self.track or self._track()
+        if not tr:
+            return np.empty((0, len(COLUMNS)))
         lat, lon = self.geo.to_latlon(tr["x"], tr["y"])
         cols = {
             **tr,

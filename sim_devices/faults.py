@@ -81,7 +81,15 @@ def parse_one(spec: str) -> Fault:
     kind, *kvs = spec.strip().split(":")
     if kind not in KINDS:
         raise ValueError(f"unknown fault {kind!r}; known: {', '.join(KINDS)}")
-    f = Fault(kind, source={"reset": "bridge", "gps_loss": "mavlink", "clock_jump": "mavlink", "nmea_garbage": "depth"}.get(kind, "all"))
+    f = Fault(
+        kind,
+        source={
+            "reset": "bridge",
+            "gps_loss": "mavlink",
+            "clock_jump": "mavlink",
+            "nmea_garbage": "depth",
+        }.get(kind, "all"),
+    )
     for kv in kvs:
         k, _, v = kv.partition("=")
         if k == "source":
@@ -130,9 +138,13 @@ def parse(spec: str | list[str | Fault] | None) -> list[Fault]:
 def lines() -> list[str]:
     """One line per fault kind, and the sets, for ``forcemap sim --list``."""
     out = [f"{k:14s} {v}" for k, v in KINDS.items()]
-    out.append(f"{'default':14s} set: " + ", ".join(
-        f"{f.kind}({f.source}{'' if f.at_frac is None else f' at {f.at_frac:.0%}'})" for f in default_set()
-    ))
+    out.append(
+        f"{'default':14s} set: "
+        + ", ".join(
+            f"{f.kind}({f.source}{'' if f.at_frac is None else f' at {f.at_frac:.0%}'})"
+            for f in default_set()
+        )
+    )
     return out
 
 

@@ -88,9 +88,13 @@ class World:
         if self.is_river:
             n, _ = self._bank_coords(x, y)
             nt = self.th_amp * np.sin(self.k * x + self.th_phase)
-            return self.d_bank + (self.d_th - self.d_bank) * np.exp(-(((n - nt) / self.d_width) ** 2))
+            return self.d_bank + (self.d_th - self.d_bank) * np.exp(
+                -(((n - nt) / self.d_width) ** 2)
+            )
         r2 = (x - self.deep[0]) ** 2 + (y - self.deep[1]) ** 2
-        return np.clip(self.d_centre - (self.d_centre - self.d_edge) * r2 / self.radius**2, 0.5, None)
+        return np.clip(
+            self.d_centre - (self.d_centre - self.d_edge) * r2 / self.radius**2, 0.5, None
+        )
 
     def depth(self, x: ArrayLike, y: ArrayLike) -> ArrayLike:
         """Water depth below the surface (m)."""
@@ -163,7 +167,9 @@ class World:
 
     def _gust_factor_at(self, tau: np.ndarray) -> np.ndarray:
         g = self.on["gusts"]
-        slow = g["slow_amplitude"] * np.sin(2 * math.pi * tau / g["slow_period_s"] + self.g_slow_phase)
+        slow = g["slow_amplitude"] * np.sin(
+            2 * math.pi * tau / g["slow_period_s"] + self.g_slow_phase
+        )
         fast = np.sin(np.multiply.outer(tau, self.g_omega) + self.g_phase) @ self.g_amp
         out = 1.0 + slow + fast
         for te, a, width in self.gust_events:

@@ -21,7 +21,11 @@ class Geo:
         self.m_per_deg_lon = math.radians(1.0) * A_WGS84 / w * math.cos(math.radians(lat0))
 
     def to_latlon(self, x, y):  # type: ignore[no-untyped-def]
-        return self.lat0 + np.asarray(y) / self.m_per_deg_lat, self.lon0 + np.asarray(x) / self.m_per_deg_lon
+        return self.lat0 + np.asarray(y) / self.m_per_deg_lat, self.lon0 + np.asarray(
+            x
+        ) / self.m_per_deg_lon
 
     def to_local(self, lat, lon):  # type: ignore[no-untyped-def]
-        return (np.asarray(lon) - self.lon0) * self.m_per_deg_lon, (np.asarray(lat) - self.lat0) * self.m_per_deg_lat
+        return (np.asarray(lon) - self.lon0) * self.m_per_deg_lon, (
+            np.asarray(lat) - self.lat0
+        ) * self.m_per_deg_lat

@@ -38,7 +38,13 @@ class InstrumentConfig:
             if not hasattr(cfg, k):
                 raise ValueError(f"unknown [instruments] key {k!r}")
             cur = getattr(cfg, k)
-            setattr(cfg, k, tuple(tuple(x) if isinstance(x, list) else x for x in v) if isinstance(cur, tuple) else type(cur)(v))
+            setattr(
+                cfg,
+                k,
+                tuple(tuple(x) if isinstance(x, list) else x for x in v)
+                if isinstance(cur, tuple)
+                else type(cur)(v),
+            )
         return cfg
 
 
@@ -84,14 +90,19 @@ class Sensors:
     def truth(self, u: float, v: float, r: float, rel_f: float, rel_s: float) -> Readings:
         """True wheel speeds and apparent wind; ``rel_f, rel_s`` is the air's velocity relative to the boat."""
         c = self.cfg
-        wheels = [abs(along_axis(u, v, r, a, p)) for a, p in zip(c.wheel_angles_deg, c.wheel_positions_m, strict=True)]
+        wheels = [
+            abs(along_axis(u, v, r, a, p))
+            for a, p in zip(c.wheel_angles_deg, c.wheel_positions_m, strict=True)
+        ]
         app = math.hypot(rel_f, rel_s)
         ang = math.degrees(math.atan2(-rel_s, -rel_f)) if app > 0 else 0.0
         if ang <= -180.0:
             ang += 360.0
         return Readings(wheels, app, ang)
 
-    def rates(self, u: float, v: float, r: float, app_speed: float, sog: float, dt: float) -> list[float]:
+    def rates(
+        self, u: float, v: float, r: float, app_speed: float, sog: float, dt: float
+    ) -> list[float]:
         """Pulse rates (Hz): anemometer, then wheels 1-4 as mounted (misalignment included)."""
         c = self.cfg
         a = 1.0 - math.exp(-dt / c.wheel_noise_tau)
@@ -101,8 +112,14 @@ class Sensors:
         for i in range(4):
             ang = c.wheel_angles_deg[i] + self.misalign.get(i, 0.0)
             s = along_axis(u, v, r, ang, c.wheel_positions_m[i])
-            self._noise[i] += a * (self.rng.gauss(0.0, c.wheel_noise) * math.sqrt(2.0 / a) - self._noise[i])
-            out.append(c.wheel_pulses_per_m[i] * wheel_response(s, c.wheel_stall, c.wheel_s0) * (1.0 + self._noise[i]))
+            self._noise[i] += a * (
+                self.rng.gauss(0.0, c.wheel_noise) * math.sqrt(2.0 / a) - self._noise[i]
+            )
+            out.append(
+                c.wheel_pulses_per_m[i]
+                * wheel_response(s, c.wheel_stall, c.wheel_s0)
+                * (1.0 + self._noise[i])
+            )
         return out
 
     def edges(self, rates: list[float], t0_us: int, t1_us: int) -> list[list[int]]:
@@ -111,7 +128,9 @@ class Sensors:
         for ch, hz in enumerate(rates):
             times, self._phase[ch] = pulse_times(hz, t0_us, t1_us, self._phase[ch])
             if ch == 0 and times and self.cfg.anemo_bounces:
-                times = add_bounce(times, self.cfg.anemo_bounce_us, self.cfg.anemo_bounces, self.rng)
+                times = add_bounce(
+                    times, self.cfg.anemo_bounce_us, self.cfg.anemo_bounces, self.rng
+                )
             out.append(times)
         return out
 

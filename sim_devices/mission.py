@@ -85,7 +85,9 @@ def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
         return tomllib.loads(p.read_text()), p.stem
     res = resources.files("sim_devices") / MISSION_DIR / f"{name_or_path}.toml"
     if not res.is_file():
-        raise ValueError(f"unknown mission {name_or_path!r}; built in: {', '.join(builtin_names())}")
+        raise ValueError(
+            f"unknown mission {name_or_path!r}; built in: {', '.join(builtin_names())}"
+        )
     return tomllib.loads(res.read_text()), name_or_path
 
 
@@ -101,7 +103,7 @@ def load(name_or_path: str | Mission, scenario: Scenario) -> Mission:
         box = scenario.survey_box if box == "survey" else tuple(float(v) for v in box)
         wps = lawnmower(
             box,  # type: ignore[arg-type]
-            scenario.flow_dir_deg,
+            float(m.get("direction_deg", scenario.flow_dir_deg)),
             str(m.get("orientation", "parallel")),
             float(m.get("spacing", 20.0)),
             str(m.get("start", "downstream")),

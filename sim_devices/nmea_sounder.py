@@ -25,7 +25,9 @@ def sentence(talker: str, kind: str, fields: tuple[str, ...]) -> str:
 class Sounder:
     """A single-beam sounder: depth below the transducer (DPT with offset, DBT) and water temperature."""
 
-    def __init__(self, seed: int = 0, offset_m: float = 0.2, noise_m: float = 0.03, max_range: float = 100.0) -> None:
+    def __init__(
+        self, seed: int = 0, offset_m: float = 0.2, noise_m: float = 0.03, max_range: float = 100.0
+    ) -> None:
         self.rng = random.Random(seed)
         self.offset = offset_m
         self.noise = noise_m
@@ -36,7 +38,9 @@ class Sounder:
         d = max(depth - self.offset + self.rng.gauss(0.0, self.noise), 0.1)
         return [
             sentence("SD", "DPT", (f"{d:.2f}", f"{self.offset:.2f}", f"{self.max_range:.1f}")),
-            sentence("SD", "DBT", (f"{d / 0.3048:.1f}", "f", f"{d:.2f}", "M", f"{d / 1.8288:.2f}", "F")),
+            sentence(
+                "SD", "DBT", (f"{d / 0.3048:.1f}", "f", f"{d:.2f}", "M", f"{d / 1.8288:.2f}", "F")
+            ),
             sentence("SD", "MTW", (f"{temp + self.rng.gauss(0.0, 0.05):.1f}", "C")),
         ]
 

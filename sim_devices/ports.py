@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
 import threading
 import time
@@ -13,6 +14,7 @@ from .engine import Simulation
 from .usb_cdc import UsbCdc
 
 SOURCES = ("bridge", "depth", "mavlink")
+PTY_READ_BUFFER = 4095
 
 
 class PortSet:
@@ -21,10 +23,18 @@ class PortSet:
     def __init__(self, ports_dir: str | os.PathLike[str]) -> None:
         self.dir = Path(ports_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        self.ports: dict[str, UsbCdc | None] = {s: UsbCdc(str(self.dir / s)) for s in SOURCES}
+        self.ports: dict[str, UsbCdc | None] = {s: self._open(s) for s in SOURCES}
         self.bytes_written = dict.fromkeys(SOURCES, 0)
         self.dropped = dict.fromkeys(SOURCES, 0)
         self.reanchors = 0  # times the clock file was re-anchored because the simulator fell behind
+
+    def _open(self, source: str) -> UsbCdc:
+        port = UsbCdc(self.path(source))
+        # FIONREAD on a pty stops at the line discipline's 4095 bytes, so a port nobody reads never
+        # looks full and a blocking write would hang the simulator once the kernel buffer fills
+        flags = fcntl.fcntl(port.master, fcntl.F_GETFL)
+        fcntl.fcntl(port.master, fcntl.F_SETFL, flags | os.O_NONBLOCK)
+        return port
 
     def path(self, source: str) -> str:
         return str(self.dir / source)
@@ -37,15 +47,20 @@ class PortSet:
         port = self.ports.get(source)
         if port is None:
             return
-        n = port.write(data)
+        try:
+            n = port.write(data)
+        except BlockingIOError:  # nobody is reading: the bytes are lost, as on a real port
+            n = None
         if n is None:
             self.dropped[source] += 1
         else:
             self.bytes_written[source] += n
 
     def bridge_writable(self) -> bool:
+        """False while the host is not reading the bridge port, so the firmware drops frames itself."""
         port = self.ports.get("bridge")
-        return True if port is None else port.writable()
+        # the pty's FIONREAD saturates at 4095 bytes, below UsbCdc's limit: stop short of it
+        return True if port is None else port.writable() and port.unread() < PTY_READ_BUFFER - 300
 
     def unplug(self, source: str) -> None:
         """The cable is pulled: the pty and its symlink disappear (a reader gets an error)."""
@@ -57,7 +72,7 @@ class PortSet:
     def plug(self, source: str) -> None:
         """The cable is back: a new pty under the same symlink path."""
         if self.ports.get(source) is None:
-            self.ports[source] = UsbCdc(self.path(source))
+            self.ports[source] = self._open(source)
 
     def event(self, kind: str, source: str, t_ns: int) -> None:
         if kind == "unplug":
@@ -101,7 +116,9 @@ def run_live(
             if target - sim.t > max_lag_s:
                 # the machine cannot keep up with this speed: re-anchor so the clock file stays true
                 v_anchor, mono_anchor = sim.t, time.monotonic_ns()
-                clockfile.write_anchor(ports.clock_path, sim.t0_ns + int(sim.t * 1e9), mono_anchor, speed)
+                clockfile.write_anchor(
+                    ports.clock_path, sim.t0_ns + int(sim.t * 1e9), mono_anchor, speed
+                )
                 ports.reanchors += 1
             if on_progress is not None and sim.t >= next_report:
                 next_report = sim.t + 10.0

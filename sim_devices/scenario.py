@@ -49,7 +49,9 @@ def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
         return tomllib.loads(p.read_text()), str(p)
     res = resources.files("sim_devices") / SCENARIO_DIR / f"{name_or_path}.toml"
     if not res.is_file():
-        raise ValueError(f"unknown scenario {name_or_path!r}; built in: {', '.join(builtin_names())}")
+        raise ValueError(
+            f"unknown scenario {name_or_path!r}; built in: {', '.join(builtin_names())}"
+        )
     return tomllib.loads(res.read_text()), str(res)
 
 

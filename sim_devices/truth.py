@@ -30,7 +30,9 @@ def write_samples(path: Path, table: np.ndarray) -> None:
     np.savetxt(path, table, delimiter=",", fmt=fmt, header=",".join(COLUMNS), comments="")
 
 
-def write_fields(path: Path, world: World, t0: float, duration_s: float, nx: int = 121, ny: int = 41) -> None:
+def write_fields(
+    path: Path, world: World, t0: float, duration_s: float, nx: int = 121, ny: int = 41
+) -> None:
     """The true fields on a grid: depth static, current and wind about once a minute."""
     x, y = world.grid(nx, ny)
     xx, yy = np.meshgrid(x, y)

@@ -68,7 +68,9 @@ def circ_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs((np.asarray(a) - np.asarray(b) + 180.0) % 360.0 - 180.0)
 
 
-def check_streams(streams: dict[str, Chunks], truth: dict[str, np.ndarray], ppm: float, duration: float) -> None:
+def check_streams(
+    streams: dict[str, Chunks], truth: dict[str, np.ndarray], ppm: float, duration: float
+) -> None:
     """Everything the issue asks of the byte streams, against the truth table."""
     t0 = truth["t"][0] - 0.1
     cfg = InstrumentConfig()
@@ -89,11 +91,24 @@ def check_streams(streams: dict[str, Chunks], truth: dict[str, np.ndarray], ppm:
         dt_dev = (b.t_us - a.t_us) * 1e-6
         sel = (grid_t > sim_t[j]) & (grid_t <= sim_t[j + win])
         for i in range(4):
-            meas = wire.count_delta(a.fields["wheels"][i][0], b.fields["wheels"][i][0]) / cfg.wheel_pulses_per_m[i] / dt_dev
-            expect = np.mean([wheel_response(s, cfg.wheel_stall, cfg.wheel_s0) for s in truth[f"wheel{i + 1}_speed"][sel]])
+            meas = (
+                wire.count_delta(a.fields["wheels"][i][0], b.fields["wheels"][i][0])
+                / cfg.wheel_pulses_per_m[i]
+                / dt_dev
+            )
+            expect = np.mean(
+                [
+                    wheel_response(s, cfg.wheel_stall, cfg.wheel_s0)
+                    for s in truth[f"wheel{i + 1}_speed"][sel]
+                ]
+            )
             if expect > 0.5:
                 wheel_err.append(abs(meas - expect) / expect)
-        meas = wire.count_delta(a.fields["anemo"][0], b.fields["anemo"][0]) / cfg.anemo_hz_per_mps / dt_dev
+        meas = (
+            wire.count_delta(a.fields["anemo"][0], b.fields["anemo"][0])
+            / cfg.anemo_hz_per_mps
+            / dt_dev
+        )
         expect = float(np.mean(truth["app_wind_speed"][sel]))
         anemo_err.append(abs(meas - expect) / expect)
     # wheel noise is 2 % (correlated over 2 s), averaged over 5 s windows
@@ -124,16 +139,30 @@ def check_streams(streams: dict[str, Chunks], truth: dict[str, np.ndarray], ppm:
     # -- autopilot: MAVLink 2 from system 1, ArduPilot rates, and positions and headings that match
     msgs = decode_mavlink(streams["mavlink"])
     types = Counter(m.get_type() for _, m in msgs)
-    for name, hz in (("HEARTBEAT", 1), ("SYSTEM_TIME", 1), ("GPS_RAW_INT", 5), ("GLOBAL_POSITION_INT", 5), ("ATTITUDE", 10), ("VFR_HUD", 4)):
+    for name, hz in (
+        ("HEARTBEAT", 1),
+        ("SYSTEM_TIME", 1),
+        ("GPS_RAW_INT", 5),
+        ("GLOBAL_POSITION_INT", 5),
+        ("ATTITUDE", 10),
+        ("VFR_HUD", 4),
+    ):
         assert abs(types[name] - hz * duration) <= 0.01 * hz * duration + 2, name
-    assert set(types) == {"HEARTBEAT", "SYSTEM_TIME", "GPS_RAW_INT", "GLOBAL_POSITION_INT", "ATTITUDE", "VFR_HUD"}
+    assert set(types) == {
+        "HEARTBEAT",
+        "SYSTEM_TIME",
+        "GPS_RAW_INT",
+        "GLOBAL_POSITION_INT",
+        "ATTITUDE",
+        "VFR_HUD",
+    }
     assert {(m.get_srcSystem(), m.get_srcComponent()) for _, m in msgs} == {(1, 1)}
     st = [(t, m) for t, m in msgs if m.get_type() == "SYSTEM_TIME"]
     assert st[0][1].time_unix_usec == 0 and st[-1][1].time_unix_usec > 0
     for t, m in st:
         if m.time_unix_usec:
             assert abs(m.time_unix_usec * 1e3 - t) < 0.3e9
-    lat0, lon0 = truth["lat"][0], truth["lon"][0]
+    lat0 = truth["lat"][0]
     m_lat = 111_000.0
     m_lon = m_lat * math.cos(math.radians(lat0))
     gpi = [(t, m) for t, m in msgs if m.get_type() == "GLOBAL_POSITION_INT" and m.lat != 0]
@@ -170,7 +199,9 @@ def river(tmp_path_factory: pytest.TempPathFactory) -> tuple[Simulation, dict[st
     return sim, streams, truth_dir
 
 
-def test_offline_river_streams_match_truth(river: tuple[Simulation, dict[str, Chunks], Path]) -> None:
+def test_offline_river_streams_match_truth(
+    river: tuple[Simulation, dict[str, Chunks], Path],
+) -> None:
     sim, streams, truth_dir = river
     check_streams(streams, read_truth(truth_dir), sim.ppm, DURATION)
 
@@ -197,7 +228,9 @@ def test_truth_files(river: tuple[Simulation, dict[str, Chunks], Path]) -> None:
 def test_same_seed_same_bytes() -> None:
     def collect(seed: int) -> bytes:
         out: list[bytes] = []
-        Simulation("lake", seed=seed, faults="default").run(30.0, lambda s, t, d: out.append(s.encode() + d))
+        Simulation("lake", seed=seed, faults="default").run(
+            30.0, lambda s, t, d: out.append(s.encode() + d)
+        )
         return b"".join(out)
 
     assert collect(1) == collect(1)
@@ -232,7 +265,9 @@ def test_ports_river_10_minutes(tmp_path: Path) -> None:
     truth_dir = tmp_path / "truth"
 
     def factory(**kw: object) -> Simulation:
-        sim = Simulation("river", "lawnmower", effects=["depth_current"], seed=3, truth_dir=truth_dir, **kw)  # type: ignore[arg-type]
+        sim = Simulation(
+            "river", "lawnmower", effects=["depth_current"], seed=3, truth_dir=truth_dir, **kw
+        )  # type: ignore[arg-type]
         clock.append(clockfile.SimClock(ports.clock_path))
         return sim
 
@@ -260,7 +295,10 @@ def test_ports_river_10_minutes(tmp_path: Path) -> None:
         sent_end = np.cumsum([len(d) for _, d in ref[s]])
         got_end = np.cumsum([len(d) for _, d in streams[s]])
         sent_t = np.array([t for t, _ in ref[s]], dtype=np.int64)
-        lag = (np.array([t for t, _ in streams[s]], dtype=np.int64) - sent_t[np.searchsorted(sent_end, got_end)]) * 1e-9
+        lag = (
+            np.array([t for t, _ in streams[s]], dtype=np.int64)
+            - sent_t[np.searchsorted(sent_end, got_end)]
+        ) * 1e-9
         # never before it was sent (the clock file is re-anchored if the simulator falls behind)
         assert lag.min() > -1.0, s
     check_streams(ref, read_truth(truth_dir), sim.ppm, DURATION)

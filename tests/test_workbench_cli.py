@@ -52,7 +52,9 @@ def test_csv_parquet_and_mcap_read_the_same(survey_csv, tmp_path):
         for i in range(len(rows)):
             msg = {h: cols[h][i] for h in header}
             ns = int(msg["t"] * 1e9)
-            w.add_message(channel_id=cid, log_time=ns, publish_time=ns, data=json.dumps(msg).encode())
+            w.add_message(
+                channel_id=cid, log_time=ns, publish_time=ns, data=json.dumps(msg).encode()
+            )
         w.finish()
     for other in (tmp_path / "s.parquet", tmp_path / "s.mcap"):
         o = load_survey(other)
@@ -135,7 +137,9 @@ def test_too_few_rows(survey_csv, tmp_path, capsys):
 def test_missing_position_column(survey_csv, tmp_path, capsys):
     header, rows = _rows(survey_csv)
     i = header.index("lat")
-    p = _write(tmp_path / "nolat.csv", header[:i] + header[i + 1 :], [r[:i] + r[i + 1 :] for r in rows])
+    p = _write(
+        tmp_path / "nolat.csv", header[:i] + header[i + 1 :], [r[:i] + r[i + 1 :] for r in rows]
+    )
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
     _one_line_error(code, err, "required column")
 
@@ -144,14 +148,32 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
     table = tmp_path / "survey.csv"
     table.write_bytes(survey_csv.read_bytes())
     out_json = tmp_path / "fit.json"
-    code, out, _ = _run(capsys, ["fit", str(table), "--target", "current_speed", "--json", str(out_json), "--quiet"])
+    code, out, _ = _run(
+        capsys, ["fit", str(table), "--target", "current_speed", "--json", str(out_json), "--quiet"]
+    )
     assert code == 0
     base = json.loads(out_json.read_text())
     assert set(base) == {"target", "terms", "cv_rmse", "cv_mae", "coverage95"}
-    assert base["target"] == "current_speed" and base["terms"] == ["const", "gp(position, matern32)"]
+    assert base["target"] == "current_speed" and base["terms"] == [
+        "const",
+        "gp(position, matern32)",
+    ]
     assert 0.0 <= base["coverage95"] <= 1.0 and base["cv_mae"] <= base["cv_rmse"]
     assert "where the model fails most" in out
-    code, _, _ = _run(capsys, ["fit", str(table), "--target", "current_speed", "--effects", "depth", "--json", str(out_json), "--quiet"])
+    code, _, _ = _run(
+        capsys,
+        [
+            "fit",
+            str(table),
+            "--target",
+            "current_speed",
+            "--effects",
+            "depth",
+            "--json",
+            str(out_json),
+            "--quiet",
+        ],
+    )
     assert code == 0
     with_depth = json.loads(out_json.read_text())
     assert with_depth["terms"][-1] == "gp(depth, matern32)"
@@ -184,12 +206,17 @@ def test_diagnose_json_contract(survey_csv, tmp_path, capsys):
     table = tmp_path / "survey.csv"
     table.write_bytes(survey_csv.read_bytes())
     out_json = tmp_path / "d.json"
-    code, out, _ = _run(capsys, ["diagnose", str(table), "--target", "current_speed", "--json", str(out_json), "--quiet"])
+    code, out, _ = _run(
+        capsys,
+        ["diagnose", str(table), "--target", "current_speed", "--json", str(out_json), "--quiet"],
+    )
     assert code == 0
     d = json.loads(out_json.read_text())
     assert set(d) == {"target", "baseline", "missing_effect_found", "candidates"}
     assert set(d["baseline"]) == {"terms", "cv_rmse"}
-    assert d["candidates"] and all(set(c) == {"covariate", "cv_rmse", "improvement", "explanation"} for c in d["candidates"])
+    assert d["candidates"] and all(
+        set(c) == {"covariate", "cv_rmse", "improvement", "explanation"} for c in d["candidates"]
+    )
     gains = [c["improvement"] for c in d["candidates"]]
     assert gains[1:] == sorted(gains[1:], reverse=True)
     assert d["missing_effect_found"] is True and d["candidates"][0]["covariate"] == "depth"

@@ -12,9 +12,11 @@ import pytest
 from host.workbench.diagnose import diagnose
 from host.workbench.fitting import fit_target
 from host.workbench.spec import BASELINE
-from host.workbench.synth import make_survey as survey_maker  # -> from sim_devices.offline import make_survey
+from host.workbench.synth import make_survey as survey_maker
 from host.workbench.table import load_survey
 
+# THE switch: when the simulator lands, replace the synthetic maker with
+#     from sim_devices.offline import make_survey as survey_maker
 DURATION_S = 2400.0
 
 # effect, target, covariates accepted as the first-ranked explanation, term that fixes it, seed
@@ -24,9 +26,21 @@ CASES = [
     ("dam_release", "current_speed", {"t"}, "t", 3),
     ("gusts", "wind_speed", {"t"}, "t", 4),
     ("bank_shelter", "wind_speed", {"wind_dir"}, "wind_dir", 5),
-    ("wheel_misalignment", "current_speed", {"heading", "heading_rel_current"}, "heading_rel_current", 6),
+    (
+        "wheel_misalignment",
+        "current_speed",
+        {"heading", "heading_rel_current"},
+        "heading_rel_current",
+        6,
+    ),
     ("anemometer_upwash", "wind_speed", {"sog"}, "sog", 7),
-    ("compass_deviation", "wind_dir", {"heading", "heading_rel_wind", "heading_rel_current"}, "heading", 8),
+    (
+        "compass_deviation",
+        "wind_dir",
+        {"heading", "heading_rel_wind", "heading_rel_current"},
+        "heading",
+        8,
+    ),
     ("clock_offset", "current_speed", {"yaw_rate"}, "yaw_rate", 9),
 ]
 # effects the synthetic generator does not yet make strong enough to be found; the simulator's surveys decide
@@ -41,8 +55,12 @@ def make_survey():
     return survey_maker
 
 
-@pytest.mark.parametrize(("effect", "target", "expected", "term", "seed"), CASES, ids=[f"{c[0]}-{c[4]}" for c in CASES])
-def test_hidden_effect_is_found_and_fixes_the_error(make_survey, tmp_path, request, effect, target, expected, term, seed):
+@pytest.mark.parametrize(
+    ("effect", "target", "expected", "term", "seed"), CASES, ids=[f"{c[0]}-{c[4]}" for c in CASES]
+)
+def test_hidden_effect_is_found_and_fixes_the_error(
+    make_survey, tmp_path, request, effect, target, expected, term, seed
+):
     if effect in NOT_ON_SYNTH and make_survey is survey_maker:
         request.applymarker(pytest.mark.xfail(reason=NOT_ON_SYNTH[effect], strict=False))
     survey = load_survey(make_survey("river", [effect], seed, DURATION_S, tmp_path))
@@ -54,7 +72,9 @@ def test_hidden_effect_is_found_and_fixes_the_error(make_survey, tmp_path, reque
     assert fixed <= 0.7 * base, f"adding {term}: blocked-CV RMSE {base:.4g} -> {fixed:.4g}"
 
 
-@pytest.mark.parametrize(("target", "seed"), [("current_speed", 21), ("wind_speed", 22), ("current_speed", 23)])
+@pytest.mark.parametrize(
+    ("target", "seed"), [("current_speed", 21), ("wind_speed", 22), ("current_speed", 23)]
+)
 def test_no_effect_reports_no_missing_effect(make_survey, tmp_path, target, seed):
     survey = load_survey(make_survey("river", [], seed, DURATION_S, tmp_path))
     d = diagnose(survey, target, progress=False)

@@ -32,7 +32,11 @@ def test_reduced_rank_matches_exact_gp_with_same_hyperparameters(field):
     xy, f, y = field
     m = Model(["const", "gp(position, matern32)"]).fit({"position": xy}, y)
     p = m.params_
-    ell, sd, noise = p["gp(position, matern32)"]["lengthscale"], p["gp(position, matern32)"]["std"], p["noise"]["std"]
+    ell, sd, noise = (
+        p["gp(position, matern32)"]["lengthscale"],
+        p["gp(position, matern32)"]["std"],
+        p["noise"]["std"],
+    )
     c = p["const"]["value"]
     K = matern32(xy, xy, ell, sd**2) + noise**2 * np.eye(len(y))
     exact = c + matern32(xy, xy, ell, sd**2) @ np.linalg.solve(K, y - c)
@@ -99,7 +103,9 @@ def test_power_law_parameters_are_fitted():
 
 
 def test_user_term_loaded_by_module_function(tmp_path, monkeypatch):
-    (tmp_path / "mylaws.py").write_text("def manning(depth, k=1.0):\n    return k * depth ** (2.0 / 3.0)\n")
+    (tmp_path / "mylaws.py").write_text(
+        "def manning(depth, k=1.0):\n    return k * depth ** (2.0 / 3.0)\n"
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     rng = np.random.default_rng(5)
     depth = rng.uniform(0.5, 6.0, 400)

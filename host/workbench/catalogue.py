@@ -6,30 +6,75 @@ import re
 
 # (pattern on the covariate name, likely cause, suggested term); the first match wins
 CATALOGUE: list[tuple[str, str, str]] = [
-    ("^depth$", "continuity and bed friction: the flow speeds up over shallows and slows in pools "
-     "(Manning: speed ~ depth^(2/3))", "gp(depth, matern32), or power(depth) for a Manning-type law"),
-    ("^t$", "something changes in time: unsteady discharge (a dam release, rain, tide) for current, "
-     "gusts or a passing front for wind", "gp(t, matern32)"),
-    ("^heading_rel_", "a sensor that reads differently depending on how the bow meets the flow: a misaligned or "
-     "shadowed paddle wheel, or mast/hull shadow on the anemometer", "gp(HEADING_REL, periodic)"),
-    ("^heading$", "a misaligned or shadowed sensor, or compass deviation (heading error A*sin(heading+phi)) "
-     "that rotates every compensated vector", "gp(heading, periodic), or cos(heading) for pure deviation"),
-    ("^(sog|throttle)$", "a calibration or compensation error that grows with boat speed: anemometer in the hull's "
-     "upwash, paddle-wheel gain, or a wrong boat-velocity subtraction", "gp(sog, matern32), or linear(sog)"),
-    ("^yaw_rate$", "an error that appears in turns: a clock offset or latency between two sources (the boat's "
-     "velocity is subtracted at the wrong instant), or a sensor lever arm", "gp(yaw_rate, matern32)"),
-    ("^(cog|crab)$", "course or leeway dependence: a sensor that sees the flow differently when the boat crabs, "
-     "or an error in the course used for compensation", "gp(COV, periodic)"),
-    ("^wind_dir$", "shelter or funnelling by the banks: wind speed depends on where the wind comes from "
-     "(lee of a bank, tree line, fetch)", "gp(wind_dir, periodic)"),
-    ("^current_dir$", "the flow's speed depends on its direction: eddies, a side channel or a confluence",
-     "gp(current_dir, periodic)"),
-    ("^(wind_|app_wind_)", "wind-driven surface drift (about 3 % of wind speed) or wind set-up on the water",
-     "gp(COV, matern32)"),
-    ("^(current_|wheel)", "the current moves the boat and the air it measures: a compensation error coupling "
-     "current into the wind estimate", "gp(COV, matern32)"),
-    ("^water_temp$", "stratification or a tributary of different temperature, or a sensor's temperature drift",
-     "gp(water_temp, matern32)"),
+    (
+        "^depth$",
+        "continuity and bed friction: the flow speeds up over shallows and slows in pools "
+        "(Manning: speed ~ depth^(2/3))",
+        "gp(depth, matern32), or power(depth) for a Manning-type law",
+    ),
+    (
+        "^t$",
+        "something changes in time: unsteady discharge (a dam release, rain, tide) for current, "
+        "gusts or a passing front for wind",
+        "gp(t, matern32)",
+    ),
+    (
+        "^heading_rel_",
+        "a sensor that reads differently depending on how the bow meets the flow: a misaligned or "
+        "shadowed paddle wheel, or mast/hull shadow on the anemometer",
+        "gp(HEADING_REL, periodic)",
+    ),
+    (
+        "^heading$",
+        "a misaligned or shadowed sensor, or compass deviation (heading error A*sin(heading+phi)) "
+        "that rotates every compensated vector",
+        "gp(heading, periodic), or cos(heading) for pure deviation",
+    ),
+    (
+        "^(sog|throttle)$",
+        "a calibration or compensation error that grows with boat speed: anemometer in the hull's "
+        "upwash, paddle-wheel gain, or a wrong boat-velocity subtraction",
+        "gp(sog, matern32), or linear(sog)",
+    ),
+    (
+        "^yaw_rate$",
+        "an error that appears in turns: a clock offset or latency between two sources (the boat's "
+        "velocity is subtracted at the wrong instant), or a sensor lever arm",
+        "gp(yaw_rate, matern32)",
+    ),
+    (
+        "^(cog|crab)$",
+        "course or leeway dependence: a sensor that sees the flow differently when the boat crabs, "
+        "or an error in the course used for compensation",
+        "gp(COV, periodic)",
+    ),
+    (
+        "^wind_dir$",
+        "shelter or funnelling by the banks: wind speed depends on where the wind comes from "
+        "(lee of a bank, tree line, fetch)",
+        "gp(wind_dir, periodic)",
+    ),
+    (
+        "^current_dir$",
+        "the flow's speed depends on its direction: eddies, a side channel or a confluence",
+        "gp(current_dir, periodic)",
+    ),
+    (
+        "^(wind_|app_wind_)",
+        "wind-driven surface drift (about 3 % of wind speed) or wind set-up on the water",
+        "gp(COV, matern32)",
+    ),
+    (
+        "^(current_|wheel)",
+        "the current moves the boat and the air it measures: a compensation error coupling "
+        "current into the wind estimate",
+        "gp(COV, matern32)",
+    ),
+    (
+        "^water_temp$",
+        "stratification or a tributary of different temperature, or a sensor's temperature drift",
+        "gp(water_temp, matern32)",
+    ),
 ]
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -12,7 +13,11 @@ from host.workbench.errors import WorkbenchError
 
 
 def add_table(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("table", type=Path, help="samples table: .csv, .parquet, or an .mcap log from `forcemap run`")
+    parser.add_argument(
+        "table",
+        type=Path,
+        help="samples table: .csv, .parquet, or an .mcap log from `forcemap run`",
+    )
 
 
 def teach(parser: argparse.ArgumentParser, epilog: str) -> None:
@@ -27,6 +32,9 @@ def guarded(name: str, body: Callable[[], int]) -> int:
     except WorkbenchError as exc:
         print(f"forcemap {name}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `forcemap ... | head`: the reader left, which is fine
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 def write_json(path: Path | None, data: dict) -> None:

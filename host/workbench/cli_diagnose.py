@@ -31,10 +31,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
     parser.add_argument("--target", required=True, help="column to diagnose, e.g. current_speed")
-    parser.add_argument("--effects", help="start from baseline + these effects instead of the latest fit")
+    parser.add_argument(
+        "--effects", help="start from baseline + these effects instead of the latest fit"
+    )
     parser.add_argument("--model", help="start from this TOML model spec instead of the latest fit")
     parser.add_argument("--baseline", action="store_true", help="start from the paper's baseline")
-    parser.add_argument("--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)")
+    parser.add_argument(
+        "--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)"
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 
@@ -58,11 +62,14 @@ def run(args: argparse.Namespace) -> int:
         with small_blas():
             result = diagnose(survey, args.target, terms, progress=not args.quiet)
         print_notes(survey)
+        save_diagnosis(ws, args.target, result.details())
+        if args.json and str(args.json) != "-":
+            write_json(args.json, result.to_json())
         print(result.summary())
         for name, why in result.skipped.items():
             print(f"skipped {name}: {why}")
-        save_diagnosis(ws, args.target, result.details())
-        write_json(args.json, result.to_json())
+        if args.json and str(args.json) == "-":
+            write_json(args.json, result.to_json())
         return 0
 
     return guarded("diagnose", body)

@@ -35,10 +35,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
     parser.add_argument("--target", help="column to model, e.g. current_speed, wind_dir, depth")
-    parser.add_argument("--effects", help="comma-separated covariates or terms to add, e.g. depth,t")
+    parser.add_argument(
+        "--effects", help="comma-separated covariates or terms to add, e.g. depth,t"
+    )
     parser.add_argument("--model", help="TOML model spec (terms, optional target)")
-    parser.add_argument("--folds", choices=("blocked", "random"), default="blocked", help="CV folds (default blocked)")
-    parser.add_argument("--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)")
+    parser.add_argument(
+        "--folds",
+        choices=("blocked", "random"),
+        default="blocked",
+        help="CV folds (default blocked)",
+    )
+    parser.add_argument(
+        "--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)"
+    )
     parser.add_argument("--no-plots", action="store_true", help="do not write residual plots")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
@@ -52,18 +61,22 @@ def run(args: argparse.Namespace) -> int:
 
         terms, target = resolve_terms(args.model, args.effects, args.target)
         if not target:
-            raise WorkbenchError("no target: give --target COLUMN (or target = ... in the model spec)")
+            raise WorkbenchError(
+                "no target: give --target COLUMN (or target = ... in the model spec)"
+            )
         survey = load_survey(args.table)
         with small_blas():
             result = fit_target(survey, target, terms, args.folds, progress=not args.quiet)
         print_notes(survey)
         entry = record(args.table, result)
+        write_json(args.json, result.to_json()) if args.json and str(args.json) != "-" else None
         print(result.summary())
         if not args.no_plots:
             for p in save_residual_plots(args.table, result, entry["fit"]):
                 print(f"wrote {p}")
         print(f"saved fit {entry['fit']} in {args.table.with_name(args.table.name + '.forcemap')}")
-        write_json(args.json, result.to_json())
+        if args.json and str(args.json) == "-":
+            write_json(args.json, result.to_json())
         return 0
 
     return guarded("fit", body)

@@ -20,7 +20,9 @@ examples:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
-    parser.add_argument("--plot", type=Path, help="where to write the plot (default TABLE.forcemap/history.png)")
+    parser.add_argument(
+        "--plot", type=Path, help="where to write the plot (default TABLE.forcemap/history.png)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -31,8 +33,12 @@ def run(args: argparse.Namespace) -> int:
         ws = workspace_dir(args.table, create=False)
         history = load_history(ws)
         if not history:
-            raise WorkbenchError(f"no fits recorded for {args.table}; run `forcemap fit {args.table} --target ...` first")
-        print(f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms")
+            raise WorkbenchError(
+                f"no fits recorded for {args.table}; run `forcemap fit {args.table} --target ...` first"
+            )
+        print(
+            f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms"
+        )
         for h in history:
             print(
                 f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "

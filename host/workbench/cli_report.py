@@ -22,7 +22,9 @@ examples:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
-    parser.add_argument("-o", "--output", type=Path, help="HTML file to write (default TABLE.forcemap/report.html)")
+    parser.add_argument(
+        "-o", "--output", type=Path, help="HTML file to write (default TABLE.forcemap/report.html)"
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-TARGET_BLOCKS = 40
+TARGET_BLOCKS = 25
 DEFAULT_FOLDS = 5
 
 
@@ -27,7 +27,9 @@ def spatial_blocks(xy: np.ndarray, target: int = TARGET_BLOCKS) -> np.ndarray:
     return ids
 
 
-def blocked_folds(xy: np.ndarray, k: int = DEFAULT_FOLDS, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def blocked_folds(
+    xy: np.ndarray, k: int = DEFAULT_FOLDS, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
     """Whole spatial blocks go to one fold, balancing the folds' sample counts. Returns (fold, block) per sample."""
     blocks = spatial_blocks(xy)
     nb = blocks.max() + 1
@@ -82,7 +84,9 @@ class CVResult:
         return float(np.mean((self.measured >= self.lower) & (self.measured <= self.upper)))
 
 
-def paired_test(base_sq: np.ndarray, cand_sq: np.ndarray, groups: np.ndarray) -> tuple[float, float]:
+def paired_test(
+    base_sq: np.ndarray, cand_sq: np.ndarray, groups: np.ndarray
+) -> tuple[float, float]:
     """Relative RMSE drop of the candidate, and the one-sided p-value that its squared error is lower.
 
     The paired unit is the spatial block (blocks are roughly independent; samples along a track are not), and

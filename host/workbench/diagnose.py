@@ -23,8 +23,11 @@ from host.workbench.spec import build_term, parse_term
 from host.workbench.table import KINEMATIC, Survey, family, is_circular
 from host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
-MIN_GAIN = 0.05
+MIN_GAIN = 0.10
 REFINE = 3
+# how candidates are screened: "all" refits every hyperparameter (adding depth lets the spatial GP hand its fine
+# structure over: keeping its old lengthscale makes a real effect look harmful); "new" is 3-5x cheaper
+SCREEN = "all"
 ALPHA = 0.05
 SKIP = {"t", "lat", "lon", "x", "y"}
 
@@ -60,7 +63,12 @@ class Diagnosis:
             "baseline": {"terms": self.terms, "cv_rmse": self.cv_rmse},
             "missing_effect_found": self.missing_effect_found,
             "candidates": [
-                {"covariate": c.covariate, "cv_rmse": c.cv_rmse, "improvement": c.improvement, "explanation": c.explanation}
+                {
+                    "covariate": c.covariate,
+                    "cv_rmse": c.cv_rmse,
+                    "improvement": c.improvement,
+                    "explanation": c.explanation,
+                }
                 for c in self.candidates
             ],
         }
@@ -72,19 +80,25 @@ class Diagnosis:
         return out
 
     def summary(self) -> str:
-        lines = [f"target {self.target}: current model {' + '.join(self.terms)}, blocked-CV RMSE {self.cv_rmse:.4g}"]
+        lines = [
+            f"target {self.target}: current model {' + '.join(self.terms)}, blocked-CV RMSE {self.cv_rmse:.4g}"
+        ]
         if self.missing_effect_found:
             best = self.candidates[0]
             lines.append(f"missing effect found: {best.covariate}")
             lines.append(f"  {best.explanation}")
         else:
-            lines.append("no missing effect found: no covariate improves the blocked-CV error significantly")
+            lines.append(
+                "no missing effect found: no covariate improves the blocked-CV error significantly"
+            )
         lines.append("")
         lines.append(f"{'rank':>4}  {'covariate':<22} {'cv_rmse':>9} {'gain':>7} {'p':>8}  note")
         for i, c in enumerate(self.candidates, 1):
             note = "consequence: credited with its random-fold gain" if c.consequence else ""
             mark = "*" if c.significant else " "
-            lines.append(f"{i:>4}{mark} {c.covariate:<22} {c.cv_rmse:>9.4g} {c.improvement:>+7.1%} {c.p_value:>8.1e}  {note}")
+            lines.append(
+                f"{i:>4}{mark} {c.covariate:<22} {c.cv_rmse:>9.4g} {c.improvement:>+7.1%} {c.p_value:>8.1e}  {note}"
+            )
         return "\n".join(lines)
 
 
@@ -108,7 +122,11 @@ def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
         names.append("t")
     if "heading" in survey.columns:
         for derived in ("heading_rel_current", "heading_rel_wind"):
-            if derived not in used and derived not in names and survey.vector_target(derived.replace("heading_rel_", "") + "_speed"):
+            if (
+                derived not in used
+                and derived not in names
+                and survey.vector_target(derived.replace("heading_rel_", "") + "_speed")
+            ):
                 names.append(derived)
     if sm.vector and sm.vector.aspect == "speed":
         own_dir = sm.vector.name.replace("_speed", "_dir")
@@ -137,7 +155,7 @@ def diagnose(
     base_b = sm.cv(fold_id, secondary_cv=sec_b)
     consequences = consequences_of(target)
     names = candidate_covariates(survey, sm)
-    bar = Progress(f"diagnose {target}", len(names) + REFINE, progress)
+    bar = Progress(f"diagnose {target}", len(names) + (REFINE if SCREEN != "all" else 0), progress)
     state = {"base_r": None}
 
     def evaluate(name: str, refit: str) -> Candidate:
@@ -161,8 +179,12 @@ def diagnose(
         """Blocked-CV gain of adding `then` to the model that already has `first`."""
         X = dict(sm.X)
         X.update(survey_inputs(survey, {first, then}))
-        a = sm.primary.extended(build_term(parse_term(first, is_circular), is_circular), X, sm.y_primary, refit="all")
-        ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, sm.y_primary, refit="all")
+        a = sm.primary.extended(
+            build_term(parse_term(first, is_circular), is_circular), X, sm.y_primary, refit="all"
+        )
+        ab = a.extended(
+            build_term(parse_term(then, is_circular), is_circular), X, sm.y_primary, refit="all"
+        )
         cv_a = sm.cv(fold_id, primary=a, secondary_cv=sec_b)
         cv_ab = sm.cv(fold_id, primary=ab, secondary_cv=sec_b)
         return paired_test(cv_a.error**2, cv_ab.error**2, blocks)[0]
@@ -174,12 +196,12 @@ def diagnose(
         try:
             if name != "t":
                 derived_column(survey, name)
-            results.append(evaluate(name, "new"))
+            results.append(evaluate(name, SCREEN))
         except WorkbenchError as exc:
             skipped[name] = str(exc)
     # screening kept the current model's hyperparameters; refit everything for the leaders, then re-rank them
     results.sort(key=lambda c: -c.improvement)
-    for i in range(min(REFINE, len(results))):
+    for i in range(min(REFINE, len(results)) if SCREEN != "all" else 0):
         bar.step(f"refit {results[i].covariate}")
         results[i] = evaluate(results[i].covariate, "all")
     results.sort(key=lambda c: -c.improvement)
@@ -211,7 +233,11 @@ def _demote_time_proxy(results: list[Candidate], evaluate_pair, min_gain: float)
 
 def _explain(c: Candidate, sm: SurveyModel) -> str:
     cause, term = explain(c.covariate)
-    what = "along the flow (speed)" if sm.primary_is_along else ("across the flow (direction)" if sm.vector and sm.circular else "")
+    what = (
+        "along the flow (speed)"
+        if sm.primary_is_along
+        else ("across the flow (direction)" if sm.vector and sm.circular else "")
+    )
     head = (
         f"adding {c.term}{' ' + what if what else ''} cuts the blocked-CV RMSE by {c.blocked_gain:.0%}"
         if c.blocked_gain >= 0
@@ -224,7 +250,9 @@ def _explain(c: Candidate, sm: SurveyModel) -> str:
             f"credited only with the gain left when the field is known (random folds: {rg:.0%})"
         )
     verdict = (
-        "significant" if c.significant else f"not significant (needs a gain >= {MIN_GAIN:.0%} and a small p-value)"
+        "significant"
+        if c.significant
+        else f"not significant (needs a gain >= {MIN_GAIN:.0%} and a small p-value)"
     )
     extra = f" ({c.note})" if c.note else ""
     return f"{head}; p = {c.p_value:.1e}, {verdict}{extra}. Likely cause: {cause}. Suggested term: {term}."

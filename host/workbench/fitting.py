@@ -16,15 +16,21 @@ from host.workbench.targets import SurveyModel
 from host.workbench.workspace import record_fit, workspace_dir
 
 
-def resolve_terms(model: str | None, effects: str | None, target: str | None) -> tuple[list[str], str | None]:
+def resolve_terms(
+    model: str | None, effects: str | None, target: str | None
+) -> tuple[list[str], str | None]:
     """Terms from a TOML spec (or the paper's baseline), plus `--effects`; and the spec's target, if any."""
-    terms, spec_target = (read_spec_file(model) if model else (list(BASELINE), None))
+    terms, spec_target = read_spec_file(model) if model else (list(BASELINE), None)
     terms = terms + [e for e in split_effects(effects) if e not in terms]
     return terms, target or spec_target
 
 
 def make_folds(survey: Survey, kind: str, k: int = DEFAULT_FOLDS, seed: int = 0) -> np.ndarray:
-    return blocked_folds(survey.xy, k, seed)[0] if kind == "blocked" else random_folds(survey.n, k, seed)
+    return (
+        blocked_folds(survey.xy, k, seed)[0]
+        if kind == "blocked"
+        else random_folds(survey.n, k, seed)
+    )
 
 
 @dataclass
@@ -54,7 +60,9 @@ class FitResult:
             f"95 % interval coverage {self.cv.coverage95:.1%}",
         ]
         if self.folds == "random":
-            lines.append("  (random folds put along-track neighbours in the training set: they flatter every model)")
+            lines.append(
+                "  (random folds put along-track neighbours in the training set: they flatter every model)"
+            )
         lines.append("fitted parameters:")
         for term, params in m.primary.params_.items():
             lines.append(f"  {term}: " + ", ".join(f"{k}={v:.4g}" for k, v in params.items()))
@@ -96,11 +104,19 @@ def save_residual_plots(table: Path, result: FitResult, fit_no: int) -> list[Pat
     stem = f"fit-{fit_no:03d}-{m.target}"
     extra = [i for s in m.term_specs for i in s.inputs if i not in ("position",)]
     p1 = plots.save(
-        plots.scatter_map(m.survey, result.cv.error, f"{m.target}: held-out residuals", "residual", "RdBu_r", True),
+        plots.scatter_map(
+            m.survey, result.cv.error, f"{m.target}: held-out residuals", "residual", "RdBu_r", True
+        ),
         ws / f"{stem}-residual-map.png",
     )
     p2 = plots.save(
-        plots.residual_panels(m.survey, result.cv.error, extra, f"{m.target}: held-out residual against covariates"),
+        plots.residual_panels(
+            m.survey,
+            result.cv.error,
+            extra,
+            f"{m.target}: held-out residual against covariates",
+            m.target,
+        ),
         ws / f"{stem}-residual-panels.png",
     )
     return [p1, p2]

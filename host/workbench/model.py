@@ -49,7 +49,9 @@ def term_inputs(term: Term, X: Mapping[str, np.ndarray]) -> np.ndarray:
     cols = []
     for name in term.inputs:
         if name not in X:
-            raise WorkbenchError(f"term {term.describe()} needs input '{name}', which is not available")
+            raise WorkbenchError(
+                f"term {term.describe()} needs input '{name}', which is not available"
+            )
         v = np.asarray(X[name], float)
         cols.append(v.reshape(len(v), -1))
     return np.hstack(cols)
@@ -62,7 +64,11 @@ class Design:
         self.blocks = blocks
         self.sizes = [b.shape[1] for b in blocks]
         with blas_threads(None):
-            self.G = np.vstack([np.hstack([a.T @ b for b in blocks]) for a in blocks]) if blocks else np.zeros((0, 0))
+            self.G = (
+                np.vstack([np.hstack([a.T @ b for b in blocks]) for a in blocks])
+                if blocks
+                else np.zeros((0, 0))
+            )
         self._folds: dict[str, list[np.ndarray]] = {}
         self._fold_ids: dict[str, np.ndarray] = {}
 
@@ -165,7 +171,9 @@ class Model:
         if all(t.is_mean for t in built):
             from host.workbench.terms import ConstTerm
 
-            built.insert(0, ConstTerm())  # the weights need at least one feature; a level is the natural one
+            built.insert(
+                0, ConstTerm()
+            )  # the weights need at least one feature; a level is the natural one
         self.terms = built
         self.max_iter = max_iter
 
@@ -227,7 +235,9 @@ class Model:
         else:
             r, b, rr = None, self._b, self._rr
         try:
-            logp, g_lam, g_sn2, post = evidence(self.design.G, b, rr, self.design.n, loglam, theta[0])
+            logp, g_lam, g_sn2, post = evidence(
+                self.design.G, b, rr, self.design.n, loglam, theta[0]
+            )
         except (np.linalg.LinAlgError, ValueError):
             return 1e25, np.zeros_like(theta)
         grad = np.zeros_like(theta)
@@ -287,6 +297,21 @@ class Model:
                 return best
         return theta
 
+    def _optimize(self, theta: np.ndarray, search: bool) -> np.ndarray:
+        with small_blas():
+            if search:
+                theta = self._search_lengthscale(theta)
+            res = minimize(
+                self._objective,
+                theta,
+                jac=True,
+                method="L-BFGS-B",
+                bounds=self._bounds(),
+                options={"maxiter": self.max_iter},
+            )
+        self.n_iter_ = int(res.nit)
+        return res.x
+
     def fit(
         self,
         X: Mapping[str, np.ndarray],
@@ -303,19 +328,26 @@ class Model:
         bounds = self._bounds()
         theta = np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds])
         if optimize:
-            with small_blas():
-                if init is None:
-                    theta = self._search_lengthscale(theta)
-                res = minimize(
-                    self._objective,
-                    theta,
-                    jac=True,
-                    method="L-BFGS-B",
-                    bounds=bounds,
-                    options={"maxiter": self.max_iter},
+            theta = self._optimize(theta, search=init is None)
+            # the basis resolves lengthscales down to l_min: if the optimum sits there, refine the basis and refit
+            for _ in range(2):
+                grow = [
+                    t
+                    for t, sl in zip(self.feat_terms, self.h_slices, strict=True)
+                    if isinstance(t, HilbertGPTerm)
+                    and theta[sl.start + 1] < math.log(1.25 * t.l_min)
+                    and t.n_basis < t.max_basis
+                    and design is None
+                ]
+                if not grow:
+                    break
+                for t in grow:
+                    t.n_basis = min(2 * t.n_basis, t.max_basis)
+                self._prepare(X, y, None)
+                bounds = self._bounds()
+                theta = self._optimize(
+                    np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds]), search=False
                 )
-            theta = res.x
-            self.n_iter_ = int(res.nit)
         self._set_posterior(theta)
         return self
 
@@ -332,7 +364,9 @@ class Model:
             self._b, self._rr = self.design.rmatvec(r), float(r @ r)
         else:
             self._r = self._y / self.y_scale
-        logp, _, _, post = evidence(self.design.G, self._b, self._rr, self.design.n, loglam, theta[0], grad=False)
+        logp, _, _, post = evidence(
+            self.design.G, self._b, self._rr, self.design.n, loglam, theta[0], grad=False
+        )
         self.log_marginal_likelihood_ = float(logp)
         self._post = post
         self._loglam_ = loglam
@@ -360,7 +394,9 @@ class Model:
     def features(self, X: Mapping[str, np.ndarray]) -> list[np.ndarray]:
         return [t.features(term_inputs(t, X)) for t in self.feat_terms]
 
-    def _predict_rows(self, blocks: list[np.ndarray], mean_part: np.ndarray, post: dict, return_std: bool):
+    def _predict_rows(
+        self, blocks: list[np.ndarray], mean_part: np.ndarray, post: dict, return_std: bool
+    ):
         Phi = np.hstack(blocks)
         mu = Phi @ post["mu"] * self.y_scale + mean_part
         if not return_std:
@@ -369,7 +405,9 @@ class Model:
         var = (V**2).sum(axis=0) * self.y_scale**2
         return mu, np.sqrt(np.maximum(var, 0.0))
 
-    def predict(self, X: Mapping[str, np.ndarray], return_std: bool = False, include_noise: bool = False):
+    def predict(
+        self, X: Mapping[str, np.ndarray], return_std: bool = False, include_noise: bool = False
+    ):
         """Posterior mean (and standard deviation of the latent field, or of a new observation)."""
         with small_blas():
             return self._predict(X, return_std, include_noise)
@@ -379,7 +417,11 @@ class Model:
         means, stds = np.empty(n), np.empty(n)
         for a in range(0, n, CHUNK):
             Xc = {k: np.asarray(v)[a : a + CHUNK] for k, v in X.items()}
-            mean_part = self._mean([term_inputs(t, Xc) for t in self.mean_terms], self.theta_) if self.mean_terms else 0.0
+            mean_part = (
+                self._mean([term_inputs(t, Xc) for t in self.mean_terms], self.theta_)
+                if self.mean_terms
+                else 0.0
+            )
             mu, sd = self._predict_rows(self.features(Xc), mean_part, self._post, return_std)
             means[a : a + CHUNK] = mu
             if return_std:
@@ -408,13 +450,17 @@ class Model:
             b_tr = self._b - self.design.rmatvec(self._r[test], test)
             G_tr = self.design.G - Gf
             rr = float(self._r[~test] @ self._r[~test])
-            _, _, _, post = evidence(G_tr, b_tr, rr, int((~test).sum()), loglam, self.theta_[0], grad=False)
+            _, _, _, post = evidence(
+                G_tr, b_tr, rr, int((~test).sum()), loglam, self.theta_[0], grad=False
+            )
             blocks = [b[test] for b in self.design.blocks]
             mu, sd = self._predict_rows(blocks, mean_part[test], post, True)
             mu_out[test] = mu
             sd_out[test] = sd
 
-    def extended(self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray, refit: str = "new") -> Model:
+    def extended(
+        self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray, refit: str = "new"
+    ) -> Model:
         """A new model with one more feature term, sharing this model's design (only cross products are new).
 
         refit="new": this model's hyperparameters stay fixed; the new term's and the noise are fitted by marginal
@@ -427,7 +473,9 @@ class Model:
         new = Model(self.feat_terms + [term] + self.mean_terms, max_iter=self.max_iter)
         design = self.design.augment(term.features(Z))
         cut = self.h_slices[-1].stop
-        init = np.concatenate([self.theta_[:cut], [h.init for h in term.hypers()], self.theta_[cut:]])
+        init = np.concatenate(
+            [self.theta_[:cut], [h.init for h in term.hypers()], self.theta_[cut:]]
+        )
         if refit == "all":
             return new.fit(X, y, init=init, design=design)
         new.fit(X, y, init=init, optimize=False, design=design)
@@ -437,7 +485,9 @@ class Model:
         new._set_posterior(theta)
         return new
 
-    def _fit_new_block(self, new: Model, init: np.ndarray, free: np.ndarray, term: Term) -> np.ndarray:
+    def _fit_new_block(
+        self, new: Model, init: np.ndarray, free: np.ndarray, term: Term
+    ) -> np.ndarray:
         M = self.design.M
         G, b, rr, n = new.design.G, new._b, new._rr, new.design.n
         if not hasattr(self, "_eig"):
@@ -477,13 +527,17 @@ class Model:
             key=neglogp,
         )
         if isinstance(term, HilbertGPTerm):
-            for logl in np.linspace(math.log(term.l_min * 1.1), math.log(2.0 * float(term.half.max())), 5):
+            for logl in np.linspace(
+                math.log(term.l_min * 1.1), math.log(2.0 * float(term.half.max())), 5
+            ):
                 trial = start.copy()
                 trial[2] = logl
                 if neglogp(trial) < neglogp(best):
                     best = trial
         with small_blas():
-            res = minimize(neglogp, best, method="L-BFGS-B", bounds=bounds, options={"maxiter": 100})
+            res = minimize(
+                neglogp, best, method="L-BFGS-B", bounds=bounds, options={"maxiter": 100}
+            )
         theta = init.copy()
         theta[free] = res.x
         return theta

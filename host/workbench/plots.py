@@ -12,9 +12,21 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
-from host.workbench.table import Survey, is_circular  # noqa: E402
+from host.workbench.table import Survey, family, is_circular  # noqa: E402
 
-PANEL_COVARIATES = ("t", "heading", "sog", "depth", "yaw_rate", "cog", "crab", "wind_dir", "wind_speed", "water_temp", "throttle")
+PANEL_COVARIATES = (
+    "t",
+    "heading",
+    "sog",
+    "depth",
+    "yaw_rate",
+    "cog",
+    "crab",
+    "wind_dir",
+    "wind_speed",
+    "water_temp",
+    "throttle",
+)
 
 
 def png_bytes(fig) -> bytes:
@@ -49,7 +61,14 @@ def _axes_map(ax, title: str) -> None:
     ax.set_title(title, fontsize=10)
 
 
-def scatter_map(survey: Survey, values: np.ndarray, title: str, label: str, cmap: str = "viridis", symmetric=False):
+def scatter_map(
+    survey: Survey,
+    values: np.ndarray,
+    title: str,
+    label: str,
+    cmap: str = "viridis",
+    symmetric=False,
+):
     fig, ax = plt.subplots(figsize=(8, 3.6))
     xy = survey.xy
     kw = {}
@@ -62,9 +81,21 @@ def scatter_map(survey: Survey, values: np.ndarray, title: str, label: str, cmap
     return fig
 
 
-def residual_panels(survey: Survey, resid: np.ndarray, extra: list[str] | None = None, title: str = ""):
-    """Residual against time, heading, boat speed, depth and every other covariate, with binned medians."""
-    names = [n for n in PANEL_COVARIATES if n == "t" or n in survey.columns]
+def residual_panels(
+    survey: Survey,
+    resid: np.ndarray,
+    extra: list[str] | None = None,
+    title: str = "",
+    target: str = "",
+):
+    """Residual against time, heading, boat speed, depth and every other covariate, with binned medians
+    (never against the target's own family: a residual always correlates with the reading it came from)."""
+    own = family(target)
+    names = [
+        n
+        for n in PANEL_COVARIATES
+        if (n == "t" or n in survey.columns) and (own is None or family(n) != own)
+    ]
     for n in extra or []:
         if n not in names and (n in survey.columns):
             names.append(n)
@@ -76,9 +107,16 @@ def residual_panels(survey: Survey, resid: np.ndarray, extra: list[str] | None =
         x = survey.trel / 60.0 if name == "t" else survey.columns[name]
         ok = np.isfinite(x)
         ax.scatter(x[ok], resid[ok], s=1, alpha=0.3, color="tab:blue")
-        edges = np.linspace(0, 360, 19) if is_circular(name) else np.quantile(x[ok], np.linspace(0, 1, 16))
+        edges = (
+            np.linspace(0, 360, 19)
+            if is_circular(name)
+            else np.quantile(x[ok], np.linspace(0, 1, 16))
+        )
         idx = np.clip(np.digitize(x[ok], edges) - 1, 0, len(edges) - 2)
-        med = [np.median(resid[ok][idx == i]) if (idx == i).sum() > 5 else np.nan for i in range(len(edges) - 1)]
+        med = [
+            np.median(resid[ok][idx == i]) if (idx == i).sum() > 5 else np.nan
+            for i in range(len(edges) - 1)
+        ]
         ax.plot(0.5 * (edges[1:] + edges[:-1]), med, color="tab:red", lw=2)
         ax.axhline(0, color="k", lw=0.5)
         ax.set_xlabel("t (min)" if name == "t" else name, fontsize=9)
@@ -91,26 +129,38 @@ def residual_panels(survey: Survey, resid: np.ndarray, extra: list[str] | None =
     return fig
 
 
-def field_map(X, Y, mask, pred: dict, title: str, label: str, arrows: bool, contours: bool, survey: Survey):
+def field_map(
+    X, Y, mask, pred: dict, title: str, label: str, arrows: bool, contours: bool, survey: Survey
+):
     """Model mean (colour; arrows for a vector field, contours for a scalar) and its uncertainty, side by side."""
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 7.5))
     shape = X.shape
     key = "speed" if arrows and "speed" in pred else "mean"
     mean = np.where(mask, pred[key].reshape(shape), np.nan)
     std = np.where(mask, pred["speed_std" if key == "speed" else "std"].reshape(shape), np.nan)
-    pc = a1.pcolormesh(X, Y, mean, shading="auto", cmap="viridis")
+    lo, hi = np.nanpercentile(mean, [1, 99]) if np.isfinite(mean).any() else (0.0, 1.0)
+    pc = a1.pcolormesh(X, Y, mean, shading="auto", cmap="viridis", vmin=lo, vmax=hi)
     fig.colorbar(pc, ax=a1, label=label, shrink=0.85)
     if arrows and "east" in pred:
         step = max(1, shape[1] // 25)
         E = np.where(mask, pred["east"].reshape(shape), np.nan)
         N = np.where(mask, pred["north"].reshape(shape), np.nan)
-        a1.quiver(X[::step, ::step], Y[::step, ::step], E[::step, ::step], N[::step, ::step], color="white", scale_units="xy", angles="xy")
+        a1.quiver(
+            X[::step, ::step],
+            Y[::step, ::step],
+            E[::step, ::step],
+            N[::step, ::step],
+            color="white",
+            scale_units="xy",
+            angles="xy",
+        )
     if contours:
-        cs = a1.contour(X, Y, mean, levels=8, colors="k", linewidths=0.6)
+        cs = a1.contour(X, Y, mean, levels=np.linspace(lo, hi, 8), colors="k", linewidths=0.6)
         a1.clabel(cs, fontsize=7, fmt="%.1f")
     a1.plot(survey.xy[:, 0], survey.xy[:, 1], ",", color="0.6", alpha=0.3)
     _axes_map(a1, f"{title}: model mean")
-    pc2 = a2.pcolormesh(X, Y, std, shading="auto", cmap="magma")
+    top = np.nanpercentile(std, 99) if np.isfinite(std).any() else 1.0
+    pc2 = a2.pcolormesh(X, Y, std, shading="auto", cmap="magma", vmin=0.0, vmax=top)
     fig.colorbar(pc2, ax=a2, label=f"std of {label}", shrink=0.85)
     _axes_map(a2, f"{title}: model uncertainty (1 std)")
     fig.tight_layout()
@@ -127,7 +177,13 @@ def history_figure(history: list[dict]):
         ax.plot([h["fit"] for h in rows], [h["cv_rmse"] / rmse0 for h in rows], "o-", label=target)
         for h in rows:
             extra = [t for t in h["terms"] if t not in ("const", "gp(position, matern32)")]
-            ax.annotate("+" + ", ".join(extra) if extra else "baseline", (h["fit"], h["cv_rmse"] / rmse0), fontsize=7, xytext=(3, 3), textcoords="offset points")
+            ax.annotate(
+                "+" + ", ".join(extra) if extra else "baseline",
+                (h["fit"], h["cv_rmse"] / rmse0),
+                fontsize=7,
+                xytext=(3, 3),
+                textcoords="offset points",
+            )
     ax.set_xlabel("fit number")
     ax.set_ylabel("CV RMSE / first fit's")
     ax.set_title("error history: CV RMSE as effects are added", fontsize=10)

@@ -55,9 +55,15 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
         parts.append(f"<p class=small>note: {html.escape(n)}</p>")
 
     parts.append("<h2>Measurements</h2>")
-    for col, label in (("current_speed", "current speed (m/s)"), ("wind_speed", "wind speed (m/s)"), ("depth", "depth (m)")):
+    for col, label in (
+        ("current_speed", "current speed (m/s)"),
+        ("wind_speed", "wind speed (m/s)"),
+        ("depth", "depth (m)"),
+    ):
         if col in survey.columns:
-            parts.append(_img(plots.scatter_map(survey, survey.columns[col], f"measured {col}", label), col))
+            parts.append(
+                _img(plots.scatter_map(survey, survey.columns[col], f"measured {col}", label), col)
+            )
 
     parts.append("<h2>Model maps: mean and uncertainty</h2>")
     parts.append(
@@ -67,17 +73,32 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
     )
     X, Y, mask = plots.map_grid(survey)
     grid = np.column_stack([X.ravel(), Y.ravel()])
-    for target, label, arrows in (("current_speed", "current speed (m/s)", True), ("wind_speed", "wind speed (m/s)", True), ("depth", "depth (m)", False)):
+    for target, label, arrows in (
+        ("current_speed", "current speed (m/s)", True),
+        ("wind_speed", "wind speed (m/s)", True),
+        ("depth", "depth (m)", False),
+    ):
         try:
             terms = _latest_terms(history, target)
             note(f"report: mapping {target} ({' + '.join(terms)}) ...", progress)
             sm = SurveyModel(survey, target, terms).fit()
             pred = sm.predict_grid(grid)
         except WorkbenchError as exc:
-            parts.append(f"<p class=small>{html.escape(target)}: not mapped ({html.escape(str(exc))})</p>")
+            parts.append(
+                f"<p class=small>{html.escape(target)}: not mapped ({html.escape(str(exc))})</p>"
+            )
             continue
-        parts.append(f"<h3>{html.escape(target.split('_')[0])}: {html.escape(' + '.join(terms))}</h3>")
-        parts.append(_img(plots.field_map(X, Y, mask, pred, target.split("_")[0], label, arrows, not arrows, survey), target))
+        parts.append(
+            f"<h3>{html.escape(target.split('_')[0])}: {html.escape(' + '.join(terms))}</h3>"
+        )
+        parts.append(
+            _img(
+                plots.field_map(
+                    X, Y, mask, pred, target.split("_")[0], label, arrows, not arrows, survey
+                ),
+                target,
+            )
+        )
 
     targets = list(dict.fromkeys([h["target"] for h in history] + list(diagnoses)))
     if targets:
@@ -97,25 +118,49 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
             continue
         unit = " deg" if sm.circular else ""
         parts.append(f"<h3>{html.escape(target)}: {html.escape(' + '.join(terms))}</h3>")
-        parts.append(f"<p>CV RMSE {cv.rmse:.4g}{unit}, MAE {cv.mae:.4g}{unit}, 95 % coverage {cv.coverage95:.1%}.</p><ul>")
+        parts.append(
+            f"<p>CV RMSE {cv.rmse:.4g}{unit}, MAE {cv.mae:.4g}{unit}, 95 % coverage {cv.coverage95:.1%}.</p><ul>"
+        )
         parts += [f"<li>{html.escape(s)}</li>" for s in failure_summary(survey, cv.error, unit)]
         parts.append("</ul>")
-        parts.append(_img(plots.scatter_map(survey, cv.error, f"{target}: held-out residuals", "residual", "RdBu_r", True), "residual map"))
+        parts.append(
+            _img(
+                plots.scatter_map(
+                    survey, cv.error, f"{target}: held-out residuals", "residual", "RdBu_r", True
+                ),
+                "residual map",
+            )
+        )
         extra = [i for s in sm.term_specs for i in s.inputs if i != "position"]
-        parts.append(_img(plots.residual_panels(survey, cv.error, extra, f"{target}: residual against covariates"), "residual panels"))
+        parts.append(
+            _img(
+                plots.residual_panels(
+                    survey, cv.error, extra, f"{target}: residual against covariates", target
+                ),
+                "residual panels",
+            )
+        )
 
     parts.append("<h2>Missing effects, ranked</h2>")
     if not diagnoses:
-        parts.append(f"<p>No diagnosis yet: run <code>forcemap diagnose {html.escape(table.name)} --target TARGET</code>.</p>")
+        parts.append(
+            f"<p>No diagnosis yet: run <code>forcemap diagnose {html.escape(table.name)} --target TARGET</code>.</p>"
+        )
     for target, d in diagnoses.items():
         found = d.get("missing_effect_found")
         base = d["baseline"]
-        parts.append(f"<h3>{html.escape(target)} (model {html.escape(' + '.join(base['terms']))}, CV RMSE {base['cv_rmse']:.4g})</h3>")
+        parts.append(
+            f"<h3>{html.escape(target)} (model {html.escape(' + '.join(base['terms']))}, CV RMSE {base['cv_rmse']:.4g})</h3>"
+        )
         if found and d["candidates"]:
-            parts.append(f"<p class=found>missing effect found: {html.escape(d['candidates'][0]['covariate'])}</p>")
+            parts.append(
+                f"<p class=found>missing effect found: {html.escape(d['candidates'][0]['covariate'])}</p>"
+            )
         else:
             parts.append("<p class=none>no missing effect found</p>")
-        parts.append("<table><tr><th>#</th><th>covariate</th><th>CV RMSE</th><th>improvement</th><th>explanation</th></tr>")
+        parts.append(
+            "<table><tr><th>#</th><th>covariate</th><th>CV RMSE</th><th>improvement</th><th>explanation</th></tr>"
+        )
         for i, c in enumerate(d["candidates"][:10], 1):
             parts.append(
                 f"<tr><td>{i}</td><td>{html.escape(c['covariate'])}</td><td>{c['cv_rmse']:.4g}</td>"
@@ -125,7 +170,9 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
 
     parts.append("<h2>Error history</h2>")
     if history:
-        parts.append("<table><tr><th>fit</th><th>target</th><th>terms</th><th>CV RMSE</th><th>MAE</th><th>coverage 95 %</th></tr>")
+        parts.append(
+            "<table><tr><th>fit</th><th>target</th><th>terms</th><th>CV RMSE</th><th>MAE</th><th>coverage 95 %</th></tr>"
+        )
         for h in history:
             parts.append(
                 f"<tr><td>{h['fit']}</td><td>{html.escape(h['target'])}</td><td>{html.escape(' + '.join(h['terms']))}</td>"

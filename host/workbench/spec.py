@@ -36,11 +36,15 @@ def parse_term(text: str, is_circular: Callable[[str], bool]) -> TermSpec:
     m = _CALL.match(text)
     if not m:
         if not re.fullmatch(r"[A-Za-z_][\w]*", text):
-            raise WorkbenchError(f"cannot read term '{text}'; write e.g. depth, gp(depth, matern32) or power(depth)")
+            raise WorkbenchError(
+                f"cannot read term '{text}'; write e.g. depth, gp(depth, matern32) or power(depth)"
+            )
         return TermSpec("gp", (text,), "periodic" if is_circular(text) else "matern32")
     kind, args = m.group(1).lower(), [a.strip() for a in m.group(2).split(",") if a.strip()]
     if kind not in KINDS:
-        raise WorkbenchError(f"unknown term kind '{kind}' in '{text}'; kinds are {', '.join(KINDS)}")
+        raise WorkbenchError(
+            f"unknown term kind '{kind}' in '{text}'; kinds are {', '.join(KINDS)}"
+        )
     if kind == "gp":
         if len(args) < 1:
             raise WorkbenchError(f"'{text}': a gp term needs inputs, e.g. gp(position, matern32)")
@@ -70,7 +74,9 @@ def build_term(spec: TermSpec, is_circular: Callable[[str], bool]) -> Term:
         return LinearTerm(spec.inputs)
     if spec.kind == "cos":
         if not is_circular(spec.inputs[0]):
-            raise WorkbenchError(f"cos({spec.inputs[0]}) needs an angle column (heading, cog, *_dir)")
+            raise WorkbenchError(
+                f"cos({spec.inputs[0]}) needs an angle column (heading, cog, *_dir)"
+            )
         return CosineTerm(spec.inputs[0])
     if spec.kind == "power":
         return PowerTerm(spec.inputs[0])
@@ -81,13 +87,17 @@ def build_term(spec: TermSpec, is_circular: Callable[[str], bool]) -> Term:
         return LinearTerm(inputs, label="gp")
     if spec.kernel == "periodic":
         if len(inputs) != 1 or not is_circular(inputs[0]):
-            raise WorkbenchError(f"{spec}: the periodic kernel takes one angle column (heading, cog, *_dir)")
+            raise WorkbenchError(
+                f"{spec}: the periodic kernel takes one angle column (heading, cog, *_dir)"
+            )
         return PeriodicTerm(inputs[0])
     if any(is_circular(i) for i in inputs):
         raise WorkbenchError(f"{spec}: angles go in a gp term of their own, gp(ANGLE, periodic)")
     dims = sum(2 if i == "position" else 1 for i in inputs)
     if dims > 3:
-        raise WorkbenchError(f"{spec}: a gp term takes at most 3 input dimensions (position counts as 2)")
+        raise WorkbenchError(
+            f"{spec}: a gp term takes at most 3 input dimensions (position counts as 2)"
+        )
     return HilbertGPTerm(inputs, spec.kernel, dims=dims)
 
 
@@ -141,5 +151,7 @@ def read_spec_file(path: str | Path) -> tuple[list[str], str | None]:
         else:
             texts.append(f"{kind}({', '.join(inputs)})")
     if not texts:
-        raise WorkbenchError(f"{path}: the spec has no terms (write terms = [...] or [[term]] tables)")
+        raise WorkbenchError(
+            f"{path}: the spec has no terms (write terms = [...] or [[term]] tables)"
+        )
     return texts, data.get("target")

@@ -2,7 +2,7 @@
 
 `make_survey(scenario, effects, seed, duration_s, out_dir)` has the signature of
 `sim_devices.offline.make_survey` and writes a samples table (CSV, the columns of docs/CONVENTIONS.md) with a
-`truth/effects.json` beside it. The boat is kinematic: it holds 3 m/s through the water, crabs to keep a
+`truth/effects.json` beside it. The boat is kinematic: it holds 3.5 m/s through the water, crabs to keep a
 lawnmower track parallel to the flow, and turns at a limited rate, so sog, cog and the crab angle respond to the
 current exactly as on the water.
 """
@@ -28,16 +28,16 @@ EFFECTS = (
 )
 LAT0, LON0, T0 = 33.95, -81.05, 1_700_000_000.0
 HALF_LENGTH, HALF_WIDTH = 300.0, 75.0
-BOAT_SPEED = 3.0
+BOAT_SPEED = 3.5
 MAX_TURN_RATE = 20.0  # deg/s
 RATE_HZ = 1.0
 
 
 def depth_field(x, y):
-    """Thalweg meandering along the reach, plus sand bars of ~80 m: 0.5-6 m."""
+    """Thalweg meandering along the reach, plus sand bars of ~60 m: 0.5-6 m."""
     centre = 25.0 * np.sin(2 * np.pi * x / 500.0)
     channel = 4.5 * np.exp(-(((y - centre) / 45.0) ** 2))
-    bars = 1.1 * np.sin(2 * np.pi * x / 85.0 + 0.7) * np.cos(2 * np.pi * y / 60.0)
+    bars = 1.1 * np.sin(2 * np.pi * x / 60.0 + 0.7) * np.cos(2 * np.pi * y / 45.0)
     return np.clip(0.8 + channel + bars, 0.5, 6.0)
 
 
@@ -47,7 +47,7 @@ def current_field(x, y, t, effects, duration):
     speed = 1.2 + 0.8 * np.exp(-(((y - centre) / 60.0) ** 2))
     if "depth_current" in effects:
         d = depth_field(x, y)
-        speed = speed * (d / 3.0) ** (2.0 / 3.0)
+        speed = speed * 0.85 * (d / 3.0) ** (2.0 / 3.0)
     if "dam_release" in effects:
         speed = speed * (0.75 + 0.5 / (1 + np.exp(-(t - 0.5 * duration) / (0.12 * duration))))
     slope = 25.0 * 2 * np.pi / 500.0 * np.cos(2 * np.pi * x / 500.0)
@@ -62,7 +62,10 @@ def wind_field(x, y, t, effects, duration, rng_phase):
         from_dir = 200.0 + 200.0 * (t / duration)  # veers from SSW through W to NNE
     speed = 7.0 + 0.6 * np.cos(y / 60.0 + 0.3) + 0.4 * np.sin(x / 150.0)
     if "gusts" in effects:
-        g = sum(np.sin(2 * np.pi * t / p + ph) for p, ph in zip((900.0, 1500.0, 2300.0), rng_phase, strict=True))
+        g = sum(
+            np.sin(2 * np.pi * t / p + ph)
+            for p, ph in zip((900.0, 1500.0, 2300.0), rng_phase, strict=True)
+        )
         speed = speed * (1.0 + 0.12 * g)
     if "bank_shelter" in effects:
         from_north = np.clip(np.cos(np.radians(from_dir)), 0.0, None)
@@ -132,14 +135,16 @@ def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str
     dh = np.radians(h_meas - H)
 
     def rot(v, a):
-        return np.column_stack([v[:, 0] * np.cos(a) + v[:, 1] * np.sin(a), -v[:, 0] * np.sin(a) + v[:, 1] * np.cos(a)])
+        return np.column_stack(
+            [v[:, 0] * np.cos(a) + v[:, 1] * np.sin(a), -v[:, 0] * np.sin(a) + v[:, 1] * np.cos(a)]
+        )
 
     # paddle wheels: water velocity relative to the hull, measured in the boat frame, rotated with the measured heading
     F = C - VB
     F_meas = rot(F, dh) + 0.06 * rng.standard_normal((n, 2))
     if "wheel_misalignment" in effects:
         starboard = np.column_stack([np.cos(np.radians(H)), -np.sin(np.radians(H))])
-        F_meas = F_meas + 0.25 * starboard
+        F_meas = F_meas + 0.42 * starboard  # a wheel ~7 deg off: 0.42 m/s across the bow at 3.5 m/s
     sog_true = np.hypot(VB[:, 0], VB[:, 1])
     vb_meas = VB + 0.03 * rng.standard_normal((n, 2))
     vb_used = vb_meas
@@ -160,9 +165,14 @@ def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str
     cog = np.degrees(np.arctan2(vb_meas[:, 0], vb_meas[:, 1])) % 360.0
     app_from = np.degrees(np.arctan2(-R_meas[:, 0], -R_meas[:, 1]))
     app_angle = (app_from - h_meas + 180.0) % 360.0 - 180.0
-    F_boat = rot(F_meas, np.radians(h_meas))  # (starboard, forward) components of the relative water
+    F_boat = rot(
+        F_meas, np.radians(h_meas)
+    )  # (starboard, forward) components of the relative water
     axes = np.radians([45.0, 135.0, 225.0, 315.0])
-    wheels = {f"wheel{i + 1}_speed": np.abs(F_boat[:, 0] * np.sin(a) + F_boat[:, 1] * np.cos(a)) for i, a in enumerate(axes)}
+    wheels = {
+        f"wheel{i + 1}_speed": np.abs(F_boat[:, 0] * np.sin(a) + F_boat[:, 1] * np.cos(a))
+        for i, a in enumerate(axes)
+    }
     lat = LAT0 + np.degrees(y / 6_371_008.8) + 2e-6 * rng.standard_normal(n) * 0.1
     lon = LON0 + np.degrees(x / (6_371_008.8 * math.cos(math.radians(LAT0))))
     cols = {
@@ -174,7 +184,10 @@ def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str
         "sog": sog,
         "cog": cog,
         "depth": depth,
-        "water_temp": 18.0 + 0.4 * np.sin(x / 250.0) + 0.002 * t / 60.0 + 0.02 * rng.standard_normal(n),
+        "water_temp": 18.0
+        + 0.4 * np.sin(x / 250.0)
+        + 0.002 * t / 60.0
+        + 0.02 * rng.standard_normal(n),
         "wind_speed": np.hypot(W_meas[:, 0], W_meas[:, 1]),
         "wind_dir": np.degrees(np.arctan2(-W_meas[:, 0], -W_meas[:, 1])) % 360.0,
         "wind_east": W_meas[:, 0],
@@ -203,7 +216,15 @@ def make_survey(scenario: str, effects: list[str], seed: int, duration_s: float,
         w.writerow(names)
         for row in zip(*(cols[k] for k in names), strict=True):
             w.writerow([f"{v:.7f}" if abs(v) < 1e6 else f"{v:.3f}" for v in row])
-    meta = {"scenario": scenario, "seed": seed, "effects": list(effects), "lat0": LAT0, "lon0": LON0, "t0": T0,
-            "duration": duration_s, "generator": "host.workbench.synth"}
+    meta = {
+        "scenario": scenario,
+        "seed": seed,
+        "effects": list(effects),
+        "lat0": LAT0,
+        "lon0": LON0,
+        "t0": T0,
+        "duration": duration_s,
+        "generator": "host.workbench.synth",
+    }
     (out / "truth" / "effects.json").write_text(json.dumps(meta, indent=2))
     return path

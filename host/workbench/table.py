@@ -27,7 +27,11 @@ KINEMATIC = ("sog", "cog", "throttle", "crab")
 
 def is_circular(name: str) -> bool:
     """Angles (degrees) that wrap at 360: heading, cog, app_wind_angle, *_dir and derived relative headings."""
-    return name in {"heading", "cog", "app_wind_angle", "crab"} or name.endswith("_dir") or "_rel_" in name
+    return (
+        name in {"heading", "cog", "app_wind_angle", "crab"}
+        or name.endswith("_dir")
+        or "_rel_" in name
+    )
 
 
 def family(name: str) -> str | None:
@@ -94,14 +98,24 @@ class Survey:
 
     def subset(self, mask: np.ndarray) -> Survey:
         cols = {k: v[mask] for k, v in self.columns.items()}
-        return Survey(cols, self.lat0, self.lon0, self.t0, self.source, list(self.notes), set(self.non_numeric))
+        return Survey(
+            cols,
+            self.lat0,
+            self.lon0,
+            self.t0,
+            self.source,
+            list(self.notes),
+            set(self.non_numeric),
+        )
 
     def column(self, name: str) -> np.ndarray:
         """A numeric column, or a clear error saying why it cannot be used."""
         if name == "t":
             return self.trel
         if name in self.non_numeric:
-            raise WorkbenchError(f"column '{name}' is not numeric; only numeric columns can be modelled")
+            raise WorkbenchError(
+                f"column '{name}' is not numeric; only numeric columns can be modelled"
+            )
         if name not in self.columns:
             raise WorkbenchError(
                 f"unknown column '{name}'; numeric columns are: {', '.join(sorted(self.numeric_columns()))}"
@@ -147,7 +161,9 @@ def _read_csv(path: Path) -> dict[str, list[str]]:
         if len(row) != len(header):
             if not any(cell.strip() for cell in row):
                 continue
-            raise WorkbenchError(f"{path}: row {i + 2} has {len(row)} cells, the header has {len(header)}")
+            raise WorkbenchError(
+                f"{path}: row {i + 2} has {len(row)} cells, the header has {len(header)}"
+            )
         for h, cell in zip(header, row, strict=True):
             cols[h].append(cell)
     return cols
@@ -191,7 +207,9 @@ def _read_mcap(path: Path) -> dict[str, list]:
     except Exception as exc:
         raise WorkbenchError(f"{path}: could not read /samples from the MCAP log ({exc})") from None
     if not rows:
-        raise WorkbenchError(f"{path}: the MCAP log has no /samples messages; was it written by `forcemap run`?")
+        raise WorkbenchError(
+            f"{path}: the MCAP log has no /samples messages; was it written by `forcemap run`?"
+        )
     names: list[str] = []
     for r in rows:
         for k in r:
@@ -213,7 +231,9 @@ def read_raw(path: str | Path) -> dict[str, list]:
     return _read_csv(path)
 
 
-def local_frame(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> tuple[np.ndarray, np.ndarray]:
+def local_frame(
+    lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Metres east and north of (lat0, lon0), equirectangular (exact enough over a few km)."""
     x = np.radians(lon - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
     y = np.radians(lat - lat0) * EARTH_RADIUS_M
@@ -223,7 +243,11 @@ def local_frame(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> t
 def _fill_nearest_in_time(values: np.ndarray) -> np.ndarray:
     good = np.flatnonzero(np.isfinite(values))
     idx = np.arange(len(values))
-    pos = np.clip(np.searchsorted(good, idx), 1, len(good) - 1) if len(good) > 1 else np.zeros_like(idx)
+    pos = (
+        np.clip(np.searchsorted(good, idx), 1, len(good) - 1)
+        if len(good) > 1
+        else np.zeros_like(idx)
+    )
     if len(good) == 1:
         return np.full_like(values, values[good[0]])
     left, right = good[pos - 1], good[pos]
@@ -237,7 +261,9 @@ def load_survey(path: str | Path) -> Survey:
     raw = read_raw(path)
     missing = [c for c in REQUIRED if c not in raw]
     if missing:
-        raise WorkbenchError(f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)")
+        raise WorkbenchError(
+            f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
+        )
     columns: dict[str, np.ndarray] = {}
     non_numeric: set[str] = set()
     for name, cells in raw.items():
@@ -254,14 +280,18 @@ def load_survey(path: str | Path) -> Survey:
     for c in REQUIRED:
         bad = ~np.isfinite(columns[c])
         if bad.mean() > MAX_MISSING_FRACTION:
-            raise WorkbenchError(f"{path}: column '{c}' has {bad.mean():.0%} missing values; every row needs t, lat, lon")
+            raise WorkbenchError(
+                f"{path}: column '{c}' has {bad.mean():.0%} missing values; every row needs t, lat, lon"
+            )
         if bad.any():
             notes.append(f"dropped {bad.sum()} row(s) with missing '{c}'")
         keep &= ~bad
     columns = {k: v[keep] for k, v in columns.items()}
     n = int(keep.sum())
     if n < MIN_ROWS:
-        raise WorkbenchError(f"{path}: only {n} usable rows; the workbench needs at least {MIN_ROWS}")
+        raise WorkbenchError(
+            f"{path}: only {n} usable rows; the workbench needs at least {MIN_ROWS}"
+        )
     order = np.argsort(columns["t"], kind="stable")
     columns = {k: v[order] for k, v in columns.items()}
     lat, lon = columns["lat"], columns["lon"]
@@ -291,5 +321,7 @@ def prepare_column(survey: Survey, name: str, role: str) -> np.ndarray:
             survey.notes.append(note)
     finite = values[np.isfinite(values)]
     if np.ptp(finite) <= 1e-12 * max(1.0, float(np.abs(finite).max())):
-        raise WorkbenchError(f"{role} '{name}' is constant ({finite[0]:g}); there is nothing to model")
+        raise WorkbenchError(
+            f"{role} '{name}' is constant ({finite[0]:g}); there is nothing to model"
+        )
     return values

@@ -31,24 +31,32 @@ def circular_median(deg: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(np.sin(r).mean(), np.cos(r).mean())) % 360.0)
 
 
+FRAME_TERMS = [*BASELINE, "gp(t, matern32)"]
+
+
 def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
-    """Baseline models of a vector's east and north components (cached on the survey)."""
+    """Smooth models of a vector's east and north components over position and time (cached on the survey):
+    time is in the frame so a wind that veers during the survey still has a meaningful local direction."""
     key = ("frame", vt.prefix)
     if key not in survey.cache:
         e, n = survey.components(vt)
         if e is None:
             raise WorkbenchError(f"the table has no {vt.prefix} components, speed or direction")
-        X = {"position": survey.xy}
+        X = {"position": survey.xy, "t": survey.trel}
         e = _finite_target(survey, e, f"{vt.prefix} east component")
         n = _finite_target(survey, n, f"{vt.prefix} north component")
-        survey.cache[key] = (Model(BASELINE).fit(X, e), Model(BASELINE).fit(X, n))
+        survey.cache[key] = (Model(FRAME_TERMS).fit(X, e), Model(FRAME_TERMS).fit(X, n))
     return survey.cache[key]
 
 
-def frame_direction(survey: Survey, vt: VectorTarget, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vector of the smooth baseline flow at positions `xy`."""
+def frame_direction(
+    survey: Survey, vt: VectorTarget, xy: np.ndarray, t: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vector of the smooth flow at positions `xy` and times `t` (default: mid-survey)."""
     me, mn = flow_frame(survey, vt)
-    X = {"position": xy}
+    if t is None:
+        t = np.full(len(xy), float(np.median(survey.trel)))
+    X = {"position": xy, "t": t}
     e, n = me.predict(X), mn.predict(X)
     s = np.hypot(e, n)
     s = np.where(s > 1e-9, s, 1.0)
@@ -63,7 +71,9 @@ def _finite_target(survey: Survey, values: np.ndarray, what: str) -> np.ndarray:
         from host.workbench.table import _fill_nearest_in_time
 
         values = _fill_nearest_in_time(values)
-        survey.notes.append(f"filled {bad.sum()} missing value(s) of the {what} with the nearest sample in time")
+        survey.notes.append(
+            f"filled {bad.sum()} missing value(s) of the {what} with the nearest sample in time"
+        )
     return values
 
 
@@ -73,8 +83,10 @@ def derived_column(survey: Survey, name: str) -> np.ndarray:
         if name in ("heading_rel_current", "heading_rel_wind") and "heading" in survey.columns:
             vt = survey.vector_target("current_speed" if name.endswith("current") else "wind_speed")
             if vt is None:
-                raise WorkbenchError(f"'{name}' needs {name.rsplit('_', 1)[1]} columns in the table")
-            ue, un = frame_direction(survey, vt, survey.xy)
+                raise WorkbenchError(
+                    f"'{name}' needs {name.rsplit('_', 1)[1]} columns in the table"
+                )
+            ue, un = frame_direction(survey, vt, survey.xy, survey.trel)
             flow = np.degrees(np.arctan2(ue, un))
             if vt.is_from:
                 flow = flow + 180.0
@@ -94,7 +106,10 @@ def survey_inputs(survey: Survey, names: set[str]) -> dict[str, np.ndarray]:
 
 def grid_inputs(survey: Survey, names: set[str], xy: np.ndarray) -> dict[str, np.ndarray]:
     """Inputs for maps: depth from a depth map, time at mid-survey, every other covariate at its typical value."""
-    X: dict[str, np.ndarray] = {"position": xy, "t": np.full(len(xy), float(np.median(survey.trel)))}
+    X: dict[str, np.ndarray] = {
+        "position": xy,
+        "t": np.full(len(xy), float(np.median(survey.trel))),
+    }
     for name in names - {"position", "t"}:
         values = survey_inputs(survey, {name})[name]
         if name == "depth":
@@ -130,14 +145,22 @@ class SurveyModel:
         for spec in self.term_specs:
             for name in spec.inputs:
                 if name == self.target or (self.vector and name in self._own_columns()):
-                    raise WorkbenchError(f"term {spec} uses the target's own reading '{name}' as a covariate")
+                    raise WorkbenchError(
+                        f"term {spec} uses the target's own reading '{name}' as a covariate"
+                    )
         names = {i for s in self.term_specs for i in s.inputs}
         self.X = survey_inputs(survey, names)
         self._prepare_y()
 
     def _own_columns(self) -> set[str]:
+        """The vector's own readings; a speed may depend on its own direction (shelter), so that one is allowed."""
         vt = self.vector
-        return {vt.name, *(f"{vt.prefix}_{a}" for a in ("speed", "dir", "east", "north"))}
+        aspects = (
+            ("speed", "east", "north")
+            if vt.aspect == "speed"
+            else ("speed", "dir", "east", "north")
+        )
+        return {vt.name, *(f"{vt.prefix}_{a}" for a in aspects)}
 
     @property
     def terms(self) -> list[str]:
@@ -163,7 +186,9 @@ class SurveyModel:
         if vt.aspect in ("east", "north"):
             self.measured = self.y_primary = e if vt.aspect == "east" else n
             if np.ptp(self.measured) < 1e-12:
-                raise WorkbenchError(f"target '{self.target}' is constant; there is nothing to model")
+                raise WorkbenchError(
+                    f"target '{self.target}' is constant; there is nothing to model"
+                )
             return
         speed = np.hypot(e, n)
         if np.ptp(speed) < 1e-12 and vt.aspect == "speed":
@@ -173,10 +198,12 @@ class SurveyModel:
         else:
             d = np.degrees(np.arctan2(e, n)) % 360.0
             self.measured = (d + 180.0) % 360.0 if vt.is_from else d
-        self.ue, self.un = frame_direction(s, vt, s.xy)
+        self.ue, self.un = frame_direction(s, vt, s.xy, s.trel)
         along = e * self.ue + n * self.un
         across = -e * self.un + n * self.ue
-        self.y_primary, self.y_secondary = (along, across) if self.primary_is_along else (across, along)
+        self.y_primary, self.y_secondary = (
+            (along, across) if self.primary_is_along else (across, along)
+        )
 
     def new_primary(self, terms: list | None = None) -> Model:
         return Model([build_term(t, is_circular) for t in (terms or self.term_specs)])
@@ -186,14 +213,18 @@ class SurveyModel:
         if self.vector and self.vector.aspect in ("speed", "dir"):
             key = ("secondary", self.vector.prefix, self.primary_is_along)
             if key not in self.survey.cache:
-                self.survey.cache[key] = Model(BASELINE).fit({"position": self.survey.xy}, self.y_secondary)
+                self.survey.cache[key] = Model(BASELINE).fit(
+                    {"position": self.survey.xy}, self.y_secondary
+                )
             self.secondary = self.survey.cache[key]
         else:
             self.secondary = None
         return self
 
     # ---- combining the primary (and secondary) Gaussian predictions into the target
-    def combine(self, mu_p, sd_p, noise_p, mu_s=None, sd_s=None, noise_s=None, ue=None, un=None) -> tuple:
+    def combine(
+        self, mu_p, sd_p, noise_p, mu_s=None, sd_s=None, noise_s=None, ue=None, un=None
+    ) -> tuple:
         """(mean, lower95, upper95) of the target from latent means/stds of the flow-frame components."""
         if self.secondary is None:
             half = 1.96 * np.sqrt(sd_p**2 + noise_p**2)
@@ -220,6 +251,7 @@ class SurveyModel:
                 obs = np.hypot(a_obs, c_obs)
                 out_lo[sl], out_hi[sl] = np.quantile(obs, [0.025, 0.975], axis=1)
             else:
+
                 def direction(a, c, sl=sl):
                     e = a * ue[sl, None] - c * un[sl, None]
                     n = a * un[sl, None] + c * ue[sl, None]
@@ -227,7 +259,10 @@ class SurveyModel:
                     return d + 180.0 if self.vector.is_from else d
 
                 lat = np.radians(direction(a_lat, c_lat))
-                mean = np.degrees(np.arctan2(np.sin(lat).mean(axis=1), np.cos(lat).mean(axis=1))) % 360.0
+                mean = (
+                    np.degrees(np.arctan2(np.sin(lat).mean(axis=1), np.cos(lat).mean(axis=1)))
+                    % 360.0
+                )
                 dev = np.abs(wrap180(direction(a_obs, c_obs) - mean[:, None]))
                 half = np.quantile(dev, 0.95, axis=1)
                 out_mean[sl], out_lo[sl], out_hi[sl] = mean, mean - half, mean + half
@@ -240,8 +275,12 @@ class SurveyModel:
         if self.secondary is None:
             mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_)
         else:
-            mu_s, sd_s = secondary_cv if secondary_cv is not None else self.secondary.cv_predict(folds)
-            mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_)
+            mu_s, sd_s = (
+                secondary_cv if secondary_cv is not None else self.secondary.cv_predict(folds)
+            )
+            mean, lo, hi = self.combine(
+                mu_p, sd_p, primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_
+            )
         return CVResult(self.measured, mean, lo, hi, circular=self.circular)
 
     def fitted(self) -> np.ndarray:
@@ -250,7 +289,9 @@ class SurveyModel:
         if self.secondary is None:
             return mu_p
         mu_s, sd_s = self.secondary.predict({"position": self.survey.xy}, return_std=True)
-        return self.combine(mu_p, sd_p, self.primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_)[0]
+        return self.combine(
+            mu_p, sd_p, self.primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_
+        )[0]
 
     def predict_grid(self, xy: np.ndarray) -> dict[str, np.ndarray]:
         """Mean and std of the target on map positions; for vectors also the east/north components."""
@@ -262,7 +303,9 @@ class SurveyModel:
         mu_s, sd_s = self.secondary.predict({"position": xy}, return_std=True)
         ue, un = frame_direction(self.survey, self.vector, xy)
         mean, lo, hi = self.combine(mu_p, sd_p, 0.0, mu_s, sd_s, 0.0, ue=ue, un=un)
-        (ma, sa), (mc, sc) = ((mu_p, sd_p), (mu_s, sd_s)) if self.primary_is_along else ((mu_s, sd_s), (mu_p, sd_p))
+        (ma, sa), (mc, sc) = (
+            ((mu_p, sd_p), (mu_s, sd_s)) if self.primary_is_along else ((mu_s, sd_s), (mu_p, sd_p))
+        )
         east, north = ma * ue - mc * un, ma * un + mc * ue
         spread = (hi - lo) / 3.92 if self.vector.aspect == "speed" else (hi - lo) / 2 / 1.96
         return {

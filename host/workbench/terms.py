@@ -25,6 +25,9 @@ KERNEL_ALIASES = {"expquad": "rbf", "exp_quad": "rbf", "se": "rbf", "exponential
 NU = {"matern12": 0.5, "matern32": 1.5, "matern52": 2.5}
 DEFAULT_SPACE_BASIS = 400
 DEFAULT_1D_BASIS = 32
+# when the fitted lengthscale sits at the resolvable limit, the basis is doubled up to these
+MAX_SPACE_BASIS = 1024
+MAX_1D_BASIS = 128
 DEFAULT_HARMONICS = 8
 BOUNDARY = 1.6
 
@@ -92,7 +95,11 @@ class LinearTerm(Term):
         self.inputs, self.label = inputs, label
 
     def describe(self) -> str:
-        return f"{self.label}({', '.join(self.inputs)})" if self.label == "linear" else f"gp({', '.join(self.inputs)}, linear)"
+        return (
+            f"{self.label}({', '.join(self.inputs)})"
+            if self.label == "linear"
+            else f"gp({', '.join(self.inputs)}, linear)"
+        )
 
     def setup(self, Z):
         self.mean, self.scale = Z.mean(axis=0), Z.std(axis=0) + 1e-12
@@ -108,7 +115,10 @@ class LinearTerm(Term):
         return np.full(m, h[0]), np.ones((m, 1))
 
     def params(self, h, w):
-        return {f"slope_{name}": float(wi / s) for name, wi, s in zip(self.inputs, w, self.scale, strict=True)}
+        return {
+            f"slope_{name}": float(wi / s)
+            for name, wi, s in zip(self.inputs, w, self.scale, strict=True)
+        }
 
 
 class CosineTerm(Term):
@@ -131,7 +141,10 @@ class CosineTerm(Term):
         return np.full(2, h[0]), np.ones((2, 1))
 
     def params(self, h, w):
-        return {"amplitude": float(math.hypot(w[0], w[1])), "phase_deg": float(math.degrees(math.atan2(w[1], w[0])))}
+        return {
+            "amplitude": float(math.hypot(w[0], w[1])),
+            "phase_deg": float(math.degrees(math.atan2(w[1], w[0]))),
+        }
 
 
 class PeriodicTerm(Term):
@@ -148,7 +161,10 @@ class PeriodicTerm(Term):
         return np.hstack([np.cos(a), np.sin(a)])
 
     def hypers(self):
-        return [Hyper("variance", -3.0, -14.0, 6.0), Hyper("lengthscale", 0.0, math.log(0.15), math.log(8.0))]
+        return [
+            Hyper("variance", -3.0, -14.0, 6.0),
+            Hyper("lengthscale", 0.0, math.log(0.15), math.log(8.0)),
+        ]
 
     def log_prior_var(self, h):
         z = math.exp(-2.0 * h[1])
@@ -166,9 +182,12 @@ class PeriodicTerm(Term):
 class HilbertGPTerm(Term):
     """A stationary GP (rbf or Matern) on 1-3 continuous inputs, as Laplacian eigenfunctions on a box."""
 
-    def __init__(self, inputs: tuple[str, ...], kernel: str, n_basis: int | None = None, dims: int = 1) -> None:
+    def __init__(
+        self, inputs: tuple[str, ...], kernel: str, n_basis: int | None = None, dims: int = 1
+    ) -> None:
         self.inputs, self.kernel, self.dims = inputs, kernel, dims
         self.n_basis = n_basis or (DEFAULT_SPACE_BASIS if dims >= 2 else DEFAULT_1D_BASIS)
+        self.max_basis = max(self.n_basis, MAX_SPACE_BASIS if dims >= 2 else MAX_1D_BASIS)
 
     def describe(self) -> str:
         return f"gp({', '.join(self.inputs)}, {self.kernel})"
@@ -201,7 +220,7 @@ class HilbertGPTerm(Term):
         self.J, self.omega = J[order], w[order]
         # shortest lengthscale the basis resolves well, and the longest worth considering
         self.l_min = 2.2 / self.omega.max()
-        self.l_max = 20.0 * float(self.L.max())
+        self.l_max = 4.0 * float(self.L.max())
 
     def features(self, Z):
         Zr = (Z - self.center) @ self.rot
@@ -214,7 +233,9 @@ class HilbertGPTerm(Term):
     def hypers(self):
         l0 = max(0.3 * float(self.half.max()), 1.5 * self.l_min)
         return [
-            Hyper("variance", -0.5, -14.0, 6.0),
+            # a GP's std beyond 5x the data's, or a lengthscale beyond a few box widths, is a spline in disguise
+            # that extrapolates wildly into unseen blocks; the bounds keep type-II ML away from those optima
+            Hyper("variance", -0.5, -14.0, math.log(25.0)),
             Hyper("lengthscale", math.log(l0), math.log(self.l_min), math.log(self.l_max)),
         ]
 
@@ -228,7 +249,13 @@ class HilbertGPTerm(Term):
             dl = D - ell**2 * w2
         else:
             nu = NU[self.kernel]
-            c = D * math.log(2) + 0.5 * D * math.log(math.pi) + gammaln(nu + D / 2) + nu * math.log(2 * nu) - gammaln(nu)
+            c = (
+                D * math.log(2)
+                + 0.5 * D * math.log(math.pi)
+                + gammaln(nu + D / 2)
+                + nu * math.log(2 * nu)
+                - gammaln(nu)
+            )
             a = 2 * nu / ell**2
             logS = h[0] + c - 2 * nu * logl - (nu + D / 2) * np.log(a + w2)
             dl = -2 * nu + (nu + D / 2) * (2 * a) / (a + w2)
@@ -248,7 +275,9 @@ class PowerTerm(Term):
 
     def setup(self, Z):
         if (Z[:, 0] <= 0).any():
-            raise WorkbenchError(f"power({self.inputs[0]}) needs a positive covariate; it has values <= 0")
+            raise WorkbenchError(
+                f"power({self.inputs[0]}) needs a positive covariate; it has values <= 0"
+            )
         self.ref = float(np.median(Z[:, 0]))
 
     def theta_names(self) -> list[str]:
@@ -278,7 +307,9 @@ class UserTerm(Term):
         sig = inspect.signature(self.func)
         names = list(sig.parameters)
         if not names:
-            raise WorkbenchError(f"{ref}: the function must take the covariate as its first argument")
+            raise WorkbenchError(
+                f"{ref}: the function must take the covariate as its first argument"
+            )
         self.names = names[1:]
         self.init = []
         for p in self.names:
@@ -317,10 +348,14 @@ def load_function(ref: str) -> Callable:
     try:
         module = importlib.import_module(mod_name)
     except ImportError as exc:
-        raise WorkbenchError(f"user term '{ref}': cannot import module '{mod_name}' ({exc})") from None
+        raise WorkbenchError(
+            f"user term '{ref}': cannot import module '{mod_name}' ({exc})"
+        ) from None
     func = getattr(module, func_name, None)
     if not callable(func):
-        raise WorkbenchError(f"user term '{ref}': module '{mod_name}' has no function '{func_name}'")
+        raise WorkbenchError(
+            f"user term '{ref}': module '{mod_name}' has no function '{func_name}'"
+        )
     return func
 
 

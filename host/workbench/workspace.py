@@ -35,7 +35,9 @@ def record_fit(ws: Path, entry: dict, model: dict) -> dict:
     entry["time"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     name = f"models/fit-{entry['fit']:03d}-{entry['target']}.json"
     entry["model_file"] = name
-    (ws / name).write_text(json.dumps({**model, "target": entry["target"], "terms": entry["terms"]}, indent=2))
+    (ws / name).write_text(
+        json.dumps({**model, "target": entry["target"], "terms": entry["terms"]}, indent=2)
+    )
     history.append(entry)
     tmp = ws / (HISTORY + ".tmp")
     tmp.write_text(json.dumps(history, indent=2))
