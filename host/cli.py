@@ -16,17 +16,47 @@ import sys
 
 # name -> (module, one-line summary shown by `forcemap --help`)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("host.demo", "run a complete simulated survey: instruments, daemon, MCAP, maps, diagnosis, report"),
-    "sim": ("sim_devices.cli", "start a simulated river or lake with its instruments behind virtual serial ports"),
-    "run": ("host.run_cli", "the acquisition daemon: read bridge, depth sounder and autopilot, log to MCAP"),
-    "bridge": ("host.bridge_cli", "flash the MicroPython bridge firmware, or monitor its frames live"),
+    "demo": (
+        "host.demo",
+        "run a complete simulated survey: instruments, daemon, MCAP, maps, diagnosis, report",
+    ),
+    "sim": (
+        "sim_devices.cli",
+        "start a simulated river or lake with its instruments behind virtual serial ports",
+    ),
+    "run": (
+        "host.run_cli",
+        "the acquisition daemon: read bridge, depth sounder and autopilot, log to MCAP",
+    ),
+    "bridge": (
+        "host.bridge_cli",
+        "flash the MicroPython bridge firmware, or monitor its frames live",
+    ),
     "log": ("host.log_cli", "inspect (`log info`) or repair (`log recover`) an MCAP log"),
-    "export": ("host.export_cli", "write the samples table (csv, parquet) or the track (geojson, kml) from an MCAP log"),
-    "import": ("host.import_cli", "read an existing NMEA 0183 capture or MAVLink tlog into an MCAP log"),
-    "fit": ("host.workbench.cli_fit", "fit a map model to a samples table and report its cross-validated error"),
-    "diagnose": ("host.workbench.cli_diagnose", "find which physical effect the current model is missing"),
-    "history": ("host.workbench.cli_history", "show every fit of a survey with its CV error, as a table and a plot"),
-    "report": ("host.workbench.cli_report", "write a self-contained HTML report of a survey's maps and diagnosis"),
+    "export": (
+        "host.export_cli",
+        "write the samples table (csv, parquet) or the track (geojson, kml) from an MCAP log",
+    ),
+    "import": (
+        "host.import_cli",
+        "read an existing NMEA 0183 capture or MAVLink tlog into an MCAP log",
+    ),
+    "fit": (
+        "host.workbench.cli_fit",
+        "fit a map model to a samples table and report its cross-validated error",
+    ),
+    "diagnose": (
+        "host.workbench.cli_diagnose",
+        "find which physical effect the current model is missing",
+    ),
+    "history": (
+        "host.workbench.cli_history",
+        "show every fit of a survey with its CV error, as a table and a plot",
+    ),
+    "report": (
+        "host.workbench.cli_report",
+        "write a self-contained HTML report of a survey's maps and diagnosis",
+    ),
 }
 
 EPILOG = """\

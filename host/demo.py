@@ -38,11 +38,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="depth_current",
         help="hidden effect the model does not know about (default depth_current; see `forcemap sim --list`)",
     )
-    p.add_argument("--target", default="current_speed", help="samples-table column to map (default current_speed)")
+    p.add_argument(
+        "--target",
+        default="current_speed",
+        help="samples-table column to map (default current_speed)",
+    )
     p.add_argument("--duration", default="25m", help="simulated survey length (default 25m)")
-    p.add_argument("--speed", type=float, default=60.0, help="simulator speed-up over real time (default 60)")
+    p.add_argument(
+        "--speed", type=float, default=60.0, help="simulator speed-up over real time (default 60)"
+    )
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--faults", default="default", help="fault set for the instruments (default: default)")
+    p.add_argument(
+        "--faults", default="default", help="fault set for the instruments (default: default)"
+    )
 
 
 def _forcemap(*args: str) -> list[str]:
@@ -103,7 +111,9 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     try:
         _wait_for(ports / "clock", sim)
         print("$ forcemap " + " ".join(run_cmd[3:]), flush=True)
-        daemon = subprocess.Popen(run_cmd, stdout=subprocess.DEVNULL, stderr=open(out / "daemon.log", "w"))
+        daemon = subprocess.Popen(
+            run_cmd, stdout=subprocess.DEVNULL, stderr=open(out / "daemon.log", "w")
+        )
         sim.wait()
         if sim.returncode != 0:
             raise SystemExit(f"demo: the simulator failed (exit {sim.returncode})")
@@ -119,7 +129,9 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
                 except subprocess.TimeoutExpired:
                     p.kill()
     if daemon is not None and daemon.returncode not in (0, -signal.SIGINT, 130):
-        raise SystemExit(f"demo: the daemon failed (exit {daemon.returncode}); see {out / 'daemon.log'}")
+        raise SystemExit(
+            f"demo: the daemon failed (exit {daemon.returncode}); see {out / 'daemon.log'}"
+        )
     files = sorted(logs.glob("*.mcap"))
     if not files:
         raise SystemExit("demo: the daemon wrote no MCAP file")
@@ -132,7 +144,9 @@ def run(args: argparse.Namespace) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
     t_start = time.monotonic()
 
-    _step(f"1/5 simulated survey: {args.scenario}, hidden effect '{args.effect}', {args.duration} at x{args.speed:g}")
+    _step(
+        f"1/5 simulated survey: {args.scenario}, hidden effect '{args.effect}', {args.duration} at x{args.speed:g}"
+    )
     mcaps = survey(args, out)
     _run(_forcemap("log", "info", str(mcaps[0])))
 
@@ -156,7 +170,18 @@ def run(args: argparse.Namespace) -> int:
         found = diag["candidates"][0]["covariate"]
         _step(f"5/5 add '{found}' and refit")
         fit_json = out / "fit-refit.json"
-        _run(_forcemap("fit", str(table), "--target", args.target, "--effects", found, "--json", str(fit_json)))
+        _run(
+            _forcemap(
+                "fit",
+                str(table),
+                "--target",
+                args.target,
+                "--effects",
+                found,
+                "--json",
+                str(fit_json),
+            )
+        )
         after = json.loads(fit_json.read_text())["cv_rmse"]
     else:
         _step("5/5 no missing effect found; nothing to add")
@@ -167,7 +192,9 @@ def run(args: argparse.Namespace) -> int:
     print("\n== summary")
     print(f"hidden effect        : {args.effect}")
     print(f"diagnosis            : {found or 'no missing effect found'}")
-    print(f"blocked-CV RMSE      : {before:.3f} -> {after:.3f} ({args.target}, {100 * (before - after) / before:.0f} % lower)")
+    print(
+        f"blocked-CV RMSE      : {before:.3f} -> {after:.3f} ({args.target}, {100 * (before - after) / before:.0f} % lower)"
+    )
     print(f"MCAP log             : {mcaps[0]}")
     print(f"report               : {report}")
     print(f"took                 : {time.monotonic() - t_start:.0f} s")

@@ -149,7 +149,9 @@ def pack_status(values):
     return struct.pack(STATUS_FMT, *values)
 
 
-def pack_hello(fw, reset_cause, sample_period_us, ticks_bits, anemo_hz_per_mps, wheel_ppm, board, pins):
+def pack_hello(
+    fw, reset_cause, sample_period_us, ticks_bits, anemo_hz_per_mps, wheel_ppm, board, pins
+):
     """HELLO payload. ``fw`` is (major, minor, patch); ``wheel_ppm`` four pulses-per-metre values."""
     b = board.encode()
     p = pins.encode()
@@ -231,7 +233,12 @@ def decode_payload(msg_type, payload):
         return {
             "vane_raw": v[0],
             "anemo": (v[1], v[2], v[3]),
-            "wheels": ((v[4], v[5], v[6]), (v[7], v[8], v[9]), (v[10], v[11], v[12]), (v[13], v[14], v[15])),
+            "wheels": (
+                (v[4], v[5], v[6]),
+                (v[7], v[8], v[9]),
+                (v[10], v[11], v[12]),
+                (v[13], v[14], v[15]),
+            ),
         }
     if msg_type == STATUS:
         if n < STATUS_SIZE:

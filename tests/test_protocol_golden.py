@@ -23,7 +23,10 @@ def test_spec_has_a_vector_for_every_message_type():
 @pytest.mark.parametrize("v", VECTORS, ids=[v["name"] for v in VECTORS])
 def test_encode_matches_spec(v):
     payload = bytes.fromhex(v["payload"])
-    assert wire.encode(v["msg_type"], v["boot_id"], v["seq"], v["t_us"], payload, v["flags"]).hex() == v["wire"]
+    assert (
+        wire.encode(v["msg_type"], v["boot_id"], v["seq"], v["t_us"], payload, v["flags"]).hex()
+        == v["wire"]
+    )
 
 
 @pytest.mark.parametrize("v", VECTORS, ids=[v["name"] for v in VECTORS])
@@ -83,4 +86,6 @@ def test_golden_vectors_under_real_micropython(tmp_path):
     )
     assert out.returncode == 0, out.stderr
     lines = out.stdout.split("\n")
-    assert sorted(line for line in lines if line) == sorted("ok " + v["name"] for v in VECTORS), out.stdout
+    assert sorted(line for line in lines if line) == sorted("ok " + v["name"] for v in VECTORS), (
+        out.stdout
+    )

@@ -60,7 +60,9 @@ garbage = st.binary(max_size=40)
 
 
 @settings(max_examples=40_000, **COMMON)
-@given(st.lists(st.tuples(frames(), garbage), max_size=6), st.lists(st.integers(0, 10**6), max_size=8))
+@given(
+    st.lists(st.tuples(frames(), garbage), max_size=6), st.lists(st.integers(0, 10**6), max_size=8)
+)
 def test_any_chunking_with_garbage_decodes_exactly_the_frames(items, cuts):
     stream = b"".join(g + w for (_, w), g in items)
     _, out = feed_in_chunks(stream, cuts)

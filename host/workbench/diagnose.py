@@ -24,10 +24,10 @@ from host.workbench.table import KINEMATIC, Survey, family, is_circular
 from host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
 MIN_GAIN = 0.10
-REFINE = 3
+REFINE = 5
 # how candidates are screened: "all" refits every hyperparameter (adding depth lets the spatial GP hand its fine
 # structure over: keeping its old lengthscale makes a real effect look harmful); "new" is 3-5x cheaper
-SCREEN = "all"
+SCREEN = "new"
 ALPHA = 0.05
 SKIP = {"t", "lat", "lon", "x", "y"}
 
