@@ -117,7 +117,7 @@ def main() -> None:
     sizes = [int(s) for s in args.sizes.split(",")]
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
     print(
-        "forcemap: const + gp(position, matern32), Hilbert-space reduced rank (400 basis functions)"
+        "forcemap: const + gp(position, matern32), Hilbert-space reduced rank (400 basis functions, doubled up to 2048 while the lengthscale is at the resolvable limit)"
     )
     print(
         "sklearn : ConstantKernel*Matern(nu=1.5) + WhiteKernel, normalize_y, default optimizer (exact GP)\n"

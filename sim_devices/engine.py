@@ -117,6 +117,9 @@ class Simulation:
             anemo_hz_per_mps=icfg.anemo_hz_per_mps,
             writable=self.bridge_writable,
         )
+        self.pulses: list[list[int]] = [[] for _ in range(5)]
+        self.boots: list[tuple[int, int]] = []
+        self._note_boot()
         dev = self._effect("compass_deviation")
         apcfg = tables.get("autopilot", {})
         self.autopilot = Autopilot(
@@ -231,8 +234,10 @@ class Simulation:
                 if src == "bridge":
                     self.bridge_on = True
                     self.bridge.reset(PWRON_RESET)  # the board was unpowered: it boots again
+                    self._note_boot()
             elif act == "reset":
                 self.bridge.reset(f.cause)
+                self._note_boot()
                 self._push(self._ns(at), "reset:bridge", None)
             elif act == "gps_off":
                 self.autopilot.gps_lost = True
@@ -294,6 +299,7 @@ class Simulation:
             for ch, times in enumerate(self.sensors.edges(rates, u0, u1)):
                 if times:
                     self.bridge.add_edges(ch, times)
+                    self.pulses[ch].extend(self.sensors.primary[ch])
             self.bridge.set_vane_voltage(self.sensors.vane_volts(truth.app_angle))
         self.bridge.advance_to(u1)
         if t_new + 1e-9 >= self.next_sound:
@@ -326,6 +332,20 @@ class Simulation:
         self.track = self._track()
         if self.truth_dir is not None:
             write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
+            self._write_pulses(Path(self.truth_dir) / "pulses.npz")
+
+    def _note_boot(self) -> None:
+        self.boots.append((self.bridge.boot_id, self.bridge.boot_us))
+
+    def _write_pulses(self, path: Path) -> None:
+        """The pulse ledger: every real pulse on each bridge channel, and each boot's start, on the
+        bridge's timeline in µs (a frame's timeline time is its boot's ``boot_us`` + ``t_us``)."""
+        np.savez_compressed(
+            path,
+            boot_id=np.array([b for b, _ in self.boots], dtype=np.uint64),
+            boot_us=np.array([u for _, u in self.boots], dtype=np.int64),
+            **{f"ch{ch}": np.array(t, dtype=np.int64) for ch, t in enumerate(self.pulses)},
+        )
 
     def run(self, duration_s: float, sink: Sink, progress: Progress | None = None) -> Simulation:
         """The whole survey, offline, as fast as it goes."""

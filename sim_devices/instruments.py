@@ -125,8 +125,10 @@ class Sensors:
     def edges(self, rates: list[float], t0_us: int, t1_us: int) -> list[list[int]]:
         """Edge times on the bridge's timeline in [t0_us, t1_us) for each channel; reed bounce on the anemometer."""
         out = []
+        self.primary = []  # the real pulses, before reed bounce: what the firmware should count
         for ch, hz in enumerate(rates):
             times, self._phase[ch] = pulse_times(hz, t0_us, t1_us, self._phase[ch])
+            self.primary.append(times)
             if ch == 0 and times and self.cfg.anemo_bounces:
                 times = add_bounce(
                     times, self.cfg.anemo_bounce_us, self.cfg.anemo_bounces, self.rng

@@ -16,6 +16,7 @@ from mcap.reader import make_reader
 from host.cli import main
 from host.export import COLUMNS
 from host.mcap_log import has_footer, read_messages
+from protocol import wire
 from tests.test_daemon_support import ROOT, DaemonProcess, mcap_files
 
 SPEED = 50
@@ -106,6 +107,56 @@ def test_simulated_river_through_daemon_to_samples_table(tmp_path):
     got_lon = np.array([float(r["lon"]) for r in rows if r["lon"] != ""])
     err_m = np.hypot((got_lat - lat) * 111_320, (got_lon - lon) * 111_320 * np.cos(np.radians(lat)))
     assert np.median(err_m) < 10.0
+
+    # true wind and current against the truth, within the bounds derived in docs/COMPENSATION.md
+    def col(name):
+        return np.array([float(r[name]) if r[name] != "" else np.nan for r in rows])
+
+    def truth_at(name):
+        return np.interp(t, true["t"], true[name])
+
+    wind_err = np.hypot(
+        col("wind_east") - truth_at("wind_east"), col("wind_north") - truth_at("wind_north")
+    )
+    wind_bound = 2 * np.sin(np.radians(13.1)) * col("app_wind_speed") + 0.3
+    ok = np.isfinite(wind_err)
+    assert ok.sum() > 0.5 * 4 * duration
+    # per sample the bound holds except while a fault (GPS loss, a clock jump) is being healed
+    assert np.mean(wind_err[ok] <= wind_bound[ok]) > 0.95
+    cur_err = np.hypot(
+        col("current_east") - truth_at("current_east"),
+        col("current_north") - truth_at("current_north"),
+    )
+    ok = np.isfinite(cur_err)
+    print(f"wind error median {np.median(wind_err[np.isfinite(wind_err)]):.2f} m/s; "
+          f"current error median {np.median(cur_err[ok]):.3f}, p95 {np.percentile(cur_err[ok], 95):.3f} m/s")  # fmt: skip
+    assert np.median(cur_err[ok]) < 0.06
+    assert np.percentile(cur_err[ok], 95) < 0.3
+
+    # every bridge pulse is accounted for: between any two received SAMPLEs of one boot, the
+    # counts differ by exactly the pulses the simulator made, across lost frames and resets
+    ledger = np.load(truth / "pulses.npz")
+    boot_us = dict(zip(ledger["boot_id"].tolist(), ledger["boot_us"].tolist(), strict=True))
+    pulses = [np.sort(ledger[f"ch{c}"]) for c in range(5)]
+    samples = [
+        m.message for m in read_messages(path, "/bridge/frame") if m.message["type"] == "SAMPLE"
+    ]
+    assert (
+        len({s["boot_id"] for s in samples}) >= 3
+    )  # the default faults reset and unplug the bridge
+    checked = lost = 0
+    for a, b in zip(samples, samples[1:], strict=False):
+        if a["boot_id"] != b["boot_id"]:
+            continue
+        lost += (b["seq"] - a["seq"]) % 2**32 > 1
+        t0, t1 = boot_us[a["boot_id"]] + a["t_us"], boot_us[a["boot_id"]] + b["t_us"]
+        ca = [a["fields"]["anemo"], *a["fields"]["wheels"]]
+        cb = [b["fields"]["anemo"], *b["fields"]["wheels"]]
+        for c in range(5):
+            made = np.searchsorted(pulses[c], t1) - np.searchsorted(pulses[c], t0)
+            assert wire.count_delta(ca[c][0], cb[c][0]) == made
+            checked += 1
+    assert lost > 0 and checked > 5 * 0.5 * 4 * duration
 
     for fmt in ("parquet", "geojson", "kml"):
         assert main(["export", str(path), "--format", fmt, "-o", str(tmp_path / f"s.{fmt}")]) == 0

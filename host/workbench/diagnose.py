@@ -24,10 +24,12 @@ from host.workbench.table import KINEMATIC, Survey, family, is_circular
 from host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
 MIN_GAIN = 0.10
-REFINE = 5
-# how candidates are screened: "all" refits every hyperparameter (adding depth lets the spatial GP hand its fine
-# structure over: keeping its old lengthscale makes a real effect look harmful); "new" is 3-5x cheaper
+REFINE = 3
+# how candidates are screened: "new" fits only the new term's hyperparameters and the noise (3-5x cheaper), then
+# the REFINE best are refitted with every hyperparameter free ("all" would refit every candidate fully)
 SCREEN = "new"
+# the comparison between candidates needs no finer spatial basis than this; `fit` goes further
+DIAGNOSE_MAX_BASIS = 1024
 ALPHA = 0.05
 SKIP = {"t", "lat", "lon", "x", "y"}
 
@@ -145,7 +147,7 @@ def diagnose(
     alpha: float = ALPHA,
     progress: bool = True,
 ) -> Diagnosis:
-    sm = SurveyModel(survey, target, terms).fit()
+    sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
     fold_id, blocks = blocked_folds(survey.xy, folds, seed)
     rfold = random_folds(survey.n, folds, seed)
     sec_b = sec_r = None

@@ -155,7 +155,12 @@ class Model:
     """A sum of terms. Feature terms (GPs, linear, cosine) are Bayesian linear regression in fixed features;
     mean terms (power law, user functions) are subtracted with parameters fitted by marginal likelihood."""
 
-    def __init__(self, terms: Sequence[Term | TermSpec | str], max_iter: int = 300) -> None:
+    def __init__(
+        self,
+        terms: Sequence[Term | TermSpec | str],
+        max_iter: int = 300,
+        max_basis: int | None = None,
+    ) -> None:
         from host.workbench.spec import build_term, parse_term
         from host.workbench.table import is_circular
 
@@ -330,7 +335,7 @@ class Model:
         if optimize:
             theta = self._optimize(theta, search=init is None)
             # the basis resolves lengthscales down to l_min: if the optimum sits there, refine the basis and refit
-            for _ in range(2):
+            for _ in range(3):
                 grow = [
                     t
                     for t, sl in zip(self.feat_terms, self.h_slices, strict=True)
@@ -492,7 +497,8 @@ class Model:
         G, b, rr, n = new.design.G, new._b, new._rr, new.design.n
         if not hasattr(self, "_eig"):
             sb = np.sqrt(np.exp(self._loglam_))
-            D, Q = np.linalg.eigh(sb[:, None] * self.design.G * sb[None, :])
+            with blas_threads(None):
+                D, Q = np.linalg.eigh(sb[:, None] * self.design.G * sb[None, :])
             self._eig = (np.maximum(D, 0.0), Q, sb)
         D, Q, sb = self._eig
         P = Q.T @ (sb[:, None] * G[:M, M:])

@@ -32,6 +32,7 @@ def circular_median(deg: np.ndarray) -> float:
 
 
 FRAME_TERMS = [*BASELINE, "gp(t, matern32)"]
+FRAME_MAX_BASIS = 800  # the frame is a smooth direction field; it needs no fine spatial detail
 
 
 def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
@@ -45,7 +46,10 @@ def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
         X = {"position": survey.xy, "t": survey.trel}
         e = _finite_target(survey, e, f"{vt.prefix} east component")
         n = _finite_target(survey, n, f"{vt.prefix} north component")
-        survey.cache[key] = (Model(FRAME_TERMS).fit(X, e), Model(FRAME_TERMS).fit(X, n))
+        survey.cache[key] = (
+            Model(FRAME_TERMS, max_basis=FRAME_MAX_BASIS).fit(X, e),
+            Model(FRAME_TERMS, max_basis=FRAME_MAX_BASIS).fit(X, n),
+        )
     return survey.cache[key]
 
 
@@ -126,8 +130,14 @@ def grid_inputs(survey: Survey, names: set[str], xy: np.ndarray) -> dict[str, np
 class SurveyModel:
     """The model of one target on one survey: fit, cross-validate, predict on a grid."""
 
-    def __init__(self, survey: Survey, target: str, terms: list[str] | None = None) -> None:
-        self.survey, self.target = survey, target
+    def __init__(
+        self,
+        survey: Survey,
+        target: str,
+        terms: list[str] | None = None,
+        max_basis: int | None = None,
+    ) -> None:
+        self.survey, self.target, self.max_basis = survey, target, max_basis
         self.term_specs = parse_terms(terms or BASELINE, is_circular)
         self.vector = survey.vector_target(target)
         if self.vector is None:
@@ -206,7 +216,10 @@ class SurveyModel:
         )
 
     def new_primary(self, terms: list | None = None) -> Model:
-        return Model([build_term(t, is_circular) for t in (terms or self.term_specs)])
+        return Model(
+            [build_term(t, is_circular) for t in (terms or self.term_specs)],
+            max_basis=self.max_basis,
+        )
 
     def fit(self) -> SurveyModel:
         self.primary = self.new_primary().fit(self.X, self.y_primary)

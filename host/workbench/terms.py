@@ -26,10 +26,13 @@ NU = {"matern12": 0.5, "matern32": 1.5, "matern52": 2.5}
 DEFAULT_SPACE_BASIS = 400
 DEFAULT_1D_BASIS = 32
 # when the fitted lengthscale sits at the resolvable limit, the basis is doubled up to these
-MAX_SPACE_BASIS = 1024
+MAX_SPACE_BASIS = 2048
 MAX_1D_BASIS = 128
 DEFAULT_HARMONICS = 8
 BOUNDARY = 1.6
+# lengthscales below L_MIN_FACTOR / (highest basis frequency) are not represented well (Riutort-Mayol et al. 2023
+# ask for about 3.4 c L / l functions per dimension for Matern 3/2)
+L_MIN_FACTOR = 4.5
 
 
 @dataclass
@@ -219,7 +222,7 @@ class HilbertGPTerm(Term):
         order = np.argsort(w, kind="stable")[: self.n_basis]
         self.J, self.omega = J[order], w[order]
         # shortest lengthscale the basis resolves well, and the longest worth considering
-        self.l_min = 2.2 / self.omega.max()
+        self.l_min = L_MIN_FACTOR / self.omega.max()
         self.l_max = 4.0 * float(self.L.max())
 
     def features(self, Z):
