@@ -11,10 +11,9 @@ from pathlib import Path
 
 from . import clockfile
 from .engine import Simulation
-from .usb_cdc import UsbCdc
+from .usb_cdc import HOST_BUFFER, UsbCdc
 
 SOURCES = ("bridge", "depth", "mavlink")
-PTY_READ_BUFFER = 4095
 
 
 class PortSet:
@@ -29,7 +28,8 @@ class PortSet:
         self.reanchors = 0  # times the clock file was re-anchored because the simulator fell behind
 
     def _open(self, source: str) -> UsbCdc:
-        port = UsbCdc(self.path(source))
+        # the bridge is USB-CDC (it drops what the host does not read); the others are UARTs
+        port = UsbCdc(self.path(source), host_buffer=HOST_BUFFER if source == "bridge" else None)
         # FIONREAD on a pty stops at the line discipline's 4095 bytes, so a port nobody reads never
         # looks full and a blocking write would hang the simulator once the kernel buffer fills
         flags = fcntl.fcntl(port.master, fcntl.F_GETFL)
@@ -59,8 +59,7 @@ class PortSet:
     def bridge_writable(self) -> bool:
         """False while the host is not reading the bridge port, so the firmware drops frames itself."""
         port = self.ports.get("bridge")
-        # the pty's FIONREAD saturates at 4095 bytes, below UsbCdc's limit: stop short of it
-        return True if port is None else port.writable() and port.unread() < PTY_READ_BUFFER - 300
+        return True if port is None else port.writable()
 
     def unplug(self, source: str) -> None:
         """The cable is pulled: the pty and its symlink disappear (a reader gets an error)."""

@@ -20,6 +20,10 @@ import time
 import tty
 
 CDC_FIFO = 256
+# FIONREAD on a Linux pty never reports more than 4095 unread bytes, so a limit above that could
+# never be reached and a host that stopped reading would look like one that reads.
+PTY_COUNT_MAX = 4095
+HOST_BUFFER = PTY_COUNT_MAX - CDC_FIFO - 300
 _SETTLE_S = 0.001
 
 
@@ -27,17 +31,24 @@ class UsbCdc:
     """A pty pair standing in for the board's USB-CDC port.
 
     ``link``: optional symlink made to the slave's path. ``host_buffer``: bytes the host's driver
-    holds before the device side backs up (the Linux tty buffer is about 4 KiB; 0 makes a host that
-    stops reading cost frames at once). Our own slave fd stays open so the pty never hangs up.
+    holds before the device side backs up (the Linux tty buffer is about 4 KiB, of which FIONREAD
+    reports at most 4095 bytes; 0 makes a host that stops reading cost frames at once). Our own slave fd stays open so the pty never hangs up.
     """
 
-    def __init__(self, link: str | None = None, *, fifo: int = CDC_FIFO, host_buffer: int = 4096):
+    def __init__(
+        self,
+        link: str | None = None,
+        *,
+        fifo: int = CDC_FIFO,
+        host_buffer: int | None = HOST_BUFFER,
+    ):
         self.master, self.slave = os.openpty()
         # a fresh pty is cooked: echo and newline mangling would corrupt binary frames
         tty.setraw(self.slave)
         tty.setraw(self.master)
         self.slave_path = os.ttyname(self.slave)
-        self.limit = fifo + host_buffer
+        # None: a plain serial line (a UART), whose writes the device never cuts short
+        self.limit = None if host_buffer is None else min(fifo + host_buffer, PTY_COUNT_MAX - 1)
         self.link = link
         if link:
             if os.path.islink(link):
@@ -62,14 +73,14 @@ class UsbCdc:
 
     def writable(self) -> bool:
         """True while there is room in the FIFO (like POLLOUT on the board's USB-CDC stream)."""
-        return self.unread() < self.limit
+        return self.limit is None or self.unread() < self.limit
 
     def write(self, frame: bytes) -> int | None:
         """Write a frame. If it does not fit, write what fits and return None, like the board's
         write that gives up after its timeout and drops the rest: the host sees a truncated frame.
         """
         before = self.unread()
-        room = self.limit - before
+        room = len(frame) if self.limit is None else self.limit - before
         if len(frame) > room:
             if room > 0:
                 self._write(frame[:room], before)
