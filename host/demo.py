@@ -187,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         _step("5/5 no missing effect found; nothing to add")
 
     report = out / "report.html"
-    _run(_forcemap("report", str(table), "--target", args.target, "-o", str(report)))
+    _run(_forcemap("report", str(table), "-o", str(report)))
 
     print("\n== summary")
     print(f"hidden effect        : {args.effect}")

@@ -29,7 +29,7 @@ REFINE = 3
 # the REFINE best are refitted with every hyperparameter free ("all" would refit every candidate fully)
 SCREEN = "new"
 # the comparison between candidates needs no finer spatial basis than this; `fit` goes further
-DIAGNOSE_MAX_BASIS = 1024
+DIAGNOSE_MAX_BASIS = 600
 ALPHA = 0.05
 SKIP = {"t", "lat", "lon", "x", "y"}
 

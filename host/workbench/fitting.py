@@ -72,10 +72,15 @@ class FitResult:
 
 
 def fit_target(
-    survey: Survey, target: str, terms: list[str], folds: str = "blocked", progress: bool = True
+    survey: Survey,
+    target: str,
+    terms: list[str],
+    folds: str = "blocked",
+    progress: bool = True,
+    max_basis: int | None = None,
 ) -> FitResult:
     note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples ...", progress)
-    sm = SurveyModel(survey, target, terms).fit()
+    sm = SurveyModel(survey, target, terms, max_basis=max_basis).fit()
     note(f"cross-validating ({folds} folds) ...", progress)
     cv = sm.cv(make_folds(survey, folds))
     unit = " deg" if sm.circular else ""
