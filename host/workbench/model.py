@@ -176,9 +176,12 @@ class Model:
         if all(t.is_mean for t in built):
             from host.workbench.terms import ConstTerm
 
-            built.insert(
-                0, ConstTerm()
-            )  # the weights need at least one feature; a level is the natural one
+            # the weights need at least one feature; a level is the natural one
+            built.insert(0, ConstTerm())
+        if max_basis is not None:
+            for t in built:
+                if isinstance(t, HilbertGPTerm) and t.dims >= 2:
+                    t.max_basis = min(t.max_basis, max(max_basis, t.n_basis))
         self.terms = built
         self.max_iter = max_iter
 
@@ -334,20 +337,22 @@ class Model:
         theta = np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds])
         if optimize:
             theta = self._optimize(theta, search=init is None)
-            # the basis resolves lengthscales down to l_min: if the optimum sits there, refine the basis and refit
+            # the basis resolves lengthscales down to l_min: if the optimum sits there, double the highest frequency
+            # (2^D times the functions) and refit
             for _ in range(3):
                 grow = [
                     t
                     for t, sl in zip(self.feat_terms, self.h_slices, strict=True)
                     if isinstance(t, HilbertGPTerm)
                     and theta[sl.start + 1] < math.log(1.25 * t.l_min)
-                    and t.n_basis < t.max_basis
+                    and t.n_basis < min(t.max_basis, len(y) // 2)
                     and design is None
                 ]
                 if not grow:
                     break
                 for t in grow:
-                    t.n_basis = min(2 * t.n_basis, t.max_basis)
+                    # never more basis functions than half the samples: there an exact GP would be cheaper
+                    t.n_basis = min(2**t.dims * t.n_basis, t.max_basis, max(len(y) // 2, t.n_basis))
                 self._prepare(X, y, None)
                 bounds = self._bounds()
                 theta = self._optimize(

@@ -96,10 +96,11 @@ def residual_panels(
         for n in PANEL_COVARIATES
         if (n == "t" or n in survey.columns) and (own is None or family(n) != own)
     ]
-    for n in extra or []:
-        if n not in names and (n in survey.columns):
+    others = [n for n in survey.numeric_columns() if own is None or family(n) != own]
+    for n in list(extra or []) + others:
+        if n not in names and n in survey.columns and n not in ("x", "y", "lat", "lon"):
             names.append(n)
-    names = names[:12]
+    names = names[:21]
     cols = 3
     rows = int(np.ceil(len(names) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(11, 2.6 * rows), squeeze=False)

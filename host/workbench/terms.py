@@ -229,8 +229,12 @@ class HilbertGPTerm(Term):
         Zr = (Z - self.center) @ self.rot
         out = np.ones((len(Z), len(self.J)))
         for d in range(Zr.shape[1]):
+            # one sine per distinct frequency index, then gathered: a few hundred sines, not n x M
             arg = (Zr[:, d : d + 1] + self.L[d]) * (math.pi / (2 * self.L[d]))
-            out *= np.sin(arg * self.J[None, :, d]) / math.sqrt(self.L[d])
+            table = np.sin(arg * np.arange(1, self.J[:, d].max() + 1)[None, :]) / math.sqrt(
+                self.L[d]
+            )
+            out *= table[:, self.J[:, d] - 1]
         return out
 
     def hypers(self):
