@@ -271,3 +271,26 @@ def test_model_spec_toml_with_user_term_and_random_folds(survey_csv, tmp_path, c
     # random folds keep each held-out sample's along-track neighbours in training: they flatter the model
     assert json.loads(out.read_text())["cv_rmse"] < blocked["cv_rmse"]
     assert "flatter" in text
+
+
+def test_rows_without_position_are_dropped_with_a_note(survey_csv, tmp_path, capsys):
+    # a GPS outage leaves a stretch of samples with no position: they are dropped, the rest is fitted
+    header, rows = _rows(survey_csv)
+    i, j = header.index("lat"), header.index("lon")
+    n = len(rows)
+    for r in rows[n // 3 : n // 3 + n // 5]:
+        r[i] = r[j] = ""
+    p = _write(tmp_path / "gps-outage.csv", header, rows)
+    code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--no-plots"])
+    assert code == 0, err
+    assert "dropped" in err and "'lat'" in err
+
+
+def test_table_mostly_without_position_is_refused(survey_csv, tmp_path, capsys):
+    header, rows = _rows(survey_csv)
+    i = header.index("lat")
+    for r in rows[: 2 * len(rows) // 3]:
+        r[i] = ""
+    p = _write(tmp_path / "no-gps.csv", header, rows)
+    code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
+    _one_line_error(code, err, "missing values")

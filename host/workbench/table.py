@@ -16,6 +16,9 @@ from host.workbench.errors import WorkbenchError
 EARTH_RADIUS_M = 6_371_008.8
 MIN_ROWS = 30
 MAX_MISSING_FRACTION = 0.05
+# rows with no time or position (a GPS outage, the autopilot stream lost) cannot be placed on the map
+# and are dropped; a table where most rows are like that is more likely a broken export
+MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
 NOT_COVARIATES = {"t", "lat", "lon", "x", "y"}
@@ -279,12 +282,14 @@ def load_survey(path: str | Path) -> Survey:
     keep = np.ones(len(columns["t"]), bool)
     for c in REQUIRED:
         bad = ~np.isfinite(columns[c])
-        if bad.mean() > MAX_MISSING_FRACTION:
+        if bad.mean() > MAX_UNPLACED_FRACTION:
             raise WorkbenchError(
-                f"{path}: column '{c}' has {bad.mean():.0%} missing values; every row needs t, lat, lon"
+                f"{path}: column '{c}' has {bad.mean():.0%} missing values; a row needs t, lat, lon to be mapped"
             )
         if bad.any():
-            notes.append(f"dropped {bad.sum()} row(s) with missing '{c}'")
+            notes.append(
+                f"dropped {bad.sum()} row(s) with missing '{c}' (no time or position: GPS or autopilot outage)"
+            )
         keep &= ~bad
     columns = {k: v[keep] for k, v in columns.items()}
     n = int(keep.sum())
