@@ -43,7 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="current_speed",
         help="samples-table column to map (default current_speed)",
     )
-    p.add_argument("--duration", default="25m", help="simulated survey length (default 25m)")
+    p.add_argument("--duration", default="35m", help="simulated survey length (default 35m)")
     p.add_argument(
         "--speed", type=float, default=60.0, help="simulator speed-up over real time (default 60)"
     )
