@@ -111,9 +111,8 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     try:
         _wait_for(ports / "clock", sim)
         print("$ forcemap " + " ".join(run_cmd[3:]), flush=True)
-        daemon = subprocess.Popen(
-            run_cmd, stdout=subprocess.DEVNULL, stderr=open(out / "daemon.log", "w")
-        )
+        with open(out / "daemon.log", "w") as log:  # the child keeps its own copy of the fd
+            daemon = subprocess.Popen(run_cmd, stdout=subprocess.DEVNULL, stderr=log)
         sim.wait()
         if sim.returncode != 0:
             raise SystemExit(f"demo: the simulator failed (exit {sim.returncode})")

@@ -299,7 +299,10 @@ class Simulation:
             for ch, times in enumerate(self.sensors.edges(rates, u0, u1)):
                 if times:
                     self.bridge.add_edges(ch, times)
-                    self.pulses[ch].extend(self.sensors.primary[ch])
+                    if (
+                        self.truth_dir is not None
+                    ):  # the ledger is truth; a long live run keeps none
+                        self.pulses[ch].extend(self.sensors.primary[ch])
             self.bridge.set_vane_voltage(self.sensors.vane_volts(truth.app_angle))
         self.bridge.advance_to(u1)
         if t_new + 1e-9 >= self.next_sound:
