@@ -24,7 +24,8 @@ CATALOGUE: dict[str, EffectSpec] = {
             "depth_current",
             "world",
             "continuity and bed friction (Manning)",
-            "current speed ~ depth^(2/3) locally: slow over sand bars and shoals, fast over the thalweg",
+            "current speed ~ depth^(2/3) everywhere (2.5 m/s over the deepest water): slow over sand bars and "
+            "shoals, fast over the thalweg",
             {"exponent": 2.0 / 3.0},
         ),
         EffectSpec(
@@ -38,11 +39,11 @@ CATALOGUE: dict[str, EffectSpec] = {
             "gusts",
             "world",
             "gusty wind",
-            "wind speed x gust factor: slow swell over tens of minutes plus fast gusts carried downwind, peaks >= peak_factor (12 m/s on the river)",
+            "wind speed x gust factor: slow swell over minutes plus fast gusts carried downwind, peaks >= peak_factor (12 m/s on the river)",
             {
-                "slow_amplitude": 0.18,
-                "slow_period_s": 1500.0,
-                "fast_std": 0.16,
+                "slow_amplitude": 0.35,
+                "slow_period_s": 600.0,
+                "fast_std": 0.06,
                 "peak_factor": 1.65,
             },
         ),
@@ -50,8 +51,16 @@ CATALOGUE: dict[str, EffectSpec] = {
             "bank_shelter",
             "world",
             "lee of a wooded bank",
-            "wind reduced near the wooded bank when it blows from over it; the wind veers, so the shelter comes and goes",
-            {"strength": 0.65, "length_m": 45.0, "veer_from_deg": 110.0, "veer_to_deg": 270.0},
+            "wind reduced near the wooded bank when it blows from over it; showers make the wind veer and back "
+            "between two directions, and it wanders by `wander_deg` (std) over 10-60 s, so the shelter comes and goes",
+            {
+                "strength": 0.6,
+                "length_m": 200.0,
+                "veer_from_deg": 110.0,
+                "veer_to_deg": 270.0,
+                "swing_period_s": 600.0,
+                "wander_deg": 30.0,
+            },
         ),
         EffectSpec(
             "wheel_misalignment",
@@ -63,9 +72,9 @@ CATALOGUE: dict[str, EffectSpec] = {
         EffectSpec(
             "anemometer_upwash",
             "instrument",
-            "anemometer in the hull's upwash",
-            "measured apparent wind speed x (1 + k * boat speed over ground)",
-            {"k": 0.12},
+            "anemometer in the bow wave's upwash",
+            "measured apparent wind speed x (1 + k * boat speed through the water, m/s)",
+            {"k": 0.08},
         ),
         EffectSpec(
             "compass_deviation",

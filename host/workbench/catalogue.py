@@ -21,7 +21,8 @@ CATALOGUE: list[tuple[str, str, str]] = [
     (
         "^heading_rel_",
         "a sensor that reads differently depending on how the bow meets the flow: a misaligned or "
-        "shadowed paddle wheel, or mast/hull shadow on the anemometer",
+        "shadowed paddle wheel, mast/hull shadow on the anemometer, or compass deviation (in a steady "
+        "flow the heading relative to it is the heading less a constant)",
         "gp(HEADING_REL, periodic)",
     ),
     (
@@ -31,10 +32,17 @@ CATALOGUE: list[tuple[str, str, str]] = [
         "gp(heading, periodic), or cos(heading) for pure deviation",
     ),
     (
-        "^(sog|throttle)$",
-        "a calibration or compensation error that grows with boat speed: anemometer in the hull's "
-        "upwash, paddle-wheel gain, or a wrong boat-velocity subtraction",
-        "gp(sog, matern32), or linear(sog)",
+        "^(sog|throttle|stw)$",
+        "a calibration or compensation error that grows with boat speed: anemometer in the bow "
+        "wave's upwash, paddle-wheel gain, or a wrong boat-velocity subtraction",
+        "gp(COV, matern32), or linear(COV)",
+    ),
+    (
+        "^app_wind_angle$",
+        "a sensor that reads differently depending on how the bow meets the wind: mast or hull "
+        "shadow on the anemometer, a misaligned vane; on straight survey legs the apparent wind "
+        "angle follows the heading, so also a misaligned paddle wheel or compass deviation",
+        "gp(app_wind_angle, periodic), or gp(heading, periodic)",
     ),
     (
         "^yaw_rate$",

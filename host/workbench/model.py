@@ -160,6 +160,7 @@ class Model:
         terms: Sequence[Term | TermSpec | str],
         max_iter: int = 300,
         max_basis: int | None = None,
+        hyper_rows: np.ndarray | None = None,
     ) -> None:
         from host.workbench.spec import build_term, parse_term
         from host.workbench.table import is_circular
@@ -184,6 +185,8 @@ class Model:
                     t.max_basis = min(t.max_basis, max(max_basis, t.n_basis))
         self.terms = built
         self.max_iter = max_iter
+        # rows whose marginal likelihood sets the hyperparameters (None: all); the posterior uses every row
+        self.hyper_rows = hyper_rows
 
     # ---- layout of the parameter vector: [log noise] + feature-term log-hypers + mean-term thetas
     def _layout(self) -> None:
@@ -236,16 +239,16 @@ class Model:
         return out
 
     def _objective(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
+        """Negative log marginal likelihood of the hyperparameter rows, and its gradient."""
         loglam, ders = self._loglam(theta)
+        hd = self.hdesign
         if self.mean_terms:
-            r = (self._y - self._mean(self._Zmean, theta)) / self.y_scale
-            b, rr = self.design.rmatvec(r), float(r @ r)
+            r = (self._hy - self._mean(self._hZmean, theta)) / self.y_scale
+            b, rr = hd.rmatvec(r), float(r @ r)
         else:
-            r, b, rr = None, self._b, self._rr
+            r, b, rr = None, self._hb, self._hrr
         try:
-            logp, g_lam, g_sn2, post = evidence(
-                self.design.G, b, rr, self.design.n, loglam, theta[0]
-            )
+            logp, g_lam, g_sn2, post = evidence(hd.G, b, rr, hd.n, loglam, theta[0])
         except (np.linalg.LinAlgError, ValueError):
             return 1e25, np.zeros_like(theta)
         grad = np.zeros_like(theta)
@@ -256,8 +259,8 @@ class Model:
             grad[sl] = g_lam[i : i + m] @ d
             i += m
         if self.mean_terms:
-            sinv_r = (r - self.design.matvec(post["mu"])) / post["sn2"]
-            for t, sl, Z in zip(self.mean_terms, self.m_slices, self._Zmean, strict=True):
+            sinv_r = (r - hd.matvec(post["mu"])) / post["sn2"]
+            for t, sl, Z in zip(self.mean_terms, self.m_slices, self._hZmean, strict=True):
                 th = theta[sl]
                 base = t.mean(Z, th)
                 for k in range(len(th)):
@@ -289,6 +292,14 @@ class Model:
         self.design = design
         r = y / self.y_scale
         self._b, self._rr = design.rmatvec(r), float(r @ r)
+        rows = self.hyper_rows
+        if rows is None or len(rows) >= len(y):
+            self.hdesign, self._hb, self._hrr = design, self._b, self._rr
+            self._hy, self._hZmean = y, self._Zmean
+        else:
+            self.hdesign = Design([b[rows] for b in design.blocks])
+            self._hy, self._hZmean = y[rows], [Z[rows] for Z in self._Zmean]
+            self._hb, self._hrr = self.hdesign.rmatvec(r[rows]), float(r[rows] @ r[rows])
 
     def _search_lengthscale(self, theta: np.ndarray) -> np.ndarray:
         """Start L-BFGS from the best of a few lengthscales for the first GP term (avoids poor local optima)."""
@@ -345,14 +356,14 @@ class Model:
                     for t, sl in zip(self.feat_terms, self.h_slices, strict=True)
                     if isinstance(t, HilbertGPTerm)
                     and theta[sl.start + 1] < math.log(1.25 * t.l_min)
-                    and t.n_basis < min(t.max_basis, len(y) // 2)
+                    and t.n_basis < min(t.max_basis, len(y))
                     and design is None
                 ]
                 if not grow:
                     break
                 for t in grow:
                     # never more basis functions than half the samples: there an exact GP would be cheaper
-                    t.n_basis = min(2**t.dims * t.n_basis, t.max_basis, max(len(y) // 2, t.n_basis))
+                    t.n_basis = min(2**t.dims * t.n_basis, t.max_basis, max(len(y), t.n_basis))
                 self._prepare(X, y, None)
                 bounds = self._bounds()
                 theta = self._optimize(
@@ -480,7 +491,11 @@ class Model:
             raise WorkbenchError("extended() takes a feature term")
         Z = term_inputs(term, X)
         term.setup(Z)
-        new = Model(self.feat_terms + [term] + self.mean_terms, max_iter=self.max_iter)
+        new = Model(
+            self.feat_terms + [term] + self.mean_terms,
+            max_iter=self.max_iter,
+            hyper_rows=self.hyper_rows,
+        )
         design = self.design.augment(term.features(Z))
         cut = self.h_slices[-1].stop
         init = np.concatenate(
@@ -499,11 +514,11 @@ class Model:
         self, new: Model, init: np.ndarray, free: np.ndarray, term: Term
     ) -> np.ndarray:
         M = self.design.M
-        G, b, rr, n = new.design.G, new._b, new._rr, new.design.n
+        G, b, rr, n = new.hdesign.G, new._hb, new._hrr, new.hdesign.n
         if not hasattr(self, "_eig"):
             sb = np.sqrt(np.exp(self._loglam_))
             with blas_threads(None):
-                D, Q = np.linalg.eigh(sb[:, None] * self.design.G * sb[None, :])
+                D, Q = np.linalg.eigh(sb[:, None] * self.hdesign.G * sb[None, :])
             self._eig = (np.maximum(D, 0.0), Q, sb)
         D, Q, sb = self._eig
         P = Q.T @ (sb[:, None] * G[:M, M:])

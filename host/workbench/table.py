@@ -41,7 +41,8 @@ def family(name: str) -> str | None:
     """The column family of CONVENTIONS.md: wind, current, depth, or None."""
     if name.startswith("wind_") or name.startswith("app_wind_"):
         return "wind"
-    if name.startswith("current_") or re.fullmatch(r"wheel\d+_speed", name):
+    # the speed through water is the boat's velocity minus the measured current: it carries the current's noise
+    if name.startswith("current_") or re.fullmatch(r"wheel\d+_speed", name) or name == "stw":
         return "current"
     if name == "depth":
         return "depth"

@@ -20,6 +20,9 @@ from host.workbench.spec import BASELINE, build_term, parse_terms
 from host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
 
 N_DRAWS = 128
+# hyperparameters come from samples this far apart in time (see hyper_rows), but never fewer than MIN_HYPER_ROWS
+HYPER_SPACING_S = 5.0
+MIN_HYPER_ROWS = 300
 
 
 def wrap180(a: np.ndarray) -> np.ndarray:
@@ -31,14 +34,22 @@ def circular_median(deg: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(np.sin(r).mean(), np.cos(r).mean())) % 360.0)
 
 
-FRAME_TERMS = [*BASELINE, "gp(t, matern32)"]
+# a speed target's frame follows the flow in time too (a veering wind still has a meaningful local
+# direction, and the along-flow component stays close to the speed); a direction target's must not
+FRAME_TERMS = {"speed": [*BASELINE, "gp(t, matern32)"], "dir": list(BASELINE)}
 FRAME_MAX_BASIS = 800  # the frame is a smooth direction field; it needs no fine spatial detail
 
 
 def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
-    """Smooth models of a vector's east and north components over position and time (cached on the survey):
-    time is in the frame so a wind that veers during the survey still has a meaningful local direction."""
-    key = ("frame", vt.prefix)
+    """Smooth models of a vector's east and north components (cached on the survey).
+
+    For a speed target they are over position and time, so the frame follows a wind that veers and the
+    along-flow component stays close to the speed. For a direction target they are over position only:
+    the frame is then a reference direction that must not follow anything the diagnosis should find (with
+    time in it, it followed every leg-by-leg change, a compass deviation or a veer, and the direction's
+    residual had nothing left to explain). The position lengthscale floor is chosen by blocked CV."""
+    kind = "dir" if vt.aspect == "dir" else "speed"
+    key = ("frame", vt.prefix, kind)
     if key not in survey.cache:
         e, n = survey.components(vt)
         if e is None:
@@ -46,9 +57,10 @@ def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
         X = {"position": survey.xy, "t": survey.trel}
         e = _finite_target(survey, e, f"{vt.prefix} east component")
         n = _finite_target(survey, n, f"{vt.prefix} north component")
-        survey.cache[key] = (
-            Model(FRAME_TERMS, max_basis=FRAME_MAX_BASIS).fit(X, e),
-            Model(FRAME_TERMS, max_basis=FRAME_MAX_BASIS).fit(X, n),
+        rows = hyper_rows(survey)
+        survey.cache[key] = tuple(
+            Model(FRAME_TERMS[kind], max_basis=FRAME_MAX_BASIS, hyper_rows=rows).fit(X, c)
+            for c in (e, n)
         )
     return survey.cache[key]
 
@@ -81,10 +93,24 @@ def _finite_target(survey: Survey, values: np.ndarray, what: str) -> np.ndarray:
     return values
 
 
+DERIVED = ("heading_rel_current", "heading_rel_wind", "stw")
+
+
 def derived_column(survey: Survey, name: str) -> np.ndarray:
-    """Derived covariates: `heading_rel_current` / `heading_rel_wind`, the bow's angle to the baseline flow."""
+    """Derived covariates: `heading_rel_current` / `heading_rel_wind`, the bow's angle to the baseline flow, and
+    `stw`, the boat's speed through the water (ground velocity minus the measured current)."""
     if name not in survey.columns:
-        if name in ("heading_rel_current", "heading_rel_wind") and "heading" in survey.columns:
+        if name == "stw":
+            need = ("sog", "cog", "current_east", "current_north")
+            missing = [c for c in need if c not in survey.columns]
+            if missing:
+                raise WorkbenchError(f"'stw' needs the columns {', '.join(missing)} in the table")
+            sog = prepare_column(survey, "sog", "covariate")
+            cog = np.radians(prepare_column(survey, "cog", "covariate"))
+            ce = prepare_column(survey, "current_east", "covariate")
+            cn = prepare_column(survey, "current_north", "covariate")
+            survey.columns[name] = np.hypot(sog * np.sin(cog) - ce, sog * np.cos(cog) - cn)
+        elif name in ("heading_rel_current", "heading_rel_wind") and "heading" in survey.columns:
             vt = survey.vector_target("current_speed" if name.endswith("current") else "wind_speed")
             if vt is None:
                 raise WorkbenchError(
@@ -118,13 +144,35 @@ def grid_inputs(survey: Survey, names: set[str], xy: np.ndarray) -> dict[str, np
         values = survey_inputs(survey, {name})[name]
         if name == "depth":
             if ("depthmap",) not in survey.cache:
-                survey.cache[("depthmap",)] = Model(BASELINE).fit({"position": survey.xy}, values)
+                survey.cache[("depthmap",)] = Model(BASELINE, hyper_rows=hyper_rows(survey)).fit(
+                    {"position": survey.xy}, values
+                )
             X[name] = survey.cache[("depthmap",)].predict({"position": xy})
         elif is_circular(name):
             X[name] = np.full(len(xy), circular_median(values))
         else:
             X[name] = np.full(len(xy), float(np.median(values)))
     return X
+
+
+def hyper_rows(survey: Survey) -> np.ndarray | None:
+    """Rows for the hyperparameters: the first sample of every HYPER_SPACING_S of the survey (None: all rows).
+
+    Along a survey line the samples are a metre apart and their errors are correlated over seconds
+    (paddle-wheel inertia, gusts, the sounder's 1 Hz updates, turns). Fed every sample, the marginal
+    likelihood reads that as fine spatial structure: it puts the position lengthscale at the basis's
+    limit, far below the line spacing, and the map then extrapolates wildly into any area it has not
+    seen. Samples HYPER_SPACING_S apart are close to independent, so their marginal likelihood sets the
+    hyperparameters; the posterior (the map) uses every sample."""
+    if ("hyper_rows",) not in survey.cache:
+        t = survey.trel
+        _, rows = np.unique(np.floor((t - t.min()) / HYPER_SPACING_S), return_index=True)
+        if len(rows) < MIN_HYPER_ROWS:
+            rows = np.unique(
+                np.linspace(0, survey.n - 1, min(MIN_HYPER_ROWS, survey.n)).astype(int)
+            )
+        survey.cache[("hyper_rows",)] = None if len(rows) >= survey.n else np.sort(rows)
+    return survey.cache[("hyper_rows",)]
 
 
 class SurveyModel:
@@ -219,6 +267,7 @@ class SurveyModel:
         return Model(
             [build_term(t, is_circular) for t in (terms or self.term_specs)],
             max_basis=self.max_basis,
+            hyper_rows=hyper_rows(self.survey),
         )
 
     def fit(self) -> SurveyModel:
@@ -226,7 +275,7 @@ class SurveyModel:
         if self.vector and self.vector.aspect in ("speed", "dir"):
             key = ("secondary", self.vector.prefix, self.primary_is_along)
             if key not in self.survey.cache:
-                self.survey.cache[key] = Model(BASELINE).fit(
+                self.survey.cache[key] = Model(BASELINE, hyper_rows=hyper_rows(self.survey)).fit(
                     {"position": self.survey.xy}, self.y_secondary
                 )
             self.secondary = self.survey.cache[key]
@@ -291,10 +340,23 @@ class SurveyModel:
             mu_s, sd_s = (
                 secondary_cv if secondary_cv is not None else self.secondary.cv_predict(folds)
             )
+            ue, un = self._frame_cv(folds)
             mean, lo, hi = self.combine(
-                mu_p, sd_p, primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_
+                mu_p, sd_p, primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_, ue, un
             )
         return CVResult(self.measured, mean, lo, hi, circular=self.circular)
+
+    def _frame_cv(self, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The flow frame at each held-out sample from the frame models refitted without its fold: the
+        full-data frame has seen the held-out vectors, and a direction target would be predicted by them."""
+        key = ("frame_cv", self.vector.prefix, self.vector.aspect, hash(folds.tobytes()))
+        if key not in self.survey.cache:
+            me, mn = flow_frame(self.survey, self.vector)
+            e, n = me.cv_predict(folds)[0], mn.cv_predict(folds)[0]
+            sp = np.hypot(e, n)
+            sp = np.where(sp > 1e-9, sp, 1.0)
+            self.survey.cache[key] = (e / sp, n / sp)
+        return self.survey.cache[key]
 
     def fitted(self) -> np.ndarray:
         """In-sample posterior mean of the target at the samples."""

@@ -33,6 +33,8 @@ BOUNDARY = 1.6
 # lengthscales below L_MIN_FACTOR / (highest basis frequency) are not represented well (Riutort-Mayol et al. 2023
 # ask for about 3.4 c L / l functions per dimension for Matern 3/2)
 L_MIN_FACTOR = 4.5
+# a GP term's prior std at most this many times the target's std
+MAX_STD_RATIO = 2.0
 
 
 @dataclass
@@ -242,7 +244,7 @@ class HilbertGPTerm(Term):
         return [
             # a GP's std beyond 5x the data's, or a lengthscale beyond a few box widths, is a spline in disguise
             # that extrapolates wildly into unseen blocks; the bounds keep type-II ML away from those optima
-            Hyper("variance", -0.5, -14.0, math.log(25.0)),
+            Hyper("variance", -0.5, -14.0, math.log(MAX_STD_RATIO**2)),
             Hyper("lengthscale", math.log(l0), math.log(self.l_min), math.log(self.l_max)),
         ]
 
