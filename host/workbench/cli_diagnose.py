@@ -10,14 +10,17 @@ from host.workbench.cli_common import add_table, guarded, print_notes, teach, wr
 EPILOG = """\
 diagnose fits the current model of the target (the latest `forcemap fit` of it, or the paper's baseline),
 then adds a term in each candidate covariate in turn: every numeric column outside the target's own family,
-time (t), and derived ones (heading relative to the flow, a vector's own direction for its speed). It ranks
+time (t), and derived ones (heading relative to the flow, speed through water stw, a vector's own direction
+for its speed). It ranks
 them by how much the spatially blocked CV error falls, and tests whether the best gain is real (paired
-Wilcoxon test over spatial blocks, Bonferroni over candidates, and at least a 10 % drop).
+Wilcoxon test over spatial blocks, Bonferroni over candidates, and at least a 25 % drop).
 
 Boat kinematics (sog, cog, crab = heading - cog, throttle) respond to the current and wind being mapped, so at a
 held-out place they carry the answer: they are credited only with the gain that survives random folds,
 where the field around each held-out sample is known. Instrument errors that grow with boat speed or
-appear in turns survive that test; mere consequences do not. Details: docs/WORKBENCH.md.
+appear in turns survive that test; mere consequences do not. Proxies (t, the apparent wind, course, raw
+wheel speeds) give way to a direct cause close behind that leaves them nothing to add. Details:
+docs/WORKBENCH.md.
 
 examples:
   forcemap diagnose survey.csv --target current_speed
