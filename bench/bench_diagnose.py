@@ -6,7 +6,8 @@ For each it prints the covariate ranked first, its blocked-CV gain and p-value, 
 reports a missing effect, and the time `diagnose` took as a ratio to the named baseline: fitting the
 paper's baseline model alone on the same survey, in the same process.
 
-    python bench/bench_diagnose.py [--seeds 1,2] [--duration 1200] [--out /tmp/forcemap-bench-diagnose]
+    python bench/bench_diagnose.py [--seeds 1,2] [--duration 1200] [--effects gusts,none]
+                                   [--out /tmp/forcemap-bench-diagnose]
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ CASES = [
     ("wheel_misalignment", "current_speed", "heading*"),
     ("anemometer_upwash", "wind_speed", "stw"),
     ("compass_deviation", "current_dir", "heading*"),
-    ("clock_offset", "wind_speed", "yaw_rate"),
+    ("clock_offset", "wind_dir", "yaw_rate"),
 ]
 
 
@@ -40,6 +41,9 @@ def main() -> None:
     )
     ap.add_argument("--seeds", default="1,2")
     ap.add_argument("--duration", type=float, default=1200.0)
+    ap.add_argument(
+        "--effects", default="", help="only these effects (comma-separated; default all)"
+    )
     ap.add_argument("--out", default="/tmp/forcemap-bench-diagnose")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -53,7 +57,10 @@ def main() -> None:
     )
     print(head)
     print("-" * len(head))
+    only = {e for e in args.effects.split(",") if e}
     for effect, target, expected in CASES:
+        if only and effect not in only:
+            continue
         for seed in seeds:
             out = Path(args.out) / f"{effect}-{seed}"
             table = out / "samples.csv"
