@@ -25,14 +25,8 @@ from host.workbench.table import KINEMATIC, Survey, family, is_circular
 from host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
 MIN_GAIN = 0.25
-REFINE = 4
-MAX_REFINE = 10
-# how candidates are screened: "all" refits every hyperparameter for each candidate (cheap since the marginal
-# likelihood runs on the decorrelated rows); "new" fits only the new term's hyperparameters and the noise, then
-# refits the REFINE best, and up to MAX_REFINE that gain at least half of MIN_GAIN, with everything free. "new"
-# misses a covariate that should take over from the spatial term (depth for a Manning current: -10 % screened,
-# +58 % refitted), so it is not the default.
-SCREEN = "all"
+# a direct cause within this many places of a leading proxy may take its place (see _prefer_direct_cause)
+PROXY_WINDOW = 10
 # the comparison between candidates needs no finer spatial basis than this; `fit` goes further
 DIAGNOSE_MAX_BASIS = 600
 ALPHA = 0.05
@@ -172,14 +166,16 @@ def diagnose(
     base_b = sm.cv(fold_id, secondary_cv=sec_b)
     consequences = consequences_of(target)
     names = candidate_covariates(survey, sm)
-    bar = Progress(f"diagnose {target}", len(names) + (REFINE if SCREEN != "all" else 0), progress)
+    bar = Progress(f"diagnose {target}", len(names), progress)
     state = {"base_r": None}
 
-    def evaluate(name: str, refit: str) -> Candidate:
+    def evaluate(name: str) -> Candidate:
+        # every hyperparameter is refitted: with the spatial GP's fixed (Model.extended's cheaper "new"), a
+        # covariate that should take over from it is missed (depth for a Manning current: -10 % against +58 %)
         spec = parse_term(name, is_circular)
         X = dict(sm.X)
         X.update(survey_inputs(survey, {name}))
-        model = sm.primary.extended(build_term(spec, is_circular), X, sm.y_primary, refit=refit)
+        model = sm.primary.extended(build_term(spec, is_circular), X, sm.y_primary, refit="all")
         cv_b = sm.cv(fold_id, primary=model, secondary_cv=sec_b)
         gain_b, p_b = paired_test(base_b.error**2, cv_b.error**2, blocks)
         gain, p, gain_r = gain_b, p_b, None
@@ -213,20 +209,9 @@ def diagnose(
         try:
             if name != "t":
                 derived_column(survey, name)
-            results.append(evaluate(name, SCREEN))
+            results.append(evaluate(name))
         except WorkbenchError as exc:
             skipped[name] = str(exc)
-    # screening kept the current model's hyperparameters; refit everything for the leaders, then re-rank them
-    results.sort(key=lambda c: -c.improvement)
-    refine = [
-        i
-        for i, c in enumerate(results[:MAX_REFINE])
-        if i < REFINE or c.improvement >= 0.5 * min_gain
-    ]
-    bar.total += max(0, len(refine) - REFINE)
-    for i in refine if SCREEN != "all" else []:
-        bar.step(f"refit {results[i].covariate}")
-        results[i] = evaluate(results[i].covariate, "all")
     results.sort(key=lambda c: -c.improvement)
     results = _prefer_direct_cause(results, evaluate_pair, min_gain)
     bar.close()
@@ -253,7 +238,7 @@ def _prefer_direct_cause(
     if not results or not is_proxy(results[0].covariate) or results[0].improvement <= 0:
         return results
     lead = results[0]
-    for i, c in enumerate(results[1:MAX_REFINE], start=1):
+    for i, c in enumerate(results[1:PROXY_WINDOW], start=1):
         if is_proxy(c.covariate):
             continue
         if c.improvement < 0.5 * lead.improvement or c.improvement < min_gain:
