@@ -12,7 +12,7 @@ from host.workbench.failures import failure_summary
 from host.workbench.progress import note
 from host.workbench.spec import BASELINE, read_spec_file, split_effects
 from host.workbench.table import Survey
-from host.workbench.targets import SurveyModel
+from host.workbench.targets import SurveyModel, hyper_rows
 from host.workbench.workspace import record_fit, workspace_dir
 
 
@@ -79,7 +79,12 @@ def fit_target(
     progress: bool = True,
     max_basis: int | None = None,
 ) -> FitResult:
-    note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples ...", progress)
+    rows = hyper_rows(survey)
+    hyper = ""
+    if rows is not None:
+        every = float(np.ptp(survey.trel)) / len(rows)
+        hyper = f" (hyperparameters from {len(rows)} of them, one per {every:.1f} s)"
+    note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples{hyper} ...", progress)
     sm = SurveyModel(survey, target, terms, max_basis=max_basis).fit()
     note(f"cross-validating ({folds} folds) ...", progress)
     cv = sm.cv(make_folds(survey, folds))
