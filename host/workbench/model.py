@@ -362,7 +362,7 @@ class Model:
                 if not grow:
                     break
                 for t in grow:
-                    # never more basis functions than half the samples: there an exact GP would be cheaper
+                    # never more basis functions than samples: there an exact GP would be cheaper
                     t.n_basis = min(2**t.dims * t.n_basis, t.max_basis, max(len(y), t.n_basis))
                 self._prepare(X, y, None)
                 bounds = self._bounds()

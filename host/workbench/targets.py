@@ -47,7 +47,7 @@ def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
     along-flow component stays close to the speed. For a direction target they are over position only:
     the frame is then a reference direction that must not follow anything the diagnosis should find (with
     time in it, it followed every leg-by-leg change, a compass deviation or a veer, and the direction's
-    residual had nothing left to explain). The position lengthscale floor is chosen by blocked CV."""
+    residual had nothing left to explain). Their hyperparameters come from `hyper_rows`."""
     kind = "dir" if vt.aspect == "dir" else "speed"
     key = ("frame", vt.prefix, kind)
     if key not in survey.cache:
@@ -91,9 +91,6 @@ def _finite_target(survey: Survey, values: np.ndarray, what: str) -> np.ndarray:
             f"filled {bad.sum()} missing value(s) of the {what} with the nearest sample in time"
         )
     return values
-
-
-DERIVED = ("heading_rel_current", "heading_rel_wind", "stw")
 
 
 def derived_column(survey: Survey, name: str) -> np.ndarray:

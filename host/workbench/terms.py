@@ -242,7 +242,7 @@ class HilbertGPTerm(Term):
     def hypers(self):
         l0 = max(0.3 * float(self.half.max()), 1.5 * self.l_min)
         return [
-            # a GP's std beyond 5x the data's, or a lengthscale beyond a few box widths, is a spline in disguise
+            # a GP's std beyond MAX_STD_RATIO x the data's, or a lengthscale beyond a few box widths, is a spline in disguise
             # that extrapolates wildly into unseen blocks; the bounds keep type-II ML away from those optima
             Hyper("variance", -0.5, -14.0, math.log(MAX_STD_RATIO**2)),
             Hyper("lengthscale", math.log(l0), math.log(self.l_min), math.log(self.l_max)),
