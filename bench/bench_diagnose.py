@@ -31,7 +31,7 @@ CASES = [
     ("wheel_misalignment", "current_speed", "heading*"),
     ("anemometer_upwash", "wind_speed", "stw"),
     ("compass_deviation", "current_dir", "heading*"),
-    ("clock_offset", "wind_dir", "yaw_rate"),
+    ("clock_offset", "wind_dir", "clock_offset"),
 ]
 
 

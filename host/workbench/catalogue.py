@@ -19,6 +19,14 @@ CATALOGUE: list[tuple[str, str, str]] = [
         "gp(t, matern32)",
     ),
     (
+        "^clock_offset$",
+        "a clock offset or latency between the autopilot and the bridge: the boat-frame reading is "
+        "turned by the heading of another moment, so the vector swings in every turn (a buffering "
+        "telemetry link, a serial port read late, a source stamped on arrival instead of at measurement)",
+        "clock_offset (re-references the vector with the autopilot's data at the fitted offset); "
+        "better still, fix the time stamps at the source",
+    ),
+    (
         "^heading_rel_",
         "a sensor that reads differently depending on how the bow meets the flow: a misaligned or "
         "shadowed paddle wheel, mast/hull shadow on the anemometer, or compass deviation (in a steady "
@@ -46,9 +54,9 @@ CATALOGUE: list[tuple[str, str, str]] = [
     ),
     (
         "^yaw_rate$",
-        "an error that appears in turns: a clock offset or latency between two sources (the boat's "
-        "velocity is subtracted at the wrong instant), or a sensor lever arm",
-        "gp(yaw_rate, matern32)",
+        "an error that appears in turns: a sensor lever arm (the mast sweeps through the air), or a "
+        "clock offset between two sources (diagnose tries that directly as clock_offset)",
+        "gp(yaw_rate, matern32), or clock_offset",
     ),
     (
         "^(cog|crab)$",

@@ -16,6 +16,7 @@ import math
 import re
 from dataclasses import dataclass, field
 
+from host.workbench import clock
 from host.workbench.catalogue import explain
 from host.workbench.cv import DEFAULT_FOLDS, blocked_folds, paired_test, random_folds
 from host.workbench.errors import WorkbenchError
@@ -139,6 +140,8 @@ def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
         and "sog" in survey.columns
     ):
         names.append("stw")
+    if sm.clock_offset is None and clock.applicable(survey, sm.vector):
+        names.append(clock.NAME)
     if sm.vector and sm.vector.aspect == "speed":
         own_dir = sm.vector.name.replace("_speed", "_dir")
         if own_dir in survey.columns and own_dir not in used:
@@ -188,6 +191,16 @@ def diagnose(
             gain, p = min(gain_b, gain_r), max(p_b, p_r)
         return Candidate(name, str(spec), cv_b.rmse, gain, p, gain_b, gain_r, is_consequence)
 
+    def evaluate_clock() -> Candidate:
+        # the offset acts in turns wherever they are, not at places: the paired unit is a stretch of track
+        # about one turn long, not a spatial block
+        corrected, tau = clock.corrected_for(sm.survey, sm.vector, math.nan)
+        model = SurveyModel(corrected, target, sm.terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
+        cv_b = model.cv(fold_id)
+        stretches = (survey.trel // clock.PAIRED_STRETCH_S).astype(int)
+        gain, p = paired_test(base_b.error**2, cv_b.error**2, stretches)
+        return Candidate(clock.NAME, clock.describe(tau), cv_b.rmse, gain, p, gain, None, False)
+
     def evaluate_pair(first: str, then: str) -> float:
         """Blocked-CV gain of adding `then` to the model that already has `first`."""
         X = dict(sm.X)
@@ -207,6 +220,9 @@ def diagnose(
     for name in names:
         bar.step(name)
         try:
+            if name == clock.NAME:
+                results.append(evaluate_clock())
+                continue
             if name != "t":
                 derived_column(survey, name)
             results.append(evaluate(name))
@@ -255,7 +271,9 @@ def _prefer_direct_cause(
 def _explain(c: Candidate, sm: SurveyModel) -> str:
     cause, term = explain(c.covariate)
     what = (
-        "along the flow (speed)"
+        ""
+        if c.covariate == clock.NAME
+        else "along the flow (speed)"
         if sm.primary_is_along
         else ("across the flow (direction)" if sm.vector and sm.circular else "")
     )

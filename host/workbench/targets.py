@@ -13,6 +13,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from host.workbench import clock
 from host.workbench.cv import CVResult
 from host.workbench.errors import WorkbenchError
 from host.workbench.model import Model
@@ -182,9 +183,13 @@ class SurveyModel:
         terms: list[str] | None = None,
         max_basis: int | None = None,
     ) -> None:
-        self.survey, self.target, self.max_basis = survey, target, max_basis
+        self.target, self.max_basis = target, max_basis
+        terms, self.clock_offset = clock.split_terms(list(terms or BASELINE))
         self.term_specs = parse_terms(terms or BASELINE, is_circular)
         self.vector = survey.vector_target(target)
+        if self.clock_offset is not None:
+            survey, self.clock_offset = clock.corrected_for(survey, self.vector, self.clock_offset)
+        self.survey = survey
         if self.vector is None:
             if target in survey.non_numeric:
                 raise WorkbenchError(f"target '{target}' is not numeric")
@@ -219,7 +224,8 @@ class SurveyModel:
 
     @property
     def terms(self) -> list[str]:
-        return [str(s) for s in self.term_specs]
+        out = [str(s) for s in self.term_specs]
+        return out if self.clock_offset is None else out + [clock.describe(self.clock_offset)]
 
     @property
     def circular(self) -> bool:

@@ -1,0 +1,167 @@
+"""Clock offset between the autopilot and the bridge: find it in a survey's table and undo it.
+
+The daemon makes wind and current from two sources: the bridge's reading in the boat's frame (apparent
+wind, paddle-wheel flow) and the autopilot's heading and ground velocity. If one source's time stamps run
+late, the boat-frame reading is turned by a heading from another moment: on a straight leg at steady speed
+nothing shows, in a turn the vector swings with the boat. The table holds everything needed to undo it:
+
+    reading in the boat frame, turned to the world:  A(t) = W(t) - V(t)       (the heading's turn included)
+    re-referenced with the autopilot tau later:      W'(t) = rot(h(t + tau) - h(t)) A(t) + V(t + tau)
+
+At tau = 0 that is the table's vector exactly. A positive tau means the autopilot's data are late.
+
+The offset is the tau whose re-referenced vector is steadiest: the true wind and current do not turn with
+the boat, so a wrong offset adds a swing at every turn, while the sensors' own noise is the same for every
+tau. That is a one-dimensional scan over cheap array operations; the blocked-CV error of the corrected
+target (diagnose, fit) then says whether the correction matters.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from host.workbench.errors import WorkbenchError
+from host.workbench.table import Survey, VectorTarget
+
+NAME = "clock_offset"
+AUTOPILOT_COLUMNS = ("heading", "sog", "cog")
+MAX_OFFSET_S = 5.0
+STEP_S = 0.05
+# changes over this span measure the swing; the sensors' noise averages a little over it
+SPAN_S = 1.0
+# diagnose pairs the errors with and without the correction over stretches of track this long (a turn
+# and the straightening after it)
+PAIRED_STRETCH_S = 20.0
+
+
+@dataclass
+class OffsetScan:
+    """The scan over candidate offsets: the steadiness criterion for each, and the best."""
+
+    offsets_s: np.ndarray
+    roughness: np.ndarray  # mean squared change of the vector over SPAN_S, (m/s)^2
+
+    @property
+    def offset_s(self) -> float:
+        return float(self.offsets_s[int(np.argmin(self.roughness))])
+
+    @property
+    def reduction(self) -> float:
+        """Fraction of the vector's short-term change that the best offset removes."""
+        at0 = float(np.interp(0.0, self.offsets_s, self.roughness))
+        return 1.0 - float(self.roughness.min()) / at0 if at0 > 0 else 0.0
+
+
+def applicable(survey: Survey, vt: VectorTarget | None) -> bool:
+    """A clock offset can be undone for a wind or current vector when the autopilot's columns are there."""
+    return vt is not None and all(c in survey.columns for c in AUTOPILOT_COLUMNS)
+
+
+def _autopilot_at(survey: Survey, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heading (unwrapped, rad) and ground velocity (east, north) interpolated at times t."""
+    c = survey.columns
+    ts = survey.trel
+    h = np.unwrap(np.radians(c["heading"]))
+    cog = np.radians(c["cog"])
+    ve, vn = c["sog"] * np.sin(cog), c["sog"] * np.cos(cog)
+    return np.interp(t, ts, h), np.interp(t, ts, ve), np.interp(t, ts, vn)
+
+
+def shifted_vector(survey: Survey, vt: VectorTarget, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """The vector's (east, north) re-referenced with the autopilot's data taken tau seconds later."""
+    e, n = survey.components(vt)
+    if e is None or n is None:
+        raise WorkbenchError(f"the table has no {vt.prefix} vector")
+    ts = survey.trel
+    h0, ve0, vn0 = _autopilot_at(survey, ts)
+    h1, ve1, vn1 = _autopilot_at(survey, ts + tau)
+    ae, an = e - ve0, n - vn0
+    # a compass (clockwise) rotation by d: (e, n) -> (e cos d + n sin d, -e sin d + n cos d)
+    d = h1 - h0
+    cd, sd = np.cos(d), np.sin(d)
+    return ae * cd + an * sd + ve1, -ae * sd + an * cd + vn1
+
+
+def _roughness(survey: Survey, e: np.ndarray, n: np.ndarray) -> float:
+    ts = survey.trel
+    later = np.interp(ts + SPAN_S, ts, np.arange(len(ts)))
+    j = np.minimum(np.round(later).astype(int), len(ts) - 1)
+    ok = (j > np.arange(len(ts))) & (np.abs(ts[j] - ts - SPAN_S) < 0.5 * SPAN_S)
+    ok &= np.isfinite(e) & np.isfinite(n) & np.isfinite(e[j]) & np.isfinite(n[j])
+    if ok.sum() < 10:
+        raise WorkbenchError("too few evenly spaced samples to look for a clock offset")
+    return float(np.mean((e[j] - e)[ok] ** 2 + (n[j] - n)[ok] ** 2))
+
+
+def scan_offset(
+    survey: Survey, vt: VectorTarget, max_s: float = MAX_OFFSET_S, step_s: float = STEP_S
+) -> OffsetScan:
+    """Roughness of the re-referenced vector for every offset in [-max_s, max_s]."""
+    if not applicable(survey, vt):
+        raise WorkbenchError(
+            "a clock offset needs a wind or current vector and the columns "
+            + ", ".join(AUTOPILOT_COLUMNS)
+        )
+    key = ("clock_scan", vt.prefix, max_s, step_s)
+    if key not in survey.cache:
+        taus = np.round(np.arange(-max_s, max_s + step_s / 2, step_s), 6)
+        rough = np.array([_roughness(survey, *shifted_vector(survey, vt, float(t))) for t in taus])
+        survey.cache[key] = OffsetScan(taus, rough)
+    return survey.cache[key]
+
+
+def corrected_survey(survey: Survey, vt: VectorTarget, tau: float) -> Survey:
+    """A copy of the survey whose vector (components, speed and direction) is re-referenced by tau."""
+    e, n = shifted_vector(survey, vt, tau)
+    pre = "current" if vt.prefix == "current_paper" else vt.prefix
+    suffix = "_paper" if vt.prefix == "current_paper" else ""
+    out = survey.subset(np.ones(survey.n, bool))
+    c = out.columns
+    c[f"{pre}_east{suffix}"], c[f"{pre}_north{suffix}"] = e, n
+    if f"{pre}_speed{suffix}" in c:
+        c[f"{pre}_speed{suffix}"] = np.hypot(e, n)
+    if f"{pre}_dir{suffix}" in c:
+        d = np.degrees(np.arctan2(e, n)) % 360.0
+        c[f"{pre}_dir{suffix}"] = (d + 180.0) % 360.0 if vt.is_from else d
+    out.notes.append(f"{vt.prefix} re-referenced with the autopilot's data {tau:+.2f} s later")
+    return out
+
+
+def describe(tau: float) -> str:
+    """The term's name in a model's term list: the offset is part of the model."""
+    return f"{NAME}({tau:+.2f} s)"
+
+
+_TERM = re.compile(rf"^{NAME}(?:\(\s*([-+]?\d+(?:\.\d*)?)\s*s?\s*\))?$")
+
+
+def split_terms(terms: list[str]) -> tuple[list[str], float | None]:
+    """Model terms without the clock offset, and the offset: None if absent, NaN to estimate it
+    (`clock_offset`), or the value of `clock_offset(+1.50 s)`."""
+    rest, tau = [], None
+    for t in terms:
+        m = _TERM.match(t.strip()) if isinstance(t, str) else None
+        if m is None:
+            rest.append(t)
+        else:
+            tau = float(m.group(1)) if m.group(1) else math.nan
+    return rest, tau
+
+
+def corrected_for(survey: Survey, vt: VectorTarget | None, tau: float) -> tuple[Survey, float]:
+    """The survey with the vector re-referenced by tau (estimated when NaN), and tau."""
+    if not applicable(survey, vt):
+        raise WorkbenchError(
+            f"{NAME} applies to wind and current targets, and needs the columns "
+            + ", ".join(AUTOPILOT_COLUMNS)
+        )
+    if math.isnan(tau):
+        tau = scan_offset(survey, vt).offset_s
+    key = ("clock_corrected", vt.prefix, round(tau, 6))
+    if key not in survey.cache:
+        survey.cache[key] = corrected_survey(survey, vt, tau)
+    return survey.cache[key], tau
