@@ -11,9 +11,10 @@ EPILOG = """\
 diagnose fits the current model of the target (the latest `forcemap fit` of it, or the paper's baseline),
 then adds a term in each candidate covariate in turn: every numeric column outside the target's own family,
 time (t), and derived ones (heading relative to the flow, speed through water stw, a vector's own direction
-for its speed). It ranks
-them by how much the spatially blocked CV error falls, and tests whether the best gain is real (paired
-Wilcoxon test over spatial blocks, Bonferroni over candidates, and at least a 25 % drop).
+for its speed). For wind and current it also tries clock_offset: the time offset between the autopilot
+and the bridge that makes the vector steadiest through the turns. It ranks them by how much the spatially
+blocked CV error falls, and tests whether the best gain is real (paired Wilcoxon test over spatial blocks,
+Bonferroni over candidates, and at least a 25 % drop).
 
 Boat kinematics (sog, cog, crab = heading - cog, throttle) respond to the current and wind being mapped, so at a
 held-out place they carry the answer: they are credited only with the gain that survives random folds,

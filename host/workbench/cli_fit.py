@@ -21,6 +21,8 @@ examples:
 terms: gp(INPUTS, KERNEL) with kernel linear, rbf, matern12, matern32, matern52 or periodic (angles);
   linear(COV); power(COV) = a*COV^b; cos(ANGLE) = a*cos(ANGLE-phase); user(COV, module:function).
   A bare name is its default term: gp(NAME, periodic) for an angle, gp(NAME, matern32) otherwise.
+  clock_offset (wind and current) re-references the vector with the autopilot's data shifted by the
+  offset that makes it steadiest in turns; clock_offset(+1.5 s) uses a given offset.
 spec.toml:  terms = ["const", "gp(position, matern32)", "user(depth, mylaws:manning)"]
 
 wind_* and current_* speed and direction are modelled through their east/north components; effect terms
