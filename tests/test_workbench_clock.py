@@ -169,6 +169,12 @@ def test_diagnose_then_fit_from_the_command_line(late, tmp_path, capsys):
     fixed = json.loads(out.read_text())
     assert fixed["terms"][-1].startswith("clock_offset(+1.")
     assert fixed["cv_rmse"] < 0.5 * base["cv_rmse"]
+    # the report's wind map uses the offset found for the direction: it corrects the whole vector
+    html_out = tmp_path / "report.html"
+    assert main(["report", str(late), "-o", str(html_out), "--quiet"]) == 0
+    assert re.search(
+        r"wind: const \+ gp\(position, matern32\) \+ clock_offset\(\+1\.", html_out.read_text()
+    )
     # diagnose starts from the survey's latest fit, which now undoes the offset: nothing is left
     assert main(diag) == 0
     d = json.loads(dj.read_text())

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from host.workbench import plots
+from host.workbench import clock, plots
 from host.workbench.cv import blocked_folds
 from host.workbench.errors import WorkbenchError
 from host.workbench.failures import failure_summary
@@ -38,6 +38,21 @@ def _latest_terms(history: list[dict], target: str) -> list[str]:
         if h["target"] == target:
             return h["terms"]
     return list(BASELINE)
+
+
+def _map_terms(history: list[dict], target: str) -> list[str]:
+    """The target's latest terms; a clock offset fitted for any aspect of the same vector (wind_dir, say)
+    corrects the whole vector, so the map of its speed uses it too."""
+    terms = _latest_terms(history, target)
+    if clock.split_terms(terms)[1] is not None:
+        return terms
+    prefix = target.split("_")[0]
+    for h in reversed(history):
+        if h["target"].split("_")[0] == prefix and not h["target"].endswith("_paper"):
+            offset = [t for t in h["terms"] if clock.split_terms([t])[1] is not None]
+            if offset:
+                return terms + offset
+    return terms
 
 
 def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
@@ -79,7 +94,7 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
         ("depth", "depth (m)", False),
     ):
         try:
-            terms = _latest_terms(history, target)
+            terms = _map_terms(history, target)
             note(f"report: mapping {target} ({' + '.join(terms)}) ...", progress)
             sm = SurveyModel(survey, target, terms).fit()
             pred = sm.predict_grid(grid)
