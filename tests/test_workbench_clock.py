@@ -191,3 +191,30 @@ def test_no_offset_is_not_reported(on_time, tmp_path):
     assert not d["missing_effect_found"]
     c = next(c for c in d["candidates"] if c["covariate"] == "clock_offset")
     assert abs(c["improvement"]) < 0.05
+
+
+def _with_gaps(src: Path, dst: Path, column: str, every: int) -> Path:
+    with src.open() as f:
+        rows = list(csv.reader(f))
+    i = rows[0].index(column)
+    for r in rows[1::every]:
+        r[i] = ""
+    with dst.open("w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    return dst
+
+
+def test_gaps_in_the_heading_are_filled(late, tmp_path):
+    s = load_survey(_with_gaps(late, tmp_path / "gaps.csv", "heading", 40))
+    assert clock.scan_offset(s, s.vector_target("wind_dir")).offset_s == pytest.approx(1.5, abs=0.1)
+    assert any("heading" in n for n in s.notes)
+
+
+def test_a_heading_mostly_missing_is_a_one_line_error(late, tmp_path, capsys):
+    table = _with_gaps(late, tmp_path / "holes.csv", "heading", 2)
+    args = ["fit", str(table), "--target", "wind_dir", "--effects", "clock_offset", "--quiet"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = [ln for ln in err.strip().splitlines() if ln.startswith("forcemap")]
+    assert len(lines) == 1 and "autopilot column 'heading'" in lines[0], err

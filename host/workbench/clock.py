@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from host.workbench.errors import WorkbenchError
-from host.workbench.table import Survey, VectorTarget
+from host.workbench.table import Survey, VectorTarget, prepare_column
 
 NAME = "clock_offset"
 AUTOPILOT_COLUMNS = ("heading", "sog", "cog")
@@ -63,11 +63,13 @@ def applicable(survey: Survey, vt: VectorTarget | None) -> bool:
 
 def _autopilot_at(survey: Survey, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Heading (unwrapped, rad) and ground velocity (east, north) interpolated at times t."""
-    c = survey.columns
+    heading, sog, cog = (
+        prepare_column(survey, name, "autopilot column", allow_constant=True)
+        for name in AUTOPILOT_COLUMNS
+    )
     ts = survey.trel
-    h = np.unwrap(np.radians(c["heading"]))
-    cog = np.radians(c["cog"])
-    ve, vn = c["sog"] * np.sin(cog), c["sog"] * np.cos(cog)
+    h = np.unwrap(np.radians(heading))
+    ve, vn = sog * np.sin(np.radians(cog)), sog * np.cos(np.radians(cog))
     return np.interp(t, ts, h), np.interp(t, ts, ve), np.interp(t, ts, vn)
 
 

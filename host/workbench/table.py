@@ -310,7 +310,9 @@ def load_survey(path: str | Path) -> Survey:
     return survey
 
 
-def prepare_column(survey: Survey, name: str, role: str) -> np.ndarray:
+def prepare_column(
+    survey: Survey, name: str, role: str, allow_constant: bool = False
+) -> np.ndarray:
     """A column ready for modelling: numeric, not constant, few enough gaps (filled nearest in time, with a note)."""
     values = survey.column(name)
     bad = ~np.isfinite(values)
@@ -326,6 +328,8 @@ def prepare_column(survey: Survey, name: str, role: str) -> np.ndarray:
         if note not in survey.notes:
             survey.notes.append(note)
     finite = values[np.isfinite(values)]
+    if allow_constant:
+        return values
     if np.ptp(finite) <= 1e-12 * max(1.0, float(np.abs(finite).max())):
         raise WorkbenchError(
             f"{role} '{name}' is constant ({finite[0]:g}); there is nothing to model"
