@@ -11,7 +11,6 @@ import contextlib
 import functools
 import hashlib
 import math
-import os
 from collections.abc import Iterator, Mapping, Sequence
 
 import numpy as np
@@ -31,14 +30,13 @@ FTOL = 1e-7
 
 @contextlib.contextmanager
 def blas_threads(n: int | None) -> Iterator[None]:
-    """Set the number of BLAS threads (None: one per core, also inside `small_blas`). Without threadpoolctl
-    this is a no-op."""
+    """Limit BLAS threads (None: no limit). Without threadpoolctl this is a no-op."""
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         yield
         return
-    with threadpool_limits(limits=n or os.cpu_count() or 1, user_api="blas"):
+    with threadpool_limits(limits=n, user_api="blas"):
         yield
 
 
@@ -435,10 +433,7 @@ class Model:
         mu = Phi @ post["mu"] * self.y_scale + mean_part
         if not return_std:
             return mu, None
-        with blas_threads(None):
-            V = linalg.solve_triangular(
-                post["L"], (Phi * post["s"]).T, lower=True, check_finite=False
-            )
+        V = linalg.solve_triangular(post["L"], (Phi * post["s"]).T, lower=True, check_finite=False)
         var = (V**2).sum(axis=0) * self.y_scale**2
         return mu, np.sqrt(np.maximum(var, 0.0))
 
