@@ -61,16 +61,17 @@ def applicable(survey: Survey, vt: VectorTarget | None) -> bool:
     return vt is not None and all(c in survey.columns for c in AUTOPILOT_COLUMNS)
 
 
-def _autopilot_at(survey: Survey, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Heading (unwrapped, rad) and ground velocity (east, north) interpolated at times t."""
-    heading, sog, cog = (
-        prepare_column(survey, name, "autopilot column", allow_constant=True)
-        for name in AUTOPILOT_COLUMNS
-    )
-    ts = survey.trel
-    h = np.unwrap(np.radians(heading))
-    ve, vn = sog * np.sin(np.radians(cog)), sog * np.cos(np.radians(cog))
-    return np.interp(t, ts, h), np.interp(t, ts, ve), np.interp(t, ts, vn)
+def _autopilot(survey: Survey) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heading (unwrapped, rad) and ground velocity (east, north) at the samples, gaps filled."""
+    key = ("clock_autopilot",)
+    if key not in survey.cache:
+        heading, sog, cog = (
+            prepare_column(survey, name, "autopilot column", allow_constant=True)
+            for name in AUTOPILOT_COLUMNS
+        )
+        c = np.radians(cog)
+        survey.cache[key] = (np.unwrap(np.radians(heading)), sog * np.sin(c), sog * np.cos(c))
+    return survey.cache[key]
 
 
 def shifted_vector(survey: Survey, vt: VectorTarget, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -79,8 +80,8 @@ def shifted_vector(survey: Survey, vt: VectorTarget, tau: float) -> tuple[np.nda
     if e is None or n is None:
         raise WorkbenchError(f"the table has no {vt.prefix} vector")
     ts = survey.trel
-    h0, ve0, vn0 = _autopilot_at(survey, ts)
-    h1, ve1, vn1 = _autopilot_at(survey, ts + tau)
+    h0, ve0, vn0 = _autopilot(survey)
+    h1, ve1, vn1 = (np.interp(ts + tau, ts, a) for a in (h0, ve0, vn0))
     ae, an = e - ve0, n - vn0
     # a compass (clockwise) rotation by d: (e, n) -> (e cos d + n sin d, -e sin d + n cos d)
     d = h1 - h0
