@@ -120,16 +120,13 @@ def scan_offset(
 def corrected_survey(survey: Survey, vt: VectorTarget, tau: float) -> Survey:
     """A copy of the survey whose vector (components, speed and direction) is re-referenced by tau."""
     e, n = shifted_vector(survey, vt, tau)
-    pre = "current" if vt.prefix == "current_paper" else vt.prefix
-    suffix = "_paper" if vt.prefix == "current_paper" else ""
     out = survey.subset(np.ones(survey.n, bool))
     c = out.columns
-    c[f"{pre}_east{suffix}"], c[f"{pre}_north{suffix}"] = e, n
-    if f"{pre}_speed{suffix}" in c:
-        c[f"{pre}_speed{suffix}"] = np.hypot(e, n)
-    if f"{pre}_dir{suffix}" in c:
-        d = np.degrees(np.arctan2(e, n)) % 360.0
-        c[f"{pre}_dir{suffix}"] = (d + 180.0) % 360.0 if vt.is_from else d
+    c[vt.column("east")], c[vt.column("north")] = e, n
+    if vt.column("speed") in c:
+        c[vt.column("speed")] = np.hypot(e, n)
+    if vt.column("dir") in c:
+        c[vt.column("dir")] = vt.direction(e, n)
     out.notes.append(f"{vt.prefix} re-referenced with the autopilot's data {tau:+.2f} s later")
     return out
 

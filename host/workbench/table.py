@@ -58,9 +58,18 @@ class VectorTarget:
 
     @property
     def name(self) -> str:
+        return self.column(self.aspect)
+
+    def column(self, aspect: str) -> str:
+        """The table column of one aspect of this vector: wind_east, current_dir_paper, ..."""
         if self.prefix == "current_paper":
-            return f"current_{self.aspect}_paper"
-        return f"{self.prefix}_{self.aspect}"
+            return f"current_{aspect}_paper"
+        return f"{self.prefix}_{aspect}"
+
+    def direction(self, east: np.ndarray, north: np.ndarray) -> np.ndarray:
+        """Compass direction (deg) of the vector's components, in its convention (wind FROM, current TO)."""
+        d = np.degrees(np.arctan2(east, north)) % 360.0
+        return (d + 180.0) % 360.0 if self.is_from else d
 
     @property
     def is_from(self) -> bool:
@@ -138,12 +147,10 @@ class Survey:
 
     def components(self, vt: VectorTarget) -> tuple[np.ndarray | None, np.ndarray | None]:
         """East and north components (m/s) of a vector, from the table's components or its speed and dir."""
-        pre = "current" if vt.prefix == "current_paper" else vt.prefix
-        suffix = "_paper" if vt.prefix == "current_paper" else ""
-        e, nn = self.columns.get(f"{pre}_east{suffix}"), self.columns.get(f"{pre}_north{suffix}")
+        e, nn = self.columns.get(vt.column("east")), self.columns.get(vt.column("north"))
         if e is not None and nn is not None:
             return e, nn
-        s, d = self.columns.get(f"{pre}_speed{suffix}"), self.columns.get(f"{pre}_dir{suffix}")
+        s, d = self.columns.get(vt.column("speed")), self.columns.get(vt.column("dir"))
         if s is None or d is None:
             return None, None
         sign = -1.0 if vt.is_from else 1.0

@@ -220,7 +220,7 @@ class SurveyModel:
             if vt.aspect == "speed"
             else ("speed", "dir", "east", "north")
         )
-        return {vt.name, *(f"{vt.prefix}_{a}" for a in aspects)}
+        return {vt.name, *(vt.column(a) for a in aspects)}
 
     @property
     def terms(self) -> list[str]:
@@ -257,8 +257,7 @@ class SurveyModel:
         if vt.aspect == "speed":
             self.measured = speed
         else:
-            d = np.degrees(np.arctan2(e, n)) % 360.0
-            self.measured = (d + 180.0) % 360.0 if vt.is_from else d
+            self.measured = vt.direction(e, n)
         self.ue, self.un = frame_direction(s, vt, s.xy, s.trel)
         along = e * self.ue + n * self.un
         across = -e * self.un + n * self.ue
@@ -320,8 +319,7 @@ class SurveyModel:
                 def direction(a, c, sl=sl):
                     e = a * ue[sl, None] - c * un[sl, None]
                     n = a * un[sl, None] + c * ue[sl, None]
-                    d = np.degrees(np.arctan2(e, n))
-                    return d + 180.0 if self.vector.is_from else d
+                    return self.vector.direction(e, n)
 
                 lat = np.radians(direction(a_lat, c_lat))
                 mean = (
