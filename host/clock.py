@@ -16,6 +16,7 @@ class Clock(Protocol):
     """What the readers need: a monotonic and a wall clock, both in integer nanoseconds."""
 
     name: str
+    speed: float  # virtual seconds per host second: 1, or the simulator's speed-up
 
     def monotonic_ns(self) -> int: ...
 
@@ -26,6 +27,7 @@ class SystemClock:
     """The host's clocks: ``time.monotonic_ns`` and ``time.time_ns``."""
 
     name = "system"
+    speed = 1.0
 
     def monotonic_ns(self) -> int:
         return time.monotonic_ns()
@@ -43,7 +45,7 @@ class SimClock:
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], *, wait_s: float = 30.0, reread_s: float = 0.5
+        self, path: str | os.PathLike[str], *, wait_s: float = 30.0, reread_s: float = 0.02
     ):
         self.path = os.fspath(path)
         self.name = f"sim:{self.path}"
@@ -79,6 +81,11 @@ class SimClock:
             self._read_at = host
         assert self._anchor is not None
         return self._anchor
+
+    @property
+    def speed(self) -> float:
+        with self._lock:
+            return self._current_anchor()[2]
 
     def now_ns(self) -> int:
         with self._lock:

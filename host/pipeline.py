@@ -101,10 +101,12 @@ class Pipeline:
         diagnostics_period_s: float = DIAG_PERIOD_S,
         rate_window_s: float | None = None,
         rate_lag: bool = True,
+        hold_s: float = HOLD_S,
     ) -> None:
         self.cal = cal = calibration if calibration is not None else Calibration()
         self.sink = sink if sink is not None else NullSink()
         self.sync = sync or cal.sync
+        self.hold_s = hold_s
         self.state = StateEstimator(self.sync, cal.max_state_gap_s)
         self.angles = [w.angle_deg for w in cal.wheels]
         self.ppm = [w.pulses_per_m for w in cal.wheels]
@@ -250,7 +252,7 @@ class Pipeline:
         }
 
     def flush(self) -> None:
-        """Emit what is complete, and samples that waited longer than HOLD_S for the autopilot."""
+        """Emit what is complete, and samples that waited longer than ``hold_s`` for the autopilot."""
         try:
             self._drain(final=False)
         except Exception:
@@ -373,7 +375,9 @@ class Pipeline:
         covered = self.state.covered_until()
         while pend:
             p = pend[0]
-            ready = final or (covered is not None and covered >= p.t) or self.now - p.t > HOLD_S
+            ready = (
+                final or (covered is not None and covered >= p.t) or self.now - p.t > self.hold_s
+            )
             if not ready:
                 break
             pend.popleft()

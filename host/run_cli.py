@@ -103,13 +103,17 @@ def _load_calibration(path: str | None) -> Any:
     return loader(path)
 
 
-def _pipeline_factory(spec: str, cal: Any, sync: str) -> Callable[[Any], Any]:
+def _pipeline_factory(spec: str, cal: Any, sync: str, speed: float) -> Callable[[Any], Any]:
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
     module, _, attr = spec.partition(":")
 
     def make(sink: Any) -> Any:
-        cls = getattr(importlib.import_module(module), attr or "Pipeline")
-        return cls(cal, sink, sync=sync)
+        mod = importlib.import_module(module)
+        cls = getattr(mod, attr or "Pipeline")
+        # how long a sample waits for the autopilot is host time: a busy machine's stall is
+        # `speed` times longer on an accelerated simulator's clock
+        hold_s = getattr(mod, "HOLD_S", 3.0) * max(1.0, speed)
+        return cls(cal, sink, sync=sync, hold_s=hold_s)
 
     return make
 
@@ -174,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
         log.metadata("boat_toml", {"path": args.config or "", "text": config_text})
         daemon = Daemon(
             openers,
-            _pipeline_factory(args.pipeline, cal, sync),
+            _pipeline_factory(args.pipeline, cal, sync, clock.speed),
             log,
             clock=clock,
             reporter=reporter,

@@ -126,10 +126,13 @@ class SourceClock:
     """One source's device clock across epochs (boots, reboots, clock jumps).
 
     A new epoch starts when the epoch key changes (a bridge boot id), when device time goes back by
-    more than ``back_s`` (an autopilot reboot restarts ``time_boot_ms``), or when points stay more
-    than ``jump_s`` off a settled line for ``jump_points`` in a row (a clock jump); fewer such points
-    are outliers and left out of the fit. A young fit takes every point (its line only comes down). ``observe`` reports
-    the mapping (for logging) at a new epoch, when it moved by more than ``report_s`` at the current
+    more than ``back_s`` (an autopilot reboot restarts ``time_boot_ms``), or when points arrive more
+    than ``jump_s`` before a settled line for ``jump_points`` in a row (the device clock stepped
+    ahead); fewer such points are outliers and left out of the fit. Points more than ``jump_s``
+    after the line are left out: a reader that stalled (a busy host, an accelerated simulator on a
+    loaded machine) makes them, and its backlog drains; only if they stay late for ``late_s`` of
+    device time does a new epoch start. A young fit takes every point (its line only comes down).
+    ``observe`` reports the mapping (for logging) at a new epoch, when it moved by more than ``report_s`` at the current
     time since the last report (at most every ``report_min_s``), and at least every
     ``report_every_s`` of device time.
     """
@@ -140,6 +143,7 @@ class SourceClock:
         back_s: float = 1.0,
         jump_s: float = 1.0,
         jump_points: int = 20,
+        late_s: float = 120.0,
         report_s: float = 1e-3,
         report_every_s: float = 60.0,
         report_min_s: float = 5.0,
@@ -149,6 +153,8 @@ class SourceClock:
         self.back_s = back_s
         self.jump_s = jump_s
         self.jump_points = jump_points
+        self.late_s = late_s
+        self._late_since: float | None = None
         self.fit_kw = fit_kw
         self.fit: ClockFit | None = None
         self.key: Any = None
@@ -172,6 +178,7 @@ class SourceClock:
         self.epochs += 1
         self.fit = ClockFit(**self.fit_kw)
         self._off_line = 0
+        self._late_since = None
 
     def observe(
         self, device_s: float, host_s: float, key: Any = None
@@ -185,16 +192,27 @@ class SourceClock:
         ):
             self._new(key)
         elif fit.points >= 2 * self.jump_points:
-            # a settled fit: a point far off the line is an outlier (a stalled host, a glitch)
-            # until jump_points of them in a row say the clock itself jumped
             r = fit.residual(device_s, host_s)
-            if r > self.jump_s or r < -self.jump_s:
+            if r > self.jump_s:
+                # late by more than jump_s: a stalled reader, whose backlog drains. A device clock
+                # that steps back is caught above and the host side is monotonic, so only a
+                # device clock that runs slow beyond max_drift keeps points late for long.
+                self._off_line = 0
+                if self._late_since is None:
+                    self._late_since = device_s
+                if device_s - self._late_since < self.late_s:
+                    return fit.to_host(device_s), None
+                self._new(key)
+            if r < -self.jump_s:
+                # early by more than jump_s: impossible for latency, so the device clock stepped
+                # ahead; an outlier (a glitch) until jump_points of them in a row
                 self._off_line += 1
                 if self._off_line < self.jump_points:
                     return fit.to_host(device_s), None
                 self._new(key)
             else:
                 self._off_line = 0
+                self._late_since = None
         changed = self.fit.add(device_s, host_s)
         return self.fit.to_host(device_s), self._report(device_s) if changed else None
 

@@ -144,6 +144,11 @@ def run(args: argparse.Namespace) -> int:
     finally:
         ports.close()
     print(f"{'stopped' if stop.is_set() else 'done'}: {sim.t:.1f} s simulated; bytes {sim.stats}")
+    if ports.reanchors:
+        print(
+            f"the machine fell behind x{args.speed:g} {ports.reanchors} time(s); the clock waited "
+            "for the bytes each time (a lower --speed runs smoother)"
+        )
     if args.truth:
         print(f"truth in {args.truth}")
     return 0

@@ -226,6 +226,24 @@ def test_without_autopilot_samples_go_out_after_the_hold():
     assert len(sink.topic("/samples")) == 80
 
 
+def test_the_daemon_holds_samples_longer_on_an_accelerated_clock():
+    """A 3-s hold in host time is 240 s of virtual time at x80: a busy machine must not drop states."""
+    from host.run_cli import _pipeline_factory
+
+    events, _ = generate(20, seed=6)
+    held = {}
+    for speed in (1.0, 80.0):
+        sink = ListSink()
+        pipe = _pipeline_factory("host.pipeline:Pipeline", None, "interpolate", speed)(sink)
+        assert pipe.hold_s == HOLD_S * speed
+        for e in events:
+            if e[0] == "bridge":
+                pipe.feed(*e)
+        held[speed] = pipe.counters()["samples"]["pending"]
+        pipe.close()
+    assert held[1.0] <= HOLD_S * 4 + 1 and held[80.0] == 80  # 20 s of samples at 4 Hz
+
+
 def test_board_reset_new_epoch_and_samples_continue():
     events, _ = generate(30, seed=8)
     sink = ListSink()

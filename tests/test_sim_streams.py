@@ -302,3 +302,51 @@ def test_ports_river_10_minutes(tmp_path: Path) -> None:
         # never before it was sent (the clock file is re-anchored if the simulator falls behind)
         assert lag.min() > -1.0, s
     check_streams(ref, read_truth(truth_dir), sim.ppm, DURATION)
+
+
+def test_a_machine_that_falls_behind_holds_the_clock_back(tmp_path: Path) -> None:
+    """After the simulator stalls, the clock file comes back to the bytes: stalls never add up."""
+    from host.clock import SimClock
+
+    speed, lag_wall, stall_wall = 100.0, 0.05, 0.3
+    ports = PortSet(tmp_path / "ports")
+    stalls = [0]
+
+    class Stalling(Simulation):
+        def advance(self, t: float) -> None:
+            before = self.t
+            super().advance(t)
+            if int(self.t // 20) > int(before // 20):  # every 20 s of virtual time
+                stalls[0] += 1
+                time.sleep(stall_wall)  # the machine is busy elsewhere: 30 s of virtual time
+
+    sims: list[Simulation] = []
+
+    def factory(**kw: object) -> Simulation:
+        sims.append(Stalling("river", "lawnmower", seed=1, **kw))  # type: ignore[arg-type]
+        return sims[-1]
+
+    ahead: list[float] = []
+    done = threading.Event()
+
+    def watch() -> None:
+        clock = SimClock(ports.clock_path, wait_s=10.0)
+        while not done.is_set():
+            if sims and hasattr(sims[0], "t"):  # started
+                t_sim = sims[0].t0_ns + sims[0].t * 1e9
+                ahead.append((clock.now_ns() - t_sim) * 1e-9)
+            time.sleep(0.002)
+
+    th = threading.Thread(target=watch, daemon=True)
+    th.start()
+    try:
+        run_live(factory, ports, 240.0, speed=speed, max_lag_wall_s=lag_wall)
+    finally:
+        done.set()
+        th.join(5)
+        ports.close()
+    # at most one stall, the allowed lag, the reader's 20 ms re-read and 0.2 s of scheduling
+    bound = (stall_wall + lag_wall + 0.02 + 0.2) * speed
+    assert stalls[0] >= 10 and ports.reanchors >= 10
+    assert stalls[0] * stall_wall * speed > 4 * bound  # what the lead would be if stalls added up
+    assert max(ahead) < bound

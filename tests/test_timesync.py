@@ -133,3 +133,30 @@ def test_mappings_are_reported_sparingly():
     ]
     assert 20 <= len(reported) <= 150  # a 20-minute fit: settling, then about once a minute
     assert reported[-1].drift * 1e6 == pytest.approx(30.0, abs=5.0)
+
+
+def test_a_stalled_reader_is_latency_not_a_jump():
+    clk = SourceClock("mavlink")
+    for i in range(3000):  # 5 minutes at 10 Hz, read on time
+        clk.observe(i * 0.1, 1000.0 + i * 0.1)
+    # the reader stalls: 300 messages (30 s) arrive up to 4 s late, the backlog building and draining
+    worst = 0.0
+    for i in range(3000, 3300):
+        late = 4.0 * (1 - abs(i - 3150) / 150)
+        t, _ = clk.observe(i * 0.1, 1000.0 + i * 0.1 + late)
+        worst = max(worst, abs(t - (1000.0 + i * 0.1)))
+    assert clk.epochs == 1
+    assert worst < 0.05  # the bins whose minimum is late tilt the drift a little; nothing more
+
+
+def test_a_device_clock_late_for_minutes_starts_an_epoch():
+    clk = SourceClock("mavlink", late_s=60.0)
+    for i in range(400):
+        clk.observe(i * 0.1, 1000.0 + i * 0.1)
+    # from here the host sees every message 5 s later than the line says, for good
+    for i in range(400, 400 + 590):
+        clk.observe(i * 0.1, 1005.0 + i * 0.1)
+    assert clk.epochs == 1
+    for i in range(990, 1020):
+        t, _ = clk.observe(i * 0.1, 1005.0 + i * 0.1)
+    assert clk.epochs == 2 and t == pytest.approx(1005.0 + 1019 * 0.1, abs=1e-6)
