@@ -120,7 +120,7 @@ def run_live(
         while sim.t < duration_s and not (stop is not None and stop.is_set()):
             target = v_anchor + (time.monotonic_ns() - mono_anchor) * 1e-9 * speed
             if target > sim.t:
-                sim.advance(min(target, duration_s))
+                sim.advance(min(target, sim.t + 0.5, duration_s))  # a step at a time: stop works
             target = v_anchor + (time.monotonic_ns() - mono_anchor) * 1e-9 * speed
             if target - sim.t > max_lag:
                 v_anchor, mono_anchor = anchor(sim.t)
