@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import platform
 import signal
@@ -85,8 +84,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="also log every chunk of bytes as read (/raw/<source>, base64), for replaying later",
     )
-    # tests substitute a stand-in pipeline as MODULE:ATTR
-    parser.add_argument("--pipeline", default="host.pipeline:Pipeline", help=argparse.SUPPRESS)
 
 
 def _split_baud(port: str, default: int) -> tuple[str, int]:
@@ -103,17 +100,16 @@ def _load_calibration(path: str | None) -> Any:
     return loader(path)
 
 
-def _pipeline_factory(spec: str, cal: Any, sync: str, speed: float) -> Callable[[Any], Any]:
+def _pipeline_factory(cal: Any, sync: str, speed: float) -> Callable[[Any], Any]:
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
-    module, _, attr = spec.partition(":")
 
     def make(sink: Any) -> Any:
-        mod = importlib.import_module(module)
-        cls = getattr(mod, attr or "Pipeline")
+        from host import pipeline
+
         # how long a sample waits for the autopilot is host time: a busy machine's stall is
         # `speed` times longer on an accelerated simulator's clock
-        hold_s = getattr(mod, "HOLD_S", 3.0) * max(1.0, speed)
-        return cls(cal, sink, sync=sync, hold_s=hold_s)
+        hold_s = pipeline.HOLD_S * max(1.0, speed)
+        return pipeline.Pipeline(cal, sink, sync=sync, hold_s=hold_s)
 
     return make
 
@@ -178,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
         log.metadata("boat_toml", {"path": args.config or "", "text": config_text})
         daemon = Daemon(
             openers,
-            _pipeline_factory(args.pipeline, cal, sync, clock.speed),
+            _pipeline_factory(cal, sync, clock.speed),
             log,
             clock=clock,
             reporter=reporter,

@@ -132,9 +132,9 @@ class SourceClock:
     after the line are left out: a reader that stalled (a busy host, an accelerated simulator on a
     loaded machine) makes them, and its backlog drains; only if they stay late for ``late_s`` of
     device time does a new epoch start. A young fit takes every point (its line only comes down).
-    ``observe`` reports the mapping (for logging) at a new epoch, when it moved by more than ``report_s`` at the current
-    time since the last report (at most every ``report_min_s``), and at least every
-    ``report_every_s`` of device time.
+    ``observe`` reports the mapping (for logging) at a new epoch, when it moved by more than
+    ``report_s`` at the current time since the last report (at most every ``report_min_s``), and at
+    least every ``report_every_s`` of device time.
     """
 
     def __init__(
@@ -203,7 +203,7 @@ class SourceClock:
                 if device_s - self._late_since < self.late_s:
                     return fit.to_host(device_s), None
                 self._new(key)
-            if r < -self.jump_s:
+            elif r < -self.jump_s:
                 # early by more than jump_s: impossible for latency, so the device clock stepped
                 # ahead; an outlier (a glitch) until jump_points of them in a row
                 self._off_line += 1

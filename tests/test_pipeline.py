@@ -234,7 +234,7 @@ def test_the_daemon_holds_samples_longer_on_an_accelerated_clock():
     held = {}
     for speed in (1.0, 80.0):
         sink = ListSink()
-        pipe = _pipeline_factory("host.pipeline:Pipeline", None, "interpolate", speed)(sink)
+        pipe = _pipeline_factory(None, "interpolate", speed)(sink)
         assert pipe.hold_s == HOLD_S * speed
         for e in events:
             if e[0] == "bridge":
