@@ -40,15 +40,16 @@ def _latest_terms(history: list[dict], target: str) -> list[str]:
     return list(BASELINE)
 
 
-def _map_terms(history: list[dict], target: str) -> list[str]:
+def _map_terms(survey: Survey, history: list[dict], target: str) -> list[str]:
     """The target's latest terms; a clock offset fitted for any aspect of the same vector (wind_dir, say)
     corrects the whole vector, so the map of its speed uses it too."""
     terms = _latest_terms(history, target)
-    if clock.split_terms(terms)[1] is not None:
+    vt = survey.vector_target(target)
+    if vt is None or clock.split_terms(terms)[1] is not None:
         return terms
-    prefix = target.split("_")[0]
     for h in reversed(history):
-        if h["target"].split("_")[0] == prefix and not h["target"].endswith("_paper"):
+        other = survey.vector_target(h["target"])
+        if other is not None and other.prefix == vt.prefix:
             offset = [t for t in h["terms"] if clock.split_terms([t])[1] is not None]
             if offset:
                 return terms + offset
@@ -94,7 +95,7 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
         ("depth", "depth (m)", False),
     ):
         try:
-            terms = _map_terms(history, target)
+            terms = _map_terms(survey, history, target)
             note(f"report: mapping {target} ({' + '.join(terms)}) ...", progress)
             sm = SurveyModel(survey, target, terms).fit()
             pred = sm.predict_grid(grid)
