@@ -173,12 +173,12 @@ def diagnose(
     state = {"base_r": None}
 
     def evaluate(name: str) -> Candidate:
-        # every hyperparameter is refitted: with the spatial GP's fixed (Model.extended's cheaper "new"), a
-        # covariate that should take over from it is missed (depth for a Manning current: -10 % against +58 %)
+        # every hyperparameter is refitted: with the spatial GP's fixed, a covariate that should take over
+        # from it is missed (depth for a Manning current: -10 % against +58 %)
         spec = parse_term(name, is_circular)
         X = dict(sm.X)
         X.update(survey_inputs(survey, {name}))
-        model = sm.primary.extended(build_term(spec, is_circular), X, sm.y_primary, refit="all")
+        model = sm.primary.extended(build_term(spec, is_circular), X, sm.y_primary)
         cv_b = sm.cv(fold_id, primary=model, secondary_cv=sec_b)
         gain_b, p_b = paired_test(base_b.error**2, cv_b.error**2, blocks)
         gain, p, gain_r = gain_b, p_b, None
@@ -206,11 +206,9 @@ def diagnose(
         X = dict(sm.X)
         X.update(survey_inputs(survey, {first, then}))
         a = sm.primary.extended(
-            build_term(parse_term(first, is_circular), is_circular), X, sm.y_primary, refit="all"
+            build_term(parse_term(first, is_circular), is_circular), X, sm.y_primary
         )
-        ab = a.extended(
-            build_term(parse_term(then, is_circular), is_circular), X, sm.y_primary, refit="all"
-        )
+        ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, sm.y_primary)
         cv_a = sm.cv(fold_id, primary=a, secondary_cv=sec_b)
         cv_ab = sm.cv(fold_id, primary=ab, secondary_cv=sec_b)
         return paired_test(cv_a.error**2, cv_ab.error**2, blocks)[0]

@@ -490,14 +490,9 @@ class Model:
             mu_out[test] = mu
             sd_out[test] = sd
 
-    def extended(
-        self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray, refit: str = "new"
-    ) -> Model:
-        """A new model with one more feature term, sharing this model's design (only cross products are new).
-
-        refit="new": this model's hyperparameters stay fixed; the new term's and the noise are fitted by marginal
-        likelihood through an eigendecomposition of the old block and a Schur complement, O(M m^2) per
-        evaluation (forward selection). refit="all": every hyperparameter, from this model's values."""
+    def extended(self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray) -> Model:
+        """A new model with one more feature term, sharing this model's design (only cross products are
+        new); every hyperparameter is refitted, starting from this model's values."""
         if term.is_mean:
             raise WorkbenchError("extended() takes a feature term")
         Z = term_inputs(term, X)
@@ -512,69 +507,4 @@ class Model:
         init = np.concatenate(
             [self.theta_[:cut], [h.init for h in term.hypers()], self.theta_[cut:]]
         )
-        if refit == "all":
-            return new.fit(X, y, init=init, design=design)
-        new.fit(X, y, init=init, optimize=False, design=design)
-        k = len(term.hypers())
-        free = np.r_[0, np.arange(cut, cut + k)]
-        theta = self._fit_new_block(new, init, free, term)
-        new._set_posterior(theta)
-        return new
-
-    def _fit_new_block(
-        self, new: Model, init: np.ndarray, free: np.ndarray, term: Term
-    ) -> np.ndarray:
-        M = self.design.M
-        G, b, rr, n = new.hdesign.G, new._hb, new._hrr, new.hdesign.n
-        if not hasattr(self, "_eig"):
-            sb = np.sqrt(np.exp(self._loglam_))
-            with blas_threads(None):
-                D, Q = np.linalg.eigh(sb[:, None] * self.hdesign.G * sb[None, :])
-            self._eig = (np.maximum(D, 0.0), Q, sb)
-        D, Q, sb = self._eig
-        P = Q.T @ (sb[:, None] * G[:M, M:])
-        q = Q.T @ (sb * b[:M])
-        Gcc, bc = G[M:, M:], b[M:]
-
-        def neglogp(params: np.ndarray) -> float:
-            logsn2, h = params[0], params[1:]
-            sn2 = math.exp(logsn2)
-            logl, _ = term.log_prior_var(h)
-            sc = np.sqrt(np.exp(logl))
-            E = 1.0 + D / sn2
-            Bcb = sc[:, None] * P.T / sn2
-            S = np.eye(len(sc)) + (sc[:, None] * Gcc * sc[None, :]) / sn2 - (Bcb / E) @ Bcb.T
-            try:
-                L = linalg.cho_factor(S, lower=True, check_finite=False)
-            except np.linalg.LinAlgError:
-                return 1e25
-            c2 = sc * bc
-            x1 = q / E
-            y2 = linalg.cho_solve(L, c2 - Bcb @ x1, check_finite=False)
-            x1 = (q - Bcb.T @ y2) / E
-            quad = q @ x1 + c2 @ y2
-            logdet = np.log(E).sum() + 2.0 * np.log(np.diag(L[0])).sum()
-            val = 0.5 * ((rr - quad / sn2) / sn2 + n * logsn2 + logdet + n * LOG_2PI)
-            return float(val) if np.isfinite(val) else 1e25
-
-        bounds = [new._bounds()[i] for i in free]
-        start = init[free]
-        best = min(
-            (start.copy() for _ in range(1)),
-            key=neglogp,
-        )
-        if isinstance(term, HilbertGPTerm):
-            for logl in np.linspace(
-                math.log(term.l_min * 1.1), math.log(2.0 * float(term.half.max())), 5
-            ):
-                trial = start.copy()
-                trial[2] = logl
-                if neglogp(trial) < neglogp(best):
-                    best = trial
-        with small_blas():
-            res = minimize(
-                neglogp, best, method="L-BFGS-B", bounds=bounds, options={"maxiter": 100}
-            )
-        theta = init.copy()
-        theta[free] = res.x
-        return theta
+        return new.fit(X, y, init=init, design=design)
