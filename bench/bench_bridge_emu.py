@@ -14,8 +14,8 @@ import argparse
 import random
 import time
 
-from sim_devices.bridge_emu import EmulatedBridge, add_bounce, pulse_times
-from sim_devices.machine_emu import VirtualClock
+from forcemap.sim_devices.bridge_emu import EmulatedBridge, add_bounce, pulse_times
+from forcemap.sim_devices.machine_emu import VirtualClock
 
 STEP_US = 100_000
 RATES_HZ = (10.0, 61.0, 64.0, 67.0, 70.0)

@@ -20,13 +20,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from host.mcap_log import read_messages
+from forcemap.host.mcap_log import read_messages
 
 SPIN = "while True: pass"
 
 
 def forcemap(*args: str) -> list[str]:
-    return [sys.executable, "-m", "host.cli", *args]
+    return [sys.executable, "-m", "forcemap.host.cli", *args]
 
 
 def survey(d: Path, duration: float, speed: float, hogs: int) -> dict[str, float]:

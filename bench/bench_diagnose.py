@@ -1,6 +1,6 @@
 """Benchmark: `diagnose` on every hidden effect of the simulator, and on surveys with none.
 
-Each survey is made by `sim_devices.offline.make_survey` (river, lawnmower, 20 minutes, the real
+Each survey is made by `forcemap.sim_devices.offline.make_survey` (river, lawnmower, 20 minutes, the real
 firmware and the daemon's pipeline, exported to a samples table), as in tests/test_workbench_effects.py.
 For each it prints the covariate ranked first, its blocked-CV gain and p-value, whether the diagnosis
 reports a missing effect, and the time `diagnose` took as a ratio to the named baseline: fitting the
@@ -16,10 +16,10 @@ import argparse
 import time
 from pathlib import Path
 
-from host.workbench.diagnose import DIAGNOSE_MAX_BASIS, diagnose
-from host.workbench.table import load_survey
-from host.workbench.targets import SurveyModel
-from sim_devices.offline import make_survey
+from forcemap.host.workbench.diagnose import DIAGNOSE_MAX_BASIS, diagnose
+from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.targets import SurveyModel
+from forcemap.sim_devices.offline import make_survey
 
 CASES = [
     ("none", "current_speed", "none"),

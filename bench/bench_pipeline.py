@@ -3,7 +3,7 @@
     python bench/bench_pipeline.py                 # an hour from the simulator (or --source synth)
     python bench/bench_pipeline.py --duration 600 --chunk-ms 20
 
-The streams are made first (not timed): the simulator's river survey (``sim_devices.engine``) with
+The streams are made first (not timed): the simulator's river survey (``forcemap.sim_devices.engine``) with
 its bridge at 4 Hz, the sounder's NMEA at 1 Hz and MAVLink at ArduPilot Rover rates, or the
 synthetic survey in ``bench/synth_streams.py``. Bytes are coalesced per source into reads of
 ``--chunk-ms`` (what a reader polling the ports gets), stamped 2 ms after they leave the instrument.
@@ -22,19 +22,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
+from forcemap.host.pipeline import NullSink, Pipeline  # noqa: E402
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
-
-from host.pipeline import NullSink, Pipeline  # noqa: E402
 
 LATENCY_NS = 2_000_000
 
 
 def from_sim(duration: float, seed: int) -> list[tuple[str, int, bytes]]:
-    from sim_devices.engine import Simulation
+    from forcemap.sim_devices.engine import Simulation
 
     out: list[tuple[str, int, bytes]] = []
     Simulation(seed=seed).run(

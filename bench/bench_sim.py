@@ -14,7 +14,7 @@ import tempfile
 import threading
 import time
 
-from sim_devices.engine import Simulation
+from forcemap.sim_devices.engine import Simulation
 
 
 def timed(sim: Simulation, duration_s: float) -> tuple[float, int]:
@@ -30,8 +30,7 @@ def timed(sim: Simulation, duration_s: float) -> tuple[float, int]:
 
 def live(duration_s: float) -> float:
     import serial
-
-    from sim_devices.ports import SOURCES, PortSet, run_live
+    from forcemap.sim_devices.ports import SOURCES, PortSet, run_live
 
     with tempfile.TemporaryDirectory() as d:
         ports = PortSet(d)

@@ -6,7 +6,7 @@
 1. Synthetic: the four wheels at 45/135/-135/-45 deg read |F . axis| for a water velocity F relative
    to the hull, plus Gaussian noise (0.02 m/s + 2 %) and the 0.05 m/s cut-off, 2000 draws per cell;
    the current is 0.5 m/s in a random direction. Error = |estimated current - true current|.
-2. Simulator: the river survey from ``sim_devices.engine`` through the whole pipeline (bytes, clocks,
+2. Simulator: the river survey from ``forcemap.sim_devices.engine`` through the whole pipeline (bytes, clocks,
    pulse rates, interpolated boat state), compared with the simulator's truth at each sample.
 
 Cells show the median and the 95th percentile of the error in m/s.
@@ -23,10 +23,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from host import compensation as comp  # noqa: E402
+from forcemap.host import compensation as comp  # noqa: E402
 
 WHEELS = (45.0, 135.0, -135.0, -45.0)
 ANGLES = (0, 15, 30, 45, 60, 90, 135, 180)
@@ -63,9 +60,9 @@ def synthetic(n: int = 2000, seed: int = 1) -> dict[tuple[int, float], dict[str,
 
 def from_sim(duration: float, seed: int = 1):
     """(flow angle deg, speed through water, lsq error, paper error) per sample of a simulated survey."""
-    from host.calibration import Calibration
-    from host.pipeline import ListSink, Pipeline
-    from sim_devices.engine import Simulation
+    from forcemap.host.calibration import Calibration
+    from forcemap.host.pipeline import ListSink, Pipeline
+    from forcemap.sim_devices.engine import Simulation
 
     with tempfile.TemporaryDirectory() as tmp:
         sink = ListSink()

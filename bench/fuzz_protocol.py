@@ -15,7 +15,7 @@ import argparse
 import random
 import time
 
-from protocol import wire
+from forcemap.protocol import wire
 
 
 def base_frames(rng: random.Random, n: int, boot: int) -> list[tuple[tuple, bytes]]:

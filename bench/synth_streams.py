@@ -11,11 +11,15 @@ import math
 import random
 from dataclasses import dataclass, field
 
+from forcemap.host.compensation import (
+    apparent_from_true,
+    boat_to_world,
+    wheel_readings,
+    world_to_boat,
+)
+from forcemap.host.vane import DEFAULT_TABLE, ideal_raw
+from forcemap.protocol import wire
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
-
-from host.compensation import apparent_from_true, boat_to_world, wheel_readings, world_to_boat
-from host.vane import DEFAULT_TABLE, ideal_raw
-from protocol import wire
 
 T0 = 1_750_000_000.0  # UNIX start of the synthetic survey
 LAT0, LON0 = 33.99, -81.05

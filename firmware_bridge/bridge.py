@@ -1,7 +1,7 @@
 """The bridge loop: HELLO at boot, SAMPLE every sample period, STATUS every second.
 
 Everything the board provides is injected, so the same code runs on a board, under the CPython
-stand-in (``sim_devices.machine_emu``) and under the unix-port MicroPython harness:
+stand-in (``forcemap.sim_devices.machine_emu``) and under the unix-port MicroPython harness:
 
     bridge = Bridge(counters, Vane(adc), sys.stdout.buffer, time, boot_id=..., reset_cause=...)
     bridge.start()
@@ -13,8 +13,8 @@ the USB-CDC FIFO is full) a frame is dropped and counted instead of stalling sam
 frame sent carries ``wire.FLAG_DROPPED_BEFORE``.
 """
 
-from firmware_bridge import config
-from protocol import wire
+from forcemap.firmware_bridge import config
+from forcemap.protocol import wire
 
 
 class Bridge:

@@ -11,12 +11,11 @@ import time
 
 import machine
 import micropython
-
-from firmware_bridge import config
-from firmware_bridge.bridge import Bridge, run
-from firmware_bridge.pulse import CounterPulses, PulseCounter
-from firmware_bridge.vane import Vane
-from firmware_bridge.watchdog import LoopWatchdog
+from forcemap.firmware_bridge import config
+from forcemap.firmware_bridge.bridge import Bridge, run
+from forcemap.firmware_bridge.pulse import CounterPulses, PulseCounter
+from forcemap.firmware_bridge.vane import Vane
+from forcemap.firmware_bridge.watchdog import LoopWatchdog
 
 
 def make_counters(board):

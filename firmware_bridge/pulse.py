@@ -11,7 +11,7 @@ int (ticks are below 2**30 on the boards, counts are wrapped to ``wire.COUNT_MOD
 
 from array import array
 
-from protocol import wire
+from forcemap.protocol import wire
 
 _MASK = wire.COUNT_MOD - 1
 # state slots

@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from host.vane import DEFAULT_TABLE
+from forcemap.host.vane import DEFAULT_TABLE
 
 SYNC_MODES = ("interpolate", "approximate")
 CURRENT_ESTIMATORS = ("lsq", "paper")

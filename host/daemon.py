@@ -10,10 +10,10 @@ import traceback
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
-from host.clock import Clock, SystemClock
-from host.mcap_log import McapLog
-from host.sources import Chunk, Reader, SourceEvent, Transport
-from host.status import Reporter, Status
+from forcemap.host.arrival_clock import Clock, SystemClock
+from forcemap.host.mcap_log import McapLog
+from forcemap.host.sources import Chunk, Reader, SourceEvent, Transport
+from forcemap.host.status import Reporter, Status
 
 STATUS_INTERVAL_S = 1.0
 QUEUE_MAX = 100_000

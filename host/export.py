@@ -11,8 +11,8 @@ from collections.abc import Iterable, Sequence
 from typing import Any, TextIO
 from xml.sax.saxutils import escape
 
-from host.mcap_log import read_messages
-from host.schemas import SAMPLE_COLUMNS
+from forcemap.host.mcap_log import read_messages
+from forcemap.host.schemas import SAMPLE_COLUMNS
 
 # docs/CONVENTIONS.md, "The samples table": these first, in this order; other numeric fields follow.
 COLUMNS: tuple[str, ...] = SAMPLE_COLUMNS

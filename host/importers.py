@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from host.calibration import Calibration
-from host.nmea import LineSplitter, NmeaParser
-from host.pipeline import Pipeline, Sink
+from forcemap.host.calibration import Calibration
+from forcemap.host.nmea import LineSplitter, NmeaParser
+from forcemap.host.pipeline import Pipeline, Sink
 
 FORMATS = ("nmea", "tlog")
 DATAFLASH_MAGIC = b"\xa3\x95"

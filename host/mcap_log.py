@@ -47,7 +47,7 @@ LOCATION_FIX_SCHEMA: dict[str, Any] = {
 def schema_for(topic: str) -> tuple[str, dict[str, Any]]:
     """(schema name, JSON schema) for a topic: host/schemas.py's if it knows it, else permissive."""
     try:
-        from host import schemas  # written by the pipeline's engineer; optional here
+        from forcemap.host import schemas  # written by the pipeline's engineer; optional here
 
         found = schemas.schema_for(topic)
         if found:

@@ -9,8 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import pynmea2
-
-from host.compensation import depth_below_surface as depth_below_surface_m
+from forcemap.host.compensation import depth_below_surface as depth_below_surface_m
 
 KNOT = 1852.0 / 3600.0
 KMH = 1000.0 / 3600.0

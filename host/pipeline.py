@@ -5,11 +5,11 @@
     pipe.gap("bridge", t_wall_ns, "port closed")
     pipe.flush(); pipe.close()
 
-One timeline: host wall time, from device clocks by fitted mappings (host.timesync), corrected to GPS
+One timeline: host wall time, from device clocks by fitted mappings (forcemap.host.timesync), corrected to GPS
 UTC once the autopilot reports it. Each bridge SAMPLE waits in a short queue until the autopilot
 stream has passed its time, so the boat state can be interpolated at the sample's own time.
 
-Topics (schemas in host.schemas; log time = best estimate of the event's UTC):
+Topics (schemas in forcemap.host.schemas; log time = best estimate of the event's UTC):
 raw ``/bridge/frame``, ``/bridge/hello``, ``/bridge/status``, ``/nmea/sentence``, ``/mavlink/<MSGNAME>``;
 derived ``/boat/state``, ``/wind/apparent``, ``/wind/true``, ``/current`` (both estimators), ``/depth``
 (also MTW water temperature), ``/fix`` (foxglove.LocationFix), ``/timesync``, ``/diagnostics`` and
@@ -25,16 +25,16 @@ from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from host import compensation as comp
-from host import mavlink as mav
-from host.calibration import Calibration
-from host.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
-from host.pulses import PulseTracker
-from host.schemas import SAMPLE_COLUMNS, location_fix
-from host.state import StateEstimator
-from host.timesync import SourceClock, UtcFix, WallClock
-from host.vane import VaneDecoder
-from protocol import wire
+from forcemap.host import compensation as comp
+from forcemap.host import mavlink as mav
+from forcemap.host.calibration import Calibration
+from forcemap.host.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
+from forcemap.host.pulses import PulseTracker
+from forcemap.host.schemas import SAMPLE_COLUMNS, location_fix
+from forcemap.host.state import StateEstimator
+from forcemap.host.timesync import SourceClock, UtcFix, WallClock
+from forcemap.host.vane import VaneDecoder
+from forcemap.protocol import wire
 
 SOURCES = ("bridge", "depth", "mavlink")
 # longest a sample waits for the autopilot stream before it goes out with what is known

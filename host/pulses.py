@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from protocol import wire
+from forcemap.protocol import wire
 
 N_CHANNELS = 1 + wire.N_WHEELS
 

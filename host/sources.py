@@ -13,8 +13,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import serial
-
-from host.clock import Clock, SystemClock
+from forcemap.host.arrival_clock import Clock, SystemClock
 
 READ_TIMEOUT_S = 0.2
 MAX_READ = 65536

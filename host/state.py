@@ -16,7 +16,7 @@ from bisect import bisect_left
 from dataclasses import dataclass
 from typing import Any
 
-from host.compensation import to_direction, velocity, wrap180, wrap360
+from forcemap.host.compensation import to_direction, velocity, wrap180, wrap360
 
 SYNC_MODES = ("interpolate", "approximate")
 

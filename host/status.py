@@ -9,7 +9,7 @@ from collections import deque
 from collections.abc import Mapping
 from typing import Any, TextIO
 
-from host.sources import ReaderStats
+from forcemap.host.sources import ReaderStats
 
 
 def _human_bytes(n: float) -> str:

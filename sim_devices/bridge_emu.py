@@ -20,12 +20,12 @@ from __future__ import annotations
 import random
 from collections.abc import Callable, Iterable, Sequence
 
-from firmware_bridge import config
-from firmware_bridge.bridge import Bridge
-from firmware_bridge.pulse import CounterPulses, PulseCounter
-from firmware_bridge.vane import Vane
-from sim_devices import machine_emu
-from sim_devices.machine_emu import ADC, Counter, Machine, Pin, VirtualClock
+from forcemap.firmware_bridge import config
+from forcemap.firmware_bridge.bridge import Bridge
+from forcemap.firmware_bridge.pulse import CounterPulses, PulseCounter
+from forcemap.firmware_bridge.vane import Vane
+from forcemap.sim_devices import machine_emu
+from forcemap.sim_devices.machine_emu import ADC, Counter, Machine, Pin, VirtualClock
 
 # the vane's 8 reed-switch resistors at 0, 45, ..., 315 deg; in-between positions close two switches
 VANE_BASE_OHMS = (33_000.0, 8_200.0, 1_000.0, 2_200.0, 3_900.0, 16_000.0, 120_000.0, 64_900.0)
@@ -51,7 +51,7 @@ def vane_voltage(
     """Divider voltage for wind FROM ``direction_deg_relative_to_bow`` (clockwise from the bow).
 
     ``mounting_offset`` is where the vane's 0 deg mark points, clockwise from the bow (as in
-    ``host.vane.decode_vane``).
+    ``forcemap.host.vane.decode_vane``).
     """
     r = vane_resistance(direction_deg_relative_to_bow - mounting_offset)
     return vref * r / (r + pullup)

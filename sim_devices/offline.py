@@ -13,10 +13,10 @@ import random
 from collections.abc import Callable
 from pathlib import Path
 
-from host import calibration
-from host.export import export
-from host.mcap_log import McapLog
-from host.pipeline import Pipeline
+from forcemap.host import calibration
+from forcemap.host.export import export
+from forcemap.host.mcap_log import McapLog
+from forcemap.host.pipeline import Pipeline
 
 from .engine import Simulation
 

@@ -9,9 +9,8 @@ import time
 
 import pytest
 import serial
-
-from host.pulses import PulseTracker
-from protocol import wire
+from forcemap.host.pulses import PulseTracker
+from forcemap.protocol import wire
 
 ANEMO_HZ = 10.0
 WHEEL_HZ = (3.7, 5.3, 8.9, 13.1)

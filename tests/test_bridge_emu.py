@@ -8,11 +8,11 @@ the board resets near the end. The host recovers exact pulse counts, edge times 
 import random
 
 import pytest
+from forcemap.host.vane import decode_vane, wrap_relative
+from forcemap.protocol import wire
+from forcemap.sim_devices.bridge_emu import EmulatedBridge, add_bounce, vane_voltage
+from forcemap.sim_devices.usb_cdc import UsbCdc
 
-from host.vane import decode_vane, wrap_relative
-from protocol import wire
-from sim_devices.bridge_emu import EmulatedBridge, add_bounce, vane_voltage
-from sim_devices.usb_cdc import UsbCdc
 from tests.bridge_scenario import RATES, Host, check_boot, true_edges
 
 MIN = 60_000_000
@@ -97,7 +97,7 @@ def test_twenty_minutes_wrap_drops_and_reset(board):
 
 
 def _totals_between(samples):
-    from host.pulses import PulseTracker
+    from forcemap.host.pulses import PulseTracker
 
     tr = PulseTracker()
     for f in samples:
@@ -106,7 +106,7 @@ def _totals_between(samples):
 
 
 def _rates_at(samples):
-    from host.pulses import PulseTracker
+    from forcemap.host.pulses import PulseTracker
 
     tr = PulseTracker()
     r = None

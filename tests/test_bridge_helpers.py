@@ -8,12 +8,11 @@ import time
 
 import pytest
 import serial
+from forcemap.host.vane import decode_vane, wrap_relative
+from forcemap.sim_devices.bridge_emu import add_bounce, pulse_times, vane_resistance, vane_voltage
+from forcemap.sim_devices.usb_cdc import UsbCdc
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from host.vane import decode_vane, wrap_relative
-from sim_devices.bridge_emu import add_bounce, pulse_times, vane_resistance, vane_voltage
-from sim_devices.usb_cdc import UsbCdc
 
 
 @given(

@@ -7,12 +7,11 @@ import threading
 import time
 
 import serial
-
-from host import bridge_cli
-from host.cli import main
-from protocol import wire
-from sim_devices.bridge_emu import EmulatedBridge, pulse_times, vane_voltage
-from sim_devices.usb_cdc import UsbCdc
+from forcemap.host.cli import bridge as bridge_cli
+from forcemap.host.cli import main
+from forcemap.protocol import wire
+from forcemap.sim_devices.bridge_emu import EmulatedBridge, pulse_times, vane_voltage
+from forcemap.sim_devices.usb_cdc import UsbCdc
 
 
 def _emu_with_pulses(write, writable=None):

@@ -7,8 +7,7 @@ import os
 import sys
 
 import pytest
-
-from host.cli import COMMANDS, main
+from forcemap.host.cli import COMMANDS, main
 
 
 def test_help_lists_every_subcommand(capsys):

@@ -8,9 +8,8 @@ import random
 from pathlib import Path
 
 import pytest
-
-from host import compensation as c
-from host.nmea import KNOT, NmeaParser
+from forcemap.host import compensation as c
+from forcemap.host.nmea import KNOT, NmeaParser
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "nmea"
 WHEELS = (45.0, 135.0, -135.0, -45.0)

@@ -6,7 +6,8 @@ import signal
 import threading
 import time
 
-from host.mcap_log import read_messages
+from forcemap.host.mcap_log import read_messages
+
 from tests.test_daemon_support import (
     DaemonProcess,
     PtyPort,

@@ -11,12 +11,12 @@ import time
 
 import numpy as np
 import pytest
+from forcemap.host.cli import main
+from forcemap.host.export import COLUMNS
+from forcemap.host.mcap_log import has_footer, read_messages
+from forcemap.protocol import wire
 from mcap.reader import make_reader
 
-from host.cli import main
-from host.export import COLUMNS
-from host.mcap_log import has_footer, read_messages
-from protocol import wire
 from tests.test_daemon_support import ROOT, DaemonProcess, mcap_files
 
 SPEED = 50
@@ -35,7 +35,7 @@ def test_simulated_river_through_daemon_to_samples_table(tmp_path):
         f"sim:{ports / 'clock'}",
     )
     sim = subprocess.Popen(
-        [sys.executable, "-m", "host.cli", "sim", "--scenario", "river", "--faults", "default",
+        [sys.executable, "-m", "forcemap.host.cli", "sim", "--scenario", "river", "--faults", "default",
          "--speed", str(SPEED), "--duration", DURATION, "--ports", str(ports),
          "--truth", str(truth)],
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,

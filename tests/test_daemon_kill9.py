@@ -8,10 +8,10 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+from forcemap.host.cli.log import recover
+from forcemap.host.mcap_log import FileScan, read_messages
 from mcap.reader import make_reader
 
-from host.log_cli import recover
-from host.mcap_log import FileScan, read_messages
 from tests.test_daemon_support import (
     DaemonProcess,
     PtyPort,

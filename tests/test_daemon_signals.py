@@ -7,9 +7,9 @@ import signal
 import time
 
 import pytest
+from forcemap.host.mcap_log import read_messages
 from mcap.reader import make_reader
 
-from host.mcap_log import read_messages
 from tests.test_daemon_support import (
     DaemonProcess,
     PtyPort,
@@ -105,7 +105,7 @@ def test_rotation_gives_complete_files_each_with_the_metadata(tmp_path):
 
 
 def test_command_line_errors_exit_2_before_anything_starts(tmp_path, capsys):
-    from host.cli import main
+    from forcemap.host.cli import main
 
     assert main(["run", "--out", str(tmp_path / "a")]) == 2
     assert "at least one of" in capsys.readouterr().err

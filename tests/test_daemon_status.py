@@ -7,11 +7,12 @@ import json
 import threading
 import time
 
-from host.daemon import Daemon
-from host.mcap_log import McapLog, has_footer, read_messages
-from host.pipeline import Pipeline
-from host.sources import port_opener
-from host.status import Reporter
+from forcemap.host.daemon import Daemon
+from forcemap.host.mcap_log import McapLog, has_footer, read_messages
+from forcemap.host.pipeline import Pipeline
+from forcemap.host.sources import port_opener
+from forcemap.host.status import Reporter
+
 from tests.test_daemon_support import PtyPort, depth_sentence
 
 

@@ -12,7 +12,7 @@ import time
 import tty
 from pathlib import Path
 
-from protocol import wire
+from forcemap.protocol import wire
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -94,7 +94,7 @@ class DaemonProcess:
     """`forcemap run` as a subprocess; stderr (one JSON line per event) is collected as events."""
 
     def __init__(self, out: Path, ports: dict[str, str], *extra: str, quiet: bool = True):
-        args = [sys.executable, "-m", "host.cli", "run", "--out", str(out)]
+        args = [sys.executable, "-m", "forcemap.host.cli", "run", "--out", str(out)]
         for name, port in ports.items():
             args += [f"--{name}", port]
         args += list(extra)
@@ -168,7 +168,7 @@ def mcap_files(out: Path) -> list[Path]:
 
 def last_status(out: Path) -> dict:
     """The last /daemon/status the daemon recorded (its final one after a clean stop)."""
-    from host.mcap_log import read_messages
+    from forcemap.host.mcap_log import read_messages
 
     status = None
     for m in read_messages(mcap_files(out), "/daemon/status"):

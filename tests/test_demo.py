@@ -7,8 +7,7 @@ import subprocess
 import sys
 
 import pytest
-
-from host.mcap_log import has_footer
+from forcemap.host.mcap_log import has_footer
 
 
 @pytest.mark.slow
@@ -18,7 +17,7 @@ def test_demo_runs_the_whole_story(tmp_path):
         [
             sys.executable,
             "-m",
-            "host.cli",
+            "forcemap.host.cli",
             "demo",
             "--out",
             str(out),

@@ -10,11 +10,10 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
-
-from host.cli import main
-from host.export import COLUMNS, samples_table
-from host.mcap_log import McapLog
-from host.schemas import location_fix
+from forcemap.host.cli import main
+from forcemap.host.export import COLUMNS, samples_table
+from forcemap.host.mcap_log import McapLog
+from forcemap.host.schemas import location_fix
 
 ROOT = Path(__file__).resolve().parents[1]
 T0 = 1_750_000_000.0

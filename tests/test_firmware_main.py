@@ -3,19 +3,15 @@
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
+from forcemap.protocol import wire
 
-from protocol import wire
+from tests import tools
 
 ROOT = Path(__file__).resolve().parents[1]
-MICROPYTHON = shutil.which("micropython")
-pytestmark = pytest.mark.skipif(
-    MICROPYTHON is None, reason="needs the unix-port micropython binary"
-)
 
 BOARDS = {
     "Arduino Nano RP2040 Connect with RP2040": (
@@ -32,9 +28,9 @@ BOARDS = {
 def smoke(machine_name, *extra):
     r = subprocess.run(
         [
-            MICROPYTHON,
+            tools.micropython(),
             str(ROOT / "sim_devices/upy/main_smoke.py"),
-            str(ROOT),
+            str(tools.board_lib()),
             machine_name,
             "8",
             *extra,

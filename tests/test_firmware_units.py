@@ -3,22 +3,21 @@ the bridge's schedule and drop accounting, and a long calm longer than ticks_dif
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
+from forcemap.firmware_bridge import config
+from forcemap.firmware_bridge.bridge import Bridge
+from forcemap.firmware_bridge.pulse import PulseCounter
+from forcemap.firmware_bridge.vane import Vane
+from forcemap.protocol import wire
+from forcemap.sim_devices.bridge_emu import EmulatedBridge
+from forcemap.sim_devices.machine_emu import ADC, TICKS_PERIOD, Pin, VirtualClock
 
-from firmware_bridge import config
-from firmware_bridge.bridge import Bridge
-from firmware_bridge.pulse import PulseCounter
-from firmware_bridge.vane import Vane
-from protocol import wire
-from sim_devices.bridge_emu import EmulatedBridge
-from sim_devices.machine_emu import ADC, TICKS_PERIOD, Pin, VirtualClock
+from tests import tools
 
 ROOT = Path(__file__).resolve().parents[1]
-MICROPYTHON = shutil.which("micropython")
 
 
 def fire_at(clock, pin, times):
@@ -127,16 +126,15 @@ def test_calm_longer_than_ticks_diff_range():
     assert by_t[902_000_000] == (4, 901_200_000, 200_000)
 
 
-@pytest.mark.skipif(MICROPYTHON is None, reason="needs the unix-port micropython binary")
 @pytest.mark.parametrize("spacing,ticks_start", [(997, 0), (400, (1 << 30) - 300_000)])
 def test_isr_never_allocates_under_micropython(spacing, ticks_start):
     """The ISR runs with the heap locked (MemoryError on any allocation), across a ticks wrap."""
     n = 2000
     r = subprocess.run(
         [
-            MICROPYTHON,
+            tools.micropython(),
             str(ROOT / "sim_devices/upy/isr_check.py"),
-            str(ROOT),
+            str(tools.board_lib()),
             str(n),
             str(spacing),
             str(ticks_start),

@@ -7,22 +7,17 @@ host not reading for 2 s, a reset after the ticks_us wrap. Frames go through a p
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
+from forcemap.protocol import wire
 
-from protocol import wire
+from tests import tools
 from tests.bridge_scenario import Host, check_boot, openpty_raw
 
 ROOT = Path(__file__).resolve().parents[1]
 HARNESS = ROOT / "sim_devices" / "upy" / "bridge_harness.py"
-MICROPYTHON = shutil.which("micropython")
-
-pytestmark = pytest.mark.skipif(
-    MICROPYTHON is None, reason="needs the unix-port micropython binary"
-)
 
 MHZ = (10_000, 3_700, 5_300, 8_900, 13_100)
 OFFSETS = (1_234, 9_153, 17_072, 24_991, 32_910)
@@ -61,7 +56,9 @@ def run_harness(tmp_path, board, ticks_start=0, end=END, deaf=DEAF, reset=RESET)
     master, slave = openpty_raw()
     host = Host(os.ttyname(slave))  # the host side is open before the board starts
     proc = subprocess.Popen(
-        [MICROPYTHON, str(HARNESS), str(sched)], stdout=master, stderr=subprocess.PIPE
+        [tools.micropython(), str(HARNESS), str(tools.board_lib()), str(sched)],
+        stdout=master,
+        stderr=subprocess.PIPE,
     )
     try:
         while proc.poll() is None:
@@ -98,7 +95,7 @@ def test_upy_twenty_minutes(tmp_path, board):
     after = [f for f in frames if f.boot_id == boot_ids[0] and f.t_us >= DEAF[1]][0]
     assert after.flags & wire.FLAG_DROPPED_BEFORE
 
-    from host.pulses import PulseTracker
+    from forcemap.host.pulses import PulseTracker
 
     tr = PulseTracker()
     rates = None

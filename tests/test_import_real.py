@@ -13,11 +13,10 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-
-from host import import_cli
-from host.cli import main
-from host.importers import tlog_records
-from host.mcap_log import read_messages
+from forcemap.host.cli import import_ as import_cli
+from forcemap.host.cli import main
+from forcemap.host.importers import tlog_records
+from forcemap.host.mcap_log import read_messages
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 if not REAL.is_dir():
@@ -270,10 +269,10 @@ def test_paccup_true_wind_through_the_import_path():
     which is forcemap's W = R + V) on the reference rows, within 0.1 kn and 1 deg."""
     import csv
 
-    from host.compensation import wrap180
-    from host.importers import import_nmea
-    from host.nmea import KNOT
-    from host.pipeline import ListSink
+    from forcemap.host.compensation import wrap180
+    from forcemap.host.importers import import_nmea
+    from forcemap.host.nmea import KNOT
+    from forcemap.host.pipeline import ListSink
 
     sink = ListSink()
     import_nmea(REAL / "nmea" / "PacCupStartNMEA.txt", sink)

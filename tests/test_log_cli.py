@@ -9,11 +9,10 @@ import subprocess
 import sys
 import time
 
+from forcemap.host.cli import main
+from forcemap.host.cli.log import recover, scan_file
+from forcemap.host.mcap_log import McapLog, read_messages
 from mcap.reader import make_reader
-
-from host.cli import main
-from host.log_cli import recover, scan_file
-from host.mcap_log import McapLog, read_messages
 
 T0 = 1_750_000_000_000_000_000
 

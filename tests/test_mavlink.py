@@ -6,9 +6,8 @@ import math
 import random
 
 import pytest
+from forcemap.host.mavlink import MavlinkDecoder, is_vehicle, raw_dict, to_si, vehicle_of
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
-
-from host.mavlink import MavlinkDecoder, is_vehicle, raw_dict, to_si, vehicle_of
 
 
 class _Buf:

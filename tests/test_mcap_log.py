@@ -7,9 +7,8 @@ import math
 import time
 
 import pytest
+from forcemap.host.mcap_log import FileScan, McapLog, has_footer, read_messages
 from mcap.reader import make_reader
-
-from host.mcap_log import FileScan, McapLog, has_footer, read_messages
 
 
 def _summary(path):

@@ -5,8 +5,7 @@ from __future__ import annotations
 import random
 
 import pytest
-
-from host.nmea import KNOT, LineSplitter, NmeaParser, depth_below_surface
+from forcemap.host.nmea import KNOT, LineSplitter, NmeaParser, depth_below_surface
 
 
 def cs(body: str) -> str:

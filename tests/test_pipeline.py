@@ -6,11 +6,11 @@ import math
 import random
 
 import pytest
+from forcemap.host.pipeline import HOLD_S, ListSink, NullSink, Pipeline
+from forcemap.host.schemas import SAMPLE_COLUMNS, schema_for
+from forcemap.protocol import wire
 
 from bench.synth_streams import T0, generate, truth_wind_current
-from host.pipeline import HOLD_S, ListSink, NullSink, Pipeline
-from host.schemas import SAMPLE_COLUMNS, schema_for
-from protocol import wire
 
 
 @pytest.fixture(scope="module")
@@ -228,7 +228,7 @@ def test_without_autopilot_samples_go_out_after_the_hold():
 
 def test_the_daemon_holds_samples_longer_on_an_accelerated_clock():
     """A 3-s hold in host time is 240 s of virtual time at x80: a busy machine must not drop states."""
-    from host.run_cli import _pipeline_factory
+    from forcemap.host.cli.run import _pipeline_factory
 
     events, _ = generate(20, seed=6)
     held = {}
@@ -304,11 +304,11 @@ def test_depth_and_water_temp_topics(survey):
 def test_against_the_simulator_truth(tmp_path):
     """The simulator's river survey through the pipeline, against its truth, within the bounds of
     docs/COMPENSATION.md: wind by the vane's 22.5 deg steps and hunting, current by the wheels."""
-    engine = pytest.importorskip("sim_devices.engine")
+    engine = pytest.importorskip("forcemap.sim_devices.engine")
     np = pytest.importorskip("numpy")
     import csv
 
-    from host.calibration import Calibration
+    from forcemap.host.calibration import Calibration
 
     sink = ListSink()
     pipe = Pipeline(Calibration(depth_offset_m=0.2), sink)

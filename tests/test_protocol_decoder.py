@@ -6,8 +6,7 @@ import struct
 from binascii import crc32
 
 import pytest
-
-from protocol import wire
+from forcemap.protocol import wire
 
 SAMPLE = wire.pack_sample(1000, [(5, 10, 20)] * 5)
 

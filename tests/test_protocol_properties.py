@@ -5,10 +5,9 @@ Together these run 100,000 generated cases (hypothesis), as the foundation issue
 
 from __future__ import annotations
 
+from forcemap.protocol import wire
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from protocol import wire
 
 COMMON = dict(deadline=None, suppress_health_check=list(HealthCheck), database=None)
 

@@ -3,11 +3,10 @@
 import random
 
 import pytest
+from forcemap.host.pulses import PulseTracker, pulses_between
+from forcemap.protocol import wire
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from host.pulses import PulseTracker, pulses_between
-from protocol import wire
 
 
 class Board:

@@ -8,9 +8,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from host.cli import main
-from sim_devices import effects, faults, mission, scenario
-from sim_devices.cli import parse_duration
+from forcemap.host.cli import main
+from forcemap.host.cli.sim import parse_duration
+from forcemap.sim_devices import effects, faults, mission, scenario
 
 
 def test_list_names_everything(capsys) -> None:  # type: ignore[no-untyped-def]
@@ -66,7 +66,7 @@ def test_bad_arguments(capsys) -> None:  # type: ignore[no-untyped-def]
 def test_ctrl_c_stops_cleanly(tmp_path: Path) -> None:
     ports, truth = tmp_path / "p", tmp_path / "t"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "host.cli", "sim", "--scenario", "river", "--duration", "1h", "--speed", "5",
+        [sys.executable, "-m", "forcemap.host.cli", "sim", "--scenario", "river", "--duration", "1h", "--speed", "5",
          "--ports", str(ports), "--truth", str(truth)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip

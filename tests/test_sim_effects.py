@@ -7,11 +7,10 @@ from collections import defaultdict
 
 import numpy as np
 import pytest
+from forcemap.protocol import wire
+from forcemap.sim_devices.engine import Simulation
+from forcemap.sim_devices.instruments import InstrumentConfig, along_axis
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-from protocol import wire
-from sim_devices.engine import Simulation
-from sim_devices.instruments import InstrumentConfig, along_axis
 
 DURATION = 240.0
 

@@ -11,11 +11,10 @@ from pathlib import Path
 import numpy as np
 import pynmea2
 import serial
-
-from protocol import wire
-from sim_devices import faults as fl
-from sim_devices.engine import Simulation
-from sim_devices.ports import PortSet, run_live
+from forcemap.protocol import wire
+from forcemap.sim_devices import faults as fl
+from forcemap.sim_devices.engine import Simulation
+from forcemap.sim_devices.ports import PortSet, run_live
 
 Chunks = list[tuple[int, bytes]]
 SCHEDULE = (

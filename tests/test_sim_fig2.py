@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-
-from sim_devices.engine import Simulation
+from forcemap.sim_devices.engine import Simulation
 
 
 def path_distance(x: np.ndarray, y: np.ndarray, wps: np.ndarray) -> np.ndarray:

@@ -12,15 +12,14 @@ import numpy as np
 import pynmea2
 import pytest
 import serial
+from forcemap.protocol import wire
+from forcemap.sim_devices import clockfile
+from forcemap.sim_devices.bridge_emu import vane_voltage
+from forcemap.sim_devices.engine import Simulation
+from forcemap.sim_devices.instruments import InstrumentConfig, wheel_response
+from forcemap.sim_devices.ports import SOURCES, PortSet, run_live
+from forcemap.sim_devices.truth import COLUMNS
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-from protocol import wire
-from sim_devices import clockfile
-from sim_devices.bridge_emu import vane_voltage
-from sim_devices.engine import Simulation
-from sim_devices.instruments import InstrumentConfig, wheel_response
-from sim_devices.ports import SOURCES, PortSet, run_live
-from sim_devices.truth import COLUMNS
 
 DURATION = 600.0
 Chunks = list[tuple[int, bytes]]
@@ -306,7 +305,7 @@ def test_ports_river_10_minutes(tmp_path: Path) -> None:
 
 def test_a_machine_that_falls_behind_holds_the_clock_back(tmp_path: Path) -> None:
     """After the simulator stalls, the clock file comes back to the bytes: stalls never add up."""
-    from host.clock import SimClock
+    from forcemap.host.arrival_clock import SimClock
 
     speed, lag_wall, stall_wall = 100.0, 0.05, 0.3
     ports = PortSet(tmp_path / "ports")

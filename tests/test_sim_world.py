@@ -8,9 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from sim_devices import clockfile, effects, mission, scenario
-from sim_devices.fields import World
+from forcemap.sim_devices import clockfile, effects, mission, scenario
+from forcemap.sim_devices.fields import World
 
 EFFECT_NAMES = [
     "depth_current", "dam_release", "gusts", "bank_shelter",
@@ -175,7 +174,7 @@ def test_clock_file(tmp_path: Path) -> None:
     time.sleep(0.01)
     b = c.now_ns()
     assert a >= 1_780_322_400_000_000_000 and b - a >= 50 * 10_000_000 * 0.9
-    from host.clock import SimClock as HostSimClock
+    from forcemap.host.arrival_clock import SimClock as HostSimClock
 
     h = HostSimClock(path).now_ns()  # the daemon's reader of the same file agrees
     assert b <= h <= c.now_ns()

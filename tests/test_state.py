@@ -5,9 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-
-from host.compensation import wrap180
-from host.state import StateEstimator
+from forcemap.host.compensation import wrap180
+from forcemap.host.state import StateEstimator
 
 
 def test_linear_and_circular_interpolation():

@@ -1,9 +1,8 @@
 """Host vane decoding: every resistor position at 3.3 V decodes to its direction."""
 
 import pytest
-
-from host import vane
-from sim_devices.bridge_emu import vane_voltage
+from forcemap.host import vane
+from forcemap.sim_devices.bridge_emu import vane_voltage
 
 # ideal read_u16 values at 3.3 V with a 10 kOhm pull-up (research notes; the SparkFun library's constants)
 IDEAL = [
@@ -48,7 +47,7 @@ def test_each_position_decodes(i):
 
 @pytest.mark.parametrize("i", range(16))
 def test_emulated_vane_voltage_through_emulated_adc_decodes(i):
-    from sim_devices.machine_emu import ADC, VirtualClock
+    from forcemap.sim_devices.machine_emu import ADC, VirtualClock
 
     adc = ADC(VirtualClock(), seed=i, noise_v=0.003)
     adc.set_voltage(vane_voltage(i * 22.5))

@@ -10,10 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from host.cli import main
-from host.workbench.synth import make_survey
-from host.workbench.table import load_survey
+from forcemap.host.cli import main
+from forcemap.host.workbench.synth import make_survey
+from forcemap.host.workbench.table import load_survey
 
 
 @pytest.fixture(scope="module")
@@ -192,7 +191,7 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
 
 
 def test_direction_target_is_modelled_through_components(survey_csv):
-    from host.workbench.fitting import fit_target
+    from forcemap.host.workbench.fitting import fit_target
 
     s = load_survey(survey_csv)
     r = fit_target(s, "current_dir", ["const", "gp(position, matern32)"], progress=False)

@@ -1,4 +1,4 @@
-"""Finding and undoing a clock offset between the autopilot and the bridge (host.workbench.clock).
+"""Finding and undoing a clock offset between the autopilot and the bridge (host.workbench.clock_offset).
 
 The table here is built from first principles: a steady wind, a boat that runs straight legs and turns at
 25 deg/s between them, the anemometer's reading in the boat frame, and the daemon's true-wind sum made with
@@ -15,13 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from host.cli import main
-from host.workbench import clock
-from host.workbench.cv import blocked_folds
-from host.workbench.errors import WorkbenchError
-from host.workbench.table import load_survey
-from host.workbench.targets import SurveyModel
+from forcemap.host.cli import main
+from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench.cv import blocked_folds
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.targets import SurveyModel
 
 RATE_HZ = 4.0
 WIND = np.array([-4.0, -3.0])  # air velocity (east, north), m/s: a 5 m/s wind from 53 deg
@@ -99,7 +98,7 @@ def on_time(tmp_path_factory) -> Path:
 def test_no_shift_reproduces_the_table(late):
     s = load_survey(late)
     vt = s.vector_target("wind_dir")
-    e, n = clock.shifted_vector(s, vt, 0.0)
+    e, n = clock_offset.shifted_vector(s, vt, 0.0)
     assert np.allclose(e, s.columns["wind_east"], atol=1e-9)
     assert np.allclose(n, s.columns["wind_north"], atol=1e-9)
 
@@ -107,7 +106,7 @@ def test_no_shift_reproduces_the_table(late):
 @pytest.mark.parametrize(("lag", "table"), [(1.5, "late"), (0.0, "on_time")])
 def test_the_scan_finds_the_offset(lag, table, request):
     s = load_survey(request.getfixturevalue(table))
-    scan = clock.scan_offset(s, s.vector_target("wind_speed"))
+    scan = clock_offset.scan_offset(s, s.vector_target("wind_speed"))
     assert scan.offset_s == pytest.approx(lag, abs=0.1)
     if lag:
         assert scan.reduction > 0.3
@@ -118,7 +117,7 @@ def test_the_scan_finds_the_offset(lag, table, request):
 def test_the_corrected_wind_is_the_true_wind(late):
     s = load_survey(late)
     vt = s.vector_target("wind_speed")
-    corrected, tau = clock.corrected_for(s, vt, math.nan)
+    corrected, tau = clock_offset.corrected_for(s, vt, math.nan)
     err_before = np.hypot(s.columns["wind_east"] - WIND[0], s.columns["wind_north"] - WIND[1])
     c = corrected.columns
     err_after = np.hypot(c["wind_east"] - WIND[0], c["wind_north"] - WIND[1])
@@ -130,11 +129,11 @@ def test_the_corrected_wind_is_the_true_wind(late):
 
 
 def test_terms_name_the_offset():
-    assert clock.split_terms(["const", "clock_offset"])[0] == ["const"]
-    assert math.isnan(clock.split_terms(["clock_offset"])[1])
-    assert clock.split_terms(["clock_offset(+1.50 s)"])[1] == 1.5
-    assert clock.split_terms(["clock_offset(-0.4)"])[1] == -0.4
-    assert clock.split_terms(["gp(t, matern32)"])[1] is None
+    assert clock_offset.split_terms(["const", "clock_offset"])[0] == ["const"]
+    assert math.isnan(clock_offset.split_terms(["clock_offset"])[1])
+    assert clock_offset.split_terms(["clock_offset(+1.50 s)"])[1] == 1.5
+    assert clock_offset.split_terms(["clock_offset(-0.4)"])[1] == -0.4
+    assert clock_offset.split_terms(["gp(t, matern32)"])[1] is None
 
 
 def test_a_model_with_the_offset_names_it_and_fits_better(late):
@@ -206,7 +205,9 @@ def _with_gaps(src: Path, dst: Path, column: str, every: int) -> Path:
 
 def test_gaps_in_the_heading_are_filled(late, tmp_path):
     s = load_survey(_with_gaps(late, tmp_path / "gaps.csv", "heading", 40))
-    assert clock.scan_offset(s, s.vector_target("wind_dir")).offset_s == pytest.approx(1.5, abs=0.1)
+    assert clock_offset.scan_offset(s, s.vector_target("wind_dir")).offset_s == pytest.approx(
+        1.5, abs=0.1
+    )
     assert any("heading" in n for n in s.notes)
 
 

@@ -1,6 +1,6 @@
 """`diagnose` finds each of the simulator's hidden effects, and reports none when there is none.
 
-Every survey is made by `sim_devices.offline.make_survey`: the simulated river and instruments, the real
+Every survey is made by `forcemap.sim_devices.offline.make_survey`: the simulated river and instruments, the real
 firmware, the daemon's pipeline, an MCAP log and its exported samples table. For each effect the
 diagnosis must rank the right covariate first, call it significant, and adding a term in it must cut the
 blocked-CV RMSE by at least 30 %. Two seeds per effect.
@@ -14,12 +14,11 @@ catalogue gives each the same explanation (a misaligned or shadowed sensor, comp
 from __future__ import annotations
 
 import pytest
-
-from host.workbench.diagnose import DIAGNOSE_MAX_BASIS, diagnose
-from host.workbench.fitting import fit_target
-from host.workbench.spec import BASELINE
-from host.workbench.table import load_survey
-from sim_devices.offline import make_survey
+from forcemap.host.workbench.diagnose import DIAGNOSE_MAX_BASIS, diagnose
+from forcemap.host.workbench.fitting import fit_target
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import load_survey
+from forcemap.sim_devices.offline import make_survey
 
 DURATION_S = 1200.0
 HEADING = {"heading", "heading_rel_current", "heading_rel_wind"}
@@ -33,7 +32,7 @@ EFFECTS = [
     ("wheel_misalignment", "current_speed", HEADING),
     ("anemometer_upwash", "wind_speed", {"stw"}),
     ("compass_deviation", "current_dir", HEADING),
-    # the offset turns the wind in every turn; diagnose scans for it directly (host.workbench.clock)
+    # the offset turns the wind in every turn; diagnose scans for it directly (host.workbench.clock_offset)
     ("clock_offset", "wind_dir", {"clock_offset"}),
 ]
 SEEDS = (1, 2)

@@ -1,5 +1,5 @@
 """The modelling workbench: fit map models to a samples table, cross-validate, diagnose missing effects."""
 
-from host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.errors import WorkbenchError
 
 __all__ = ["WorkbenchError"]

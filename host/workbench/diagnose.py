@@ -16,14 +16,14 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from host.workbench import clock
-from host.workbench.catalogue import explain
-from host.workbench.cv import DEFAULT_FOLDS, blocked_folds, paired_test, random_folds
-from host.workbench.errors import WorkbenchError
-from host.workbench.progress import Progress
-from host.workbench.spec import build_term, parse_term
-from host.workbench.table import KINEMATIC, Survey, family, is_circular
-from host.workbench.targets import SurveyModel, derived_column, survey_inputs
+from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench.catalogue import explain
+from forcemap.host.workbench.cv import DEFAULT_FOLDS, blocked_folds, paired_test, random_folds
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.progress import Progress
+from forcemap.host.workbench.spec import build_term, parse_term
+from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
+from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
 MIN_GAIN = 0.25
 # a direct cause within this many places of a leading proxy may take its place (see _prefer_direct_cause)
@@ -140,8 +140,8 @@ def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
         and "sog" in survey.columns
     ):
         names.append("stw")
-    if sm.clock_offset is None and clock.applicable(survey, sm.vector):
-        names.append(clock.NAME)
+    if sm.clock_offset is None and clock_offset.applicable(survey, sm.vector):
+        names.append(clock_offset.NAME)
     if sm.vector and sm.vector.aspect == "speed":
         own_dir = sm.vector.name.replace("_speed", "_dir")
         if own_dir in survey.columns and own_dir not in used:
@@ -194,12 +194,14 @@ def diagnose(
     def evaluate_clock() -> Candidate:
         # the offset acts in turns wherever they are, not at places: the paired unit is a stretch of track
         # about one turn long, not a spatial block
-        corrected, tau = clock.corrected_for(sm.survey, sm.vector, math.nan)
+        corrected, tau = clock_offset.corrected_for(sm.survey, sm.vector, math.nan)
         model = SurveyModel(corrected, target, sm.terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
         cv_b = model.cv(fold_id)
-        stretches = (survey.trel // clock.PAIRED_STRETCH_S).astype(int)
+        stretches = (survey.trel // clock_offset.PAIRED_STRETCH_S).astype(int)
         gain, p = paired_test(base_b.error**2, cv_b.error**2, stretches)
-        return Candidate(clock.NAME, clock.describe(tau), cv_b.rmse, gain, p, gain, None, False)
+        return Candidate(
+            clock_offset.NAME, clock_offset.describe(tau), cv_b.rmse, gain, p, gain, None, False
+        )
 
     def evaluate_pair(first: str, then: str) -> float:
         """Blocked-CV gain of adding `then` to the model that already has `first`."""
@@ -218,7 +220,7 @@ def diagnose(
     for name in names:
         bar.step(name)
         try:
-            if name == clock.NAME:
+            if name == clock_offset.NAME:
                 results.append(evaluate_clock())
                 continue
             if name != "t":
@@ -270,7 +272,7 @@ def _explain(c: Candidate, sm: SurveyModel) -> str:
     cause, term = explain(c.covariate)
     what = (
         ""
-        if c.covariate == clock.NAME
+        if c.covariate == clock_offset.NAME
         else "along the flow (speed)"
         if sm.primary_is_along
         else ("across the flow (direction)" if sm.vector and sm.circular else "")

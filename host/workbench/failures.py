@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-
-from host.workbench.cv import spatial_blocks
-from host.workbench.table import Survey
+from forcemap.host.workbench.cv import spatial_blocks
+from forcemap.host.workbench.table import Survey
 
 SECTORS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 

@@ -6,14 +6,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, random_folds
-from host.workbench.failures import failure_summary
-from host.workbench.progress import note
-from host.workbench.spec import BASELINE, read_spec_file, split_effects
-from host.workbench.table import Survey
-from host.workbench.targets import SurveyModel, hyper_rows
-from host.workbench.workspace import record_fit, workspace_dir
+from forcemap.host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, random_folds
+from forcemap.host.workbench.failures import failure_summary
+from forcemap.host.workbench.progress import note
+from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
+from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.targets import SurveyModel, hyper_rows
+from forcemap.host.workbench.workspace import record_fit, workspace_dir
 
 
 def resolve_terms(
@@ -107,7 +106,7 @@ def record(table: Path, result: FitResult) -> dict:
 
 
 def save_residual_plots(table: Path, result: FitResult, fit_no: int) -> list[Path]:
-    from host.workbench import plots
+    from forcemap.host.workbench import plots
 
     ws = workspace_dir(table)
     m = result.model

@@ -14,11 +14,10 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 
 import numpy as np
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.terms import HilbertGPTerm, Term, TermSpec
 from scipy import linalg
 from scipy.optimize import minimize
-
-from host.workbench.errors import WorkbenchError
-from host.workbench.terms import HilbertGPTerm, Term, TermSpec
 
 LOG_2PI = math.log(2 * math.pi)
 NOISE_BOUNDS = (math.log(1e-8), math.log(10.0))
@@ -173,8 +172,8 @@ class Model:
         max_basis: int | None = None,
         hyper_rows: np.ndarray | None = None,
     ) -> None:
-        from host.workbench.spec import build_term, parse_term
-        from host.workbench.table import is_circular
+        from forcemap.host.workbench.spec import build_term, parse_term
+        from forcemap.host.workbench.table import is_circular
 
         built: list[Term] = []
         for t in terms:
@@ -186,7 +185,7 @@ class Model:
         if not built:
             raise WorkbenchError("a model needs at least one term")
         if all(t.is_mean for t in built):
-            from host.workbench.terms import ConstTerm
+            from forcemap.host.workbench.terms import ConstTerm
 
             # the weights need at least one feature; a level is the natural one
             built.insert(0, ConstTerm())

@@ -10,9 +10,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from forcemap.host.workbench.table import Survey, family, is_circular  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
-
-from host.workbench.table import Survey, family, is_circular  # noqa: E402
 
 PANEL_COVARIATES = (
     "t",

@@ -8,16 +8,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from host.workbench import clock, plots
-from host.workbench.cv import blocked_folds
-from host.workbench.errors import WorkbenchError
-from host.workbench.failures import failure_summary
-from host.workbench.progress import note
-from host.workbench.spec import BASELINE
-from host.workbench.table import Survey
-from host.workbench.targets import SurveyModel
-from host.workbench.workspace import load_diagnoses, load_history, workspace_dir
+from forcemap.host.workbench import clock_offset, plots
+from forcemap.host.workbench.cv import blocked_folds
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.failures import failure_summary
+from forcemap.host.workbench.progress import note
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.workspace import load_diagnoses, load_history, workspace_dir
 
 CSS = """
 body { font-family: sans-serif; max-width: 1100px; margin: 1em auto; color: #222; }
@@ -45,12 +44,12 @@ def _map_terms(survey: Survey, history: list[dict], target: str) -> list[str]:
     corrects the whole vector, so the map of its speed uses it too."""
     terms = _latest_terms(history, target)
     vt = survey.vector_target(target)
-    if vt is None or clock.split_terms(terms)[1] is not None:
+    if vt is None or clock_offset.split_terms(terms)[1] is not None:
         return terms
     for h in reversed(history):
         other = survey.vector_target(h["target"])
         if other is not None and other.prefix == vt.prefix:
-            offset = [t for t in h["terms"] if clock.split_terms([t])[1] is not None]
+            offset = [t for t in h["terms"] if clock_offset.split_terms([t])[1] is not None]
             if offset:
                 return terms + offset
     return terms

@@ -7,8 +7,8 @@ import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
-from host.workbench.errors import WorkbenchError
-from host.workbench.terms import (
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.terms import (
     KERNEL_ALIASES,
     KERNELS,
     ConstTerm,

@@ -1,7 +1,7 @@
 """A small synthetic river survey with known hidden effects, for tests and the benchmark until the simulator lands.
 
 `make_survey(scenario, effects, seed, duration_s, out_dir)` has the signature of
-`sim_devices.offline.make_survey` and writes a samples table (CSV, the columns of docs/CONVENTIONS.md) with a
+`forcemap.sim_devices.offline.make_survey` and writes a samples table (CSV, the columns of docs/CONVENTIONS.md) with a
 `truth/effects.json` beside it. The boat is kinematic: it holds 3.5 m/s through the water, crabs to keep a
 lawnmower track parallel to the flow, and turns at a limited rate, so sog, cog and the crab angle respond to the
 current exactly as on the water.
@@ -224,7 +224,7 @@ def make_survey(scenario: str, effects: list[str], seed: int, duration_s: float,
         "lon0": LON0,
         "t0": T0,
         "duration": duration_s,
-        "generator": "host.workbench.synth",
+        "generator": "forcemap.host.workbench.synth",
     }
     (out / "truth" / "effects.json").write_text(json.dumps(meta, indent=2))
     return path

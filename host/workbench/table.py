@@ -10,8 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-from host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.errors import WorkbenchError
 
 EARTH_RADIUS_M = 6_371_008.8
 MIN_ROWS = 30

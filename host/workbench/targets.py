@@ -12,13 +12,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-
-from host.workbench import clock
-from host.workbench.cv import CVResult
-from host.workbench.errors import WorkbenchError
-from host.workbench.model import Model
-from host.workbench.spec import BASELINE, build_term, parse_terms
-from host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
+from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench.cv import CVResult
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.model import Model
+from forcemap.host.workbench.spec import BASELINE, build_term, parse_terms
+from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
 
 N_DRAWS = 128
 # hyperparameters come from samples this far apart in time (see hyper_rows), but never fewer than MIN_HYPER_ROWS
@@ -85,7 +84,7 @@ def _finite_target(survey: Survey, values: np.ndarray, what: str) -> np.ndarray:
     if bad.mean() > 0.05:
         raise WorkbenchError(f"{what} has {bad.mean():.0%} missing values")
     if bad.any():
-        from host.workbench.table import _fill_nearest_in_time
+        from forcemap.host.workbench.table import _fill_nearest_in_time
 
         values = _fill_nearest_in_time(values)
         survey.notes.append(
@@ -184,11 +183,13 @@ class SurveyModel:
         max_basis: int | None = None,
     ) -> None:
         self.target, self.max_basis = target, max_basis
-        terms, self.clock_offset = clock.split_terms(list(terms or BASELINE))
+        terms, self.clock_offset = clock_offset.split_terms(list(terms or BASELINE))
         self.term_specs = parse_terms(terms or BASELINE, is_circular)
         self.vector = survey.vector_target(target)
         if self.clock_offset is not None:
-            survey, self.clock_offset = clock.corrected_for(survey, self.vector, self.clock_offset)
+            survey, self.clock_offset = clock_offset.corrected_for(
+                survey, self.vector, self.clock_offset
+            )
         self.survey = survey
         if self.vector is None:
             if target in survey.non_numeric:
@@ -225,7 +226,9 @@ class SurveyModel:
     @property
     def terms(self) -> list[str]:
         out = [str(s) for s in self.term_specs]
-        return out if self.clock_offset is None else out + [clock.describe(self.clock_offset)]
+        return (
+            out if self.clock_offset is None else out + [clock_offset.describe(self.clock_offset)]
+        )
 
     @property
     def circular(self) -> bool:

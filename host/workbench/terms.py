@@ -16,9 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from forcemap.host.workbench.errors import WorkbenchError
 from scipy.special import gammaln, ive
-
-from host.workbench.errors import WorkbenchError
 
 KERNELS = ("linear", "rbf", "matern12", "matern32", "matern52", "periodic")
 KERNEL_ALIASES = {"expquad": "rbf", "exp_quad": "rbf", "se": "rbf", "exponential": "matern12"}

@@ -1,6 +1,8 @@
 """Runs the bridge firmware under the unix-port MicroPython on fake pins, ADC and a virtual clock.
 
-    micropython sim_devices/upy/bridge_harness.py SCHEDULE
+    micropython sim_devices/upy/bridge_harness.py LIB SCHEDULE
+
+LIB holds the board's files as sources (``forcemap.host.cli.bridge.source_tree``).
 
 Frames go to stdout (connect it to a pty and read the other end with pyserial). Time is virtual:
 ``ticks_us`` wraps at 2**30 as on the boards, and sleeping fires the scheduled edges in order.
@@ -20,18 +22,13 @@ The schedule is a small text file, one directive per line (times in us, rates in
 
 import sys
 
-try:
-    _here = __file__.rsplit("/", 1)[0] if "/" in __file__ else "."
-except NameError:
-    _here = "."
-sys.path.insert(0, _here + "/../..")
+sys.path.insert(0, sys.argv[1])
 
 import machine  # noqa: E402
-
-from firmware_bridge import config  # noqa: E402
-from firmware_bridge.bridge import Bridge, run  # noqa: E402
-from firmware_bridge.pulse import CounterPulses, PulseCounter  # noqa: E402
-from firmware_bridge.vane import Vane  # noqa: E402
+from forcemap.firmware_bridge import config  # noqa: E402
+from forcemap.firmware_bridge.bridge import Bridge, run  # noqa: E402
+from forcemap.firmware_bridge.pulse import CounterPulses, PulseCounter  # noqa: E402
+from forcemap.firmware_bridge.vane import Vane  # noqa: E402
 
 MASK = (1 << 30) - 1
 HALF = 1 << 29
@@ -248,4 +245,4 @@ def main(path):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[2])

@@ -1,7 +1,7 @@
 """Runs the pulse ISR under the unix-port MicroPython with the heap locked: any allocation in the
 ISR raises MemoryError. Prints ``count ticks period rejects``.
 
-    micropython sim_devices/upy/isr_check.py REPO_ROOT N_EDGES SPACING_US TICKS_START
+    micropython sim_devices/upy/isr_check.py LIB N_EDGES SPACING_US TICKS_START
 """
 
 import sys
@@ -9,8 +9,7 @@ import sys
 sys.path.insert(0, sys.argv[1])
 
 import micropython  # noqa: E402
-
-from firmware_bridge.pulse import PulseCounter  # noqa: E402
+from forcemap.firmware_bridge.pulse import PulseCounter  # noqa: E402
 
 MASK = 0x3FFFFFFF
 

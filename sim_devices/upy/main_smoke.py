@@ -2,7 +2,7 @@
 ``machine`` and ``time`` modules put in ``sys.modules``, for ``N`` main-loop sleeps; frames go to
 stdout. Checks that main.py wires the real modules together as a board would.
 
-    micropython sim_devices/upy/main_smoke.py REPO_ROOT BOARD_MACHINE_NAME N_SLEEPS [kbd]
+    micropython sim_devices/upy/main_smoke.py LIB BOARD_MACHINE_NAME N_SLEEPS [kbd]
 
 With ``kbd`` the last sleep raises KeyboardInterrupt (mpremote's Ctrl-C) instead of stopping, and
 the watchdog timer is then run 10 s later to show it still feeds the WDT at the REPL.
@@ -11,9 +11,8 @@ the watchdog timer is then run 10 s later to show it still feeds the WDT at the 
 import os
 import sys
 
-ROOT = sys.argv[1]
-sys.path.insert(0, ROOT)
-sys.path.insert(0, ROOT + "/firmware_bridge")
+LIB = sys.argv[1]  # the board's files as sources: main.py and forcemap/...
+sys.path.insert(0, LIB)
 
 MASK = (1 << 30) - 1
 

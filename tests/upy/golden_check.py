@@ -1,5 +1,5 @@
 # Run by tests/test_protocol_golden.py under the real MicroPython unix port:
-#   micropython golden_check.py REPO_ROOT VECTORS_JSON
+#   micropython golden_check.py LIB VECTORS_JSON
 # Prints one line per vector: "ok NAME" or "FAIL NAME reason".
 import json
 import sys
@@ -7,7 +7,7 @@ import sys
 sys.path.insert(0, sys.argv[1])
 from binascii import hexlify, unhexlify  # noqa: E402
 
-from protocol import wire  # noqa: E402
+from forcemap.protocol import wire  # noqa: E402
 
 with open(sys.argv[2]) as f:
     vectors = json.load(f)

@@ -54,7 +54,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _forcemap(*args: str) -> list[str]:
-    return [sys.executable, "-m", "host.cli", *args]
+    return [sys.executable, "-m", "forcemap.host.cli", *args]
 
 
 def _step(title: str) -> None:

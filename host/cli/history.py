@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from host.workbench.cli_common import add_table, guarded, teach
+from forcemap.host.cli.common import add_table, guarded, teach
 
 EPILOG = """\
 Every `forcemap fit` of the table is recorded in TABLE.forcemap/history.json. history prints them and
@@ -27,8 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     def body() -> int:
-        from host.workbench.errors import WorkbenchError
-        from host.workbench.workspace import load_history, workspace_dir
+        from forcemap.host.workbench.errors import WorkbenchError
+        from forcemap.host.workbench.workspace import load_history, workspace_dir
 
         ws = workspace_dir(args.table, create=False)
         history = load_history(ws)
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
                 f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "
                 f"{h['cv_mae']:>9.4g} {h['coverage95']:>6.1%}  {' + '.join(h['terms'])}"
             )
-        from host.workbench import plots
+        from forcemap.host.workbench import plots
 
         path = plots.save(plots.history_figure(history), args.plot or ws / "history.png")
         print(f"wrote {path}")

@@ -4,7 +4,8 @@
     forcemap bridge monitor --port /dev/ttyACM0
 
 ``flash`` compiles ``protocol/`` and ``firmware_bridge/`` to ``.mpy`` with mpy-cross for the
-board's architecture, copies them to ``:lib/`` and ``firmware_bridge/main.py`` to ``:main.py``,
+board's architecture, copies them to ``:lib/forcemap/`` (the same import names as on the host:
+``forcemap.protocol.wire``) and ``firmware_bridge/main.py`` to ``:main.py``,
 then resets the board. ``monitor`` opens anything ``serial.serial_for_url`` opens and prints
 decoded frames with pulse rates and the decoder's rejection counters; Ctrl-C exits.
 """
@@ -19,13 +20,13 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("protocol", "firmware_bridge")
 MARCH = {"nano_rp2040": "armv6m", "nano_esp32": "xtensawin"}
 # Removes sources left by an earlier copy: a .py would shadow the new .mpy of the same module.
 CLEAN = (
     "import os\n"
-    "for d in ('/lib/protocol', '/lib/firmware_bridge'):\n"
+    "for d in ('/lib/forcemap/protocol', '/lib/forcemap/firmware_bridge'):\n"
     "    try:\n"
     "        for f in os.listdir(d):\n"
     "            if f.endswith('.py'):\n"
@@ -76,8 +77,22 @@ def modules() -> list[tuple[Path, str]]:
         for src in sorted((ROOT / pkg).glob("*.py")):
             if pkg == "firmware_bridge" and src.name == "main.py":
                 continue
-            out.append((src, f"{pkg}/{src.stem}.mpy"))
+            out.append((src, f"forcemap/{pkg}/{src.stem}.mpy"))
     return out
+
+
+def source_tree(dest: Path) -> Path:
+    """The board's file system as sources: ``dest/main.py`` and ``dest/forcemap/...``.
+
+    What ``flash`` puts on a board, as ``.py`` instead of ``.mpy``, so that the unix-port
+    MicroPython can run it with ``dest`` on its ``sys.path``.
+    """
+    for src, rel in modules():
+        target = dest / rel.removesuffix(".mpy")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src, target.with_suffix(".py"))
+    shutil.copyfile(ROOT / "firmware_bridge" / "main.py", dest / "main.py")
+    return dest
 
 
 def flash_commands(port: str, board: str, stage: Path) -> list[list[str]]:
@@ -119,7 +134,7 @@ def flash(args: argparse.Namespace) -> int:
             print(f"{tool} not found: pip install {tool}", file=sys.stderr)
             return 2
     for pkg in PACKAGES:
-        (stage / "lib" / pkg).mkdir(parents=True, exist_ok=True)
+        (stage / "lib" / "forcemap" / pkg).mkdir(parents=True, exist_ok=True)
     for c in cmds:
         print(shlex.join(c) if c[0] == "mpy-cross" else " ".join(c[:3]) + " ...", flush=True)
         r = subprocess.run([exe[c[0]], *c[1:]])
@@ -137,9 +152,9 @@ class Monitor:
     """Decodes a byte stream and formats frames, rates and counters as lines of text."""
 
     def __init__(self, out=None, quiet: bool = False):
-        from host.pulses import PulseTracker
-        from host.vane import VaneDecoder
-        from protocol import wire
+        from forcemap.host.pulses import PulseTracker
+        from forcemap.host.vane import VaneDecoder
+        from forcemap.protocol import wire
 
         self.wire = wire
         self.dec = wire.StreamDecoder()

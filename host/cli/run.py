@@ -11,11 +11,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from host.clock import parse_clock
-from host.daemon import Daemon
-from host.mcap_log import McapLog
-from host.sources import Transport, mavlink_opener, port_opener
-from host.status import Reporter
+from forcemap.host.arrival_clock import parse_clock
+from forcemap.host.daemon import Daemon
+from forcemap.host.mcap_log import McapLog
+from forcemap.host.sources import Transport, mavlink_opener, port_opener
+from forcemap.host.status import Reporter
 
 EXIT_CONFIG = 2
 DEFAULT_BAUD = {"bridge": 115200, "depth": 4800}
@@ -94,7 +94,7 @@ def _split_baud(port: str, default: int) -> tuple[str, int]:
 
 
 def _load_calibration(path: str | None) -> Any:
-    from host import calibration
+    from forcemap.host import calibration
 
     loader = getattr(calibration, "load_calibration", None) or calibration.load
     return loader(path)
@@ -104,7 +104,7 @@ def _pipeline_factory(cal: Any, sync: str, speed: float) -> Callable[[Any], Any]
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
 
     def make(sink: Any) -> Any:
-        from host import pipeline
+        from forcemap.host import pipeline
 
         # how long a sample waits for the autopilot is host time: a busy machine's stall is
         # `speed` times longer on an accelerated simulator's clock

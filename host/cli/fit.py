@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from host.workbench.cli_common import add_table, guarded, print_notes, teach, write_json
+from forcemap.host.cli.common import add_table, guarded, print_notes, teach, write_json
 
 EPILOG = """\
 The model is a sum of terms. Without --model it is the paper's baseline, a GP over position with a
@@ -56,10 +56,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     def body() -> int:
-        from host.workbench.errors import WorkbenchError
-        from host.workbench.fitting import fit_target, record, resolve_terms, save_residual_plots
-        from host.workbench.model import small_blas
-        from host.workbench.table import load_survey
+        from forcemap.host.workbench.errors import WorkbenchError
+        from forcemap.host.workbench.fitting import (
+            fit_target,
+            record,
+            resolve_terms,
+            save_residual_plots,
+        )
+        from forcemap.host.workbench.model import small_blas
+        from forcemap.host.workbench.table import load_survey
 
         terms, target = resolve_terms(args.model, args.effects, args.target)
         if not target:

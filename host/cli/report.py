@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from host.workbench.cli_common import add_table, guarded, print_notes, teach
+from forcemap.host.cli.common import add_table, guarded, print_notes, teach
 
 EPILOG = """\
 The report shows the measurements on the map; the model's mean and uncertainty (wind and current as
@@ -30,10 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     def body() -> int:
-        from host.workbench.model import small_blas
-        from host.workbench.report import build_report
-        from host.workbench.table import load_survey
-        from host.workbench.workspace import workspace_dir
+        from forcemap.host.workbench.model import small_blas
+        from forcemap.host.workbench.report import build_report
+        from forcemap.host.workbench.table import load_survey
+        from forcemap.host.workbench.workspace import workspace_dir
 
         survey = load_survey(args.table)
         with small_blas():

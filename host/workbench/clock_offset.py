@@ -23,9 +23,8 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
-
-from host.workbench.errors import WorkbenchError
-from host.workbench.table import Survey, VectorTarget, prepare_column
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.table import Survey, VectorTarget, prepare_column
 
 NAME = "clock_offset"
 AUTOPILOT_COLUMNS = ("heading", "sog", "cog")

@@ -9,10 +9,10 @@ import sys
 import threading
 import time
 
-from . import effects as fx
-from . import faults as fl
-from . import mission as ms
-from . import scenario as sc
+from forcemap.sim_devices import effects as fx
+from forcemap.sim_devices import faults as fl
+from forcemap.sim_devices import mission as ms
+from forcemap.sim_devices import scenario as sc
 
 EPILOG = """\
 examples:
@@ -104,8 +104,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.ports:
         print("forcemap sim: --ports DIR is required (or --list)", file=sys.stderr)
         return 2
-    from .engine import Simulation
-    from .ports import SOURCES, PortSet, run_live
+    from forcemap.sim_devices.engine import Simulation
+    from forcemap.sim_devices.ports import SOURCES, PortSet, run_live
 
     try:
         # validate everything before any pty appears

@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _open_log(out: Path, stem: str) -> Any:
-    from host.mcap_log import McapLog
+    from forcemap.host.mcap_log import McapLog
 
     return McapLog(out, prefix=stem, rotate_bytes=1 << 62, rotate_seconds=float("inf"))
 
@@ -67,8 +67,8 @@ def summary(res: Any) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from host.calibration import ConfigError, load
-    from host.importers import ImportFailed, check_importable, import_file
+    from forcemap.host.calibration import ConfigError, load
+    from forcemap.host.importers import ImportFailed, check_importable, import_file
 
     path = Path(args.file)
     try:

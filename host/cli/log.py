@@ -12,11 +12,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+from forcemap.host.mcap_log import CHUNK_SIZE, LIBRARY, FileScan, iter_records
+from forcemap.host.status import flatten
 from mcap.records import Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
-
-from host.mcap_log import CHUNK_SIZE, LIBRARY, FileScan, iter_records
-from host.status import flatten
 
 # a topic has a gap where consecutive messages are further apart than this many mean periods
 GAP_FACTOR = 10.0

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from host.export import FORMATS, export
+from forcemap.host.export import FORMATS, export
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -9,7 +9,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.errors import WorkbenchError
 
 
 def add_table(parser: argparse.ArgumentParser) -> None:

