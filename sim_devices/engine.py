@@ -10,6 +10,7 @@ non-decreasing ``t_ns`` order. No transport and no host clock: offline it runs a
 from __future__ import annotations
 
 import heapq
+import json
 import math
 import random
 from collections.abc import Callable
@@ -92,9 +93,9 @@ class Simulation:
         a, b = wps[0], wps[1]
         psi = math.atan2(b[0] - a[0], b[1] - a[1]) % (2 * math.pi)
         self.boat = Boat(BoatParams(), BoatState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
-        cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
-        self.nav = Navigator(wps, loop=self.mission.loop)
-        self.ctl = Controller(cruise)
+        self.cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
+        self.nav = Navigator(wps, loop=self.mission.loop, speeds=self.mission.speeds)
+        self.ctl = Controller(self.cruise)
         icfg = InstrumentConfig.from_table(tables.get("instruments", {}))
         mis = self._effect("wheel_misalignment")
         up = self._effect("anemometer_upwash")
@@ -256,6 +257,7 @@ class Simulation:
         dt = DT
         s, p = self.boat.s, self.p
         psi_d, xte = self.nav.update(s.x, s.y)
+        self.ctl.cruise = self.nav.speed(self.cruise)
         sog = math.hypot(s.ve, s.vn)
         self.throttle, steer = self.ctl.update(dt, s.psi, s.r, psi_d, sog)
         t_prev = self.t
@@ -336,6 +338,13 @@ class Simulation:
         if self.truth_dir is not None:
             write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
             self._write_pulses(Path(self.truth_dir) / "pulses.npz")
+            self._write_mission(Path(self.truth_dir))
+
+    def _write_mission(self, folder: Path) -> None:
+        """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
+        ms.save_waypoints(folder / "mission.waypoints", self.mission, self.geo)
+        doc = ms.to_json(self.mission, self.geo)
+        (folder / "mission.json").write_text(json.dumps(doc, indent=1) + "\n")
 
     def _note_boot(self) -> None:
         self.boots.append((self.bridge.boot_id, self.bridge.boot_us))

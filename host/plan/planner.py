@@ -1,0 +1,133 @@
+"""The whole plan: predict the original mission, adjust it, predict again, and say per line how each does.
+
+Per intended line it reports the predicted distance from the line (p95 and worst), time on the line,
+coverage, the stretches where the current is at least the boat's top speed through the water (no
+headway), and how much the prediction moves when the mapped current is scaled by its uncertainty.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .adjust import Plan, adjust, original_plan
+from .boat_model import BoatModel
+from .maps import Maps
+from .metrics import LineScore, score_lines, summary
+from .predict import Track, predict_track
+
+SIGMAS = 2.0  # the current scaled by 1 +- SIGMAS x its relative map uncertainty
+
+
+@dataclass
+class Outcome:
+    """A mission and its predicted track, scored on the intended lines."""
+
+    plan: Plan
+    track: Track
+    scores: list[LineScore]
+
+    def to_json(self) -> dict:
+        return {
+            "duration_s": self.track.duration,
+            "stuck_at_waypoint": self.track.stuck_at,
+            **summary(self.scores),
+            "lines": [s.to_json() for s in self.scores],
+        }
+
+
+@dataclass
+class PlanResult:
+    original: Outcome
+    planned: Outcome
+    no_headway: list[list[tuple[float, float]]]  # per line, stretches (from, to) in m along the line
+    sensitivity: dict = field(default_factory=dict)
+    current_scale_sd: float = 0.0
+
+    def to_json(self) -> dict:
+        return {
+            "original": self.original.to_json(),
+            "planned": self.planned.to_json(),
+            "no_headway_m": self.no_headway,
+            "current_relative_sd": self.current_scale_sd,
+            "sensitivity": self.sensitivity,
+        }
+
+
+def outcome(plan: Plan, maps: Maps, boat: BoatModel, track: Track | None = None) -> Outcome:
+    track = track or predict_track(plan.wps, plan.speeds, maps, boat)
+    return Outcome(plan, track, score_lines(track.t, track.xy, plan.lines))
+
+
+def no_headway(lines: np.ndarray, maps: Maps, boat: BoatModel) -> list[list[tuple[float, float]]]:
+    """Stretches of each line where the mapped current against it is at least the boat's top speed."""
+    out = []
+    for a, b in lines:
+        d = b - a
+        length = float(np.hypot(*d))
+        s = np.linspace(0.0, length, max(int(length / 2.0), 2))
+        e, n, _ = maps.current.sample(a + (s / length)[:, None] * d)
+        against = -(e * d[0] + n * d[1]) / length
+        bad = against >= boat.max_speed
+        runs, start = [], None
+        for si, flag in zip(s, bad, strict=True):
+            if flag and start is None:
+                start = si
+            if not flag and start is not None:
+                runs.append((round(start, 1), round(si, 1)))
+                start = None
+        if start is not None:
+            runs.append((round(start, 1), round(length, 1)))
+        out.append(runs)
+    return out
+
+
+def relative_sd(lines: np.ndarray, maps: Maps) -> float:
+    """The map's current speed uncertainty relative to its speed, along the lines."""
+    pts = np.concatenate(
+        [a + np.linspace(0, 1, 50)[:, None] * (b - a) for a, b in lines]
+    )
+    e, n, sd = maps.current.sample(pts)
+    speed = np.hypot(e, n)
+    return float(np.mean(sd) / max(np.mean(speed), 1e-6)) if speed.mean() > 0.05 else 0.0
+
+
+def sensitivity(plan: Plan, maps: Maps, boat: BoatModel, base: Outcome, rel: float) -> dict:
+    """How the planned mission's prediction changes with the current scaled by 1 -+ SIGMAS x rel."""
+    out = {}
+    for sign in (-1, 1):
+        k = 1.0 + sign * SIGMAS * rel
+        tr = predict_track(plan.wps, plan.speeds, maps, boat, current_scale=k)
+        sc = score_lines(tr.t, tr.xy, plan.lines)
+        out[f"current_x{k:.3f}"] = {
+            **summary(sc),
+            "duration_s": tr.duration,
+            "delta_p95_per_line": [round(s.p95 - b.p95, 3) for s, b in zip(sc, base.scores, strict=True)],
+            "delta_coverage_per_line": [
+                round(s.coverage - b.coverage, 4) for s, b in zip(sc, base.scores, strict=True)
+            ],
+        }
+    return out
+
+
+def plan_mission(
+    wps: np.ndarray,
+    speeds: np.ndarray | None,
+    lines: np.ndarray,
+    maps: Maps,
+    boat: BoatModel,
+    progress=None,  # type: ignore[no-untyped-def]
+) -> PlanResult:
+    """Predict the mission as given, adjust it to hold ``lines``, predict that, and test its sensitivity."""
+    original = outcome(original_plan(wps, speeds, lines), maps, boat)
+    plan, track = adjust(lines, maps, boat, progress)
+    planned = outcome(plan, maps, boat, track)
+    rel = relative_sd(plan.lines, maps)
+    return PlanResult(
+        original,
+        planned,
+        no_headway(plan.lines, maps, boat),
+        sensitivity(plan, maps, boat, planned, rel),
+        rel,
+    )
