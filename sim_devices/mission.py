@@ -29,6 +29,7 @@ class Mission:
     loop: bool = True
     speeds: np.ndarray | None = None  # (n,) ground speed (m/s) on the leg into each waypoint; NaN: cruise
     lines: np.ndarray | None = None  # (k, 2, 2) the intended survey lines, if the mission was planned
+    seqs: np.ndarray | None = None  # mission item sequence number of each waypoint (MISSION_CURRENT)
 
 
 def _centred(half: float, spacing: float) -> np.ndarray:
@@ -97,8 +98,9 @@ def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
     p = Path(name_or_path)
     if p.suffix == ".waypoints" or (p.is_file() and p.read_bytes()[:7] == b"QGC WPL"):
         _, items = waypoints.read_wpl(p)
-        latlon, speeds = waypoints.nav_points(items)
-        m = {"latlon": latlon.tolist(), "speeds": speeds.tolist(), "loop": False}
+        latlon, speeds, seqs = waypoints.nav_points(items)
+        m = {"latlon": latlon.tolist(), "speeds": speeds.tolist(), "seqs": seqs.tolist()}
+        m["loop"] = False
         m.update(_sidecar_lines(p))
         return {"mission": {"description": f"waypoint file {p.name}", **m}}, p.stem
     if p.suffix == ".toml" or p.exists():
@@ -147,8 +149,26 @@ def load(name_or_path: str | Mission, scenario: Scenario) -> Mission:
         lines = np.stack(geo.to_local(ll[..., 0], ll[..., 1]), axis=-1)
     elif "lines" in m:
         lines = np.array(m["lines"], dtype=float).reshape(-1, 2, 2)
+    seqs = np.array(m["seqs"], dtype=int) if "seqs" in m else None
     return Mission(
-        name, str(m.get("description", "")), wps, bool(m.get("loop", True)), speeds, lines
+        name, str(m.get("description", "")), wps, bool(m.get("loop", True)), speeds, lines, seqs
+    )
+
+
+def from_items(items: list[waypoints.Item], geo: Geo, start: tuple[float, float]) -> Mission:
+    """A mission received over MAVLink (home first), flown from the boat's position ``start``."""
+    latlon, speeds, seqs = waypoints.nav_points(items[1:])
+    if len(latlon) == 0:
+        raise ValueError("the mission has no NAV_WAYPOINT")
+    wps = np.column_stack(geo.to_local(latlon[:, 0], latlon[:, 1]))
+    return Mission(
+        "uploaded",
+        f"{len(items)} items received over MAVLink",
+        np.vstack([np.asarray(start, dtype=float), wps]),
+        False,
+        np.concatenate([[speeds[0]], speeds]),
+        None,
+        np.concatenate([[seqs[0]], seqs]),
     )
 
 

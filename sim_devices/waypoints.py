@@ -89,17 +89,23 @@ def write_wpl(path: str | Path, home: Item, items: list[Item]) -> None:
     loader.save(str(path))
 
 
-def nav_points(items: list[Item]) -> tuple[np.ndarray, np.ndarray]:
-    """(lat/lon of each NAV_WAYPOINT (n, 2), the ground speed commanded on the leg into it, NaN: default)."""
-    pts, speeds = [], []
+def nav_points(items: list[Item]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lat/lon of each NAV_WAYPOINT (n, 2), the ground speed commanded on the leg into it (NaN: default),
+    and its mission sequence number (``items`` start at seq 1: item 0 is home)."""
+    pts, speeds, seqs = [], [], []
     speed = float("nan")
-    for it in items:
+    for seq, it in enumerate(items, start=1):
         if it.command == DO_CHANGE_SPEED and it.params[1] > 0:
             speed = float(it.params[1])
         elif it.command == NAV_WAYPOINT:
             pts.append((it.lat, it.lon))
             speeds.append(speed)
-    return np.array(pts, dtype=float).reshape(-1, 2), np.array(speeds, dtype=float)
+            seqs.append(seq)
+    return (
+        np.array(pts, dtype=float).reshape(-1, 2),
+        np.array(speeds, dtype=float),
+        np.array(seqs, dtype=int),
+    )
 
 
 def items_for(latlon: np.ndarray, speeds: np.ndarray | None = None, comments=None) -> list[Item]:  # type: ignore[no-untyped-def]

@@ -145,6 +145,8 @@ def check_streams(
         ("GLOBAL_POSITION_INT", 5),
         ("ATTITUDE", 10),
         ("VFR_HUD", 4),
+        ("MISSION_CURRENT", 1),
+        ("NAV_CONTROLLER_OUTPUT", 1),
     ):
         assert abs(types[name] - hz * duration) <= 0.01 * hz * duration + 2, name
     assert set(types) == {
@@ -154,6 +156,8 @@ def check_streams(
         "GLOBAL_POSITION_INT",
         "ATTITUDE",
         "VFR_HUD",
+        "MISSION_CURRENT",
+        "NAV_CONTROLLER_OUTPUT",
     }
     assert {(m.get_srcSystem(), m.get_srcComponent()) for _, m in msgs} == {(1, 1)}
     st = [(t, m) for t, m in msgs if m.get_type() == "SYSTEM_TIME"]
@@ -177,6 +181,11 @@ def check_streams(
     assert np.median(circ_diff(yaw, hd)) < 1.5
     hud = [m for _, m in msgs if m.get_type() == "VFR_HUD"]
     assert all(0 <= m.throttle <= 100 for m in hud) and max(m.throttle for m in hud) > 50
+    # the guidance as Rover reports it: the cross-track error and the waypoint ahead
+    nco = [m for _, m in msgs if m.get_type() == "NAV_CONTROLLER_OUTPUT"]
+    assert max(abs(m.xtrack_error) for m in nco) > 1.0 and all(m.wp_dist < 1000 for m in nco)
+    cur = [m.seq for _, m in msgs if m.get_type() == "MISSION_CURRENT"]
+    assert cur[0] >= 1 and len(set(cur)) >= 2
     boots = [m.time_boot_ms for _, m in att]
     assert all(b2 > b1 for b1, b2 in zip(boots, boots[1:], strict=False))
 

@@ -79,6 +79,8 @@ def print_table(result) -> None:  # type: ignore[no-untyped-def]
             f"  with the {name.replace('_x', ' x ')}: worst-line p95 {s['p95_worst_line']:.2f} m, "
             f"coverage {s['coverage']:.1%}, time {s['duration_s']:.0f} s"
         )
+    if result.unchanged:
+        print("the mission already holds its lines in the mapped current: written unchanged")
     for tr, what in ((o.track, "original"), (p.track, "planned")):
         if tr.stuck_at is not None:
             print(f"the {what} mission makes no headway toward waypoint {tr.stuck_at}")

@@ -14,10 +14,14 @@ import numpy as np
 from .adjust import Plan, adjust, original_plan
 from .boat_model import BoatModel
 from .maps import Maps
-from .metrics import LineScore, score_lines, summary
+from .metrics import TOL_M, LineScore, score_lines, summary
 from .predict import Track, predict_track
 
 SIGMAS = 2.0  # the current scaled by 1 +- SIGMAS x its relative map uncertainty
+# a mission is left unchanged only if it would also hold its lines in a current this much stronger: a map
+# from a calmer day must not talk the planner out of compensating (a river's discharge varies by more
+# than its map's uncertainty)
+STRESS = 1.5
 
 
 @dataclass
@@ -44,6 +48,7 @@ class PlanResult:
     no_headway: list[list[tuple[float, float]]]  # per line, stretches (from, to) in m along the line
     sensitivity: dict = field(default_factory=dict)
     current_scale_sd: float = 0.0
+    unchanged: bool = False  # the original already held its lines and is kept as it is
 
     def to_json(self) -> dict:
         return {
@@ -51,12 +56,15 @@ class PlanResult:
             "planned": self.planned.to_json(),
             "no_headway_m": self.no_headway,
             "current_relative_sd": self.current_scale_sd,
+            "unchanged": self.unchanged,
             "sensitivity": self.sensitivity,
         }
 
 
-def outcome(plan: Plan, maps: Maps, boat: BoatModel, track: Track | None = None) -> Outcome:
-    track = track or predict_track(plan.wps, plan.speeds, maps, boat)
+def outcome(
+    plan: Plan, maps: Maps, boat: BoatModel, track: Track | None = None, scale: float = 1.0
+) -> Outcome:
+    track = track or predict_track(plan.wps, plan.speeds, maps, boat, current_scale=scale)
     return Outcome(plan, track, score_lines(track.t, track.xy, plan.lines))
 
 
@@ -121,13 +129,22 @@ def plan_mission(
 ) -> PlanResult:
     """Predict the mission as given, adjust it to hold ``lines``, predict that, and test its sensitivity."""
     original = outcome(original_plan(wps, speeds, lines), maps, boat)
-    plan, track = adjust(lines, maps, boat, progress)
-    planned = outcome(plan, maps, boat, track)
-    rel = relative_sd(plan.lines, maps)
+    if holds(original) and holds(outcome(original.plan, maps, boat, scale=STRESS)):
+        planned = original  # nothing to fix: the mission is returned unchanged
+    else:
+        plan, track = adjust(lines, maps, boat, progress)
+        planned = outcome(plan, maps, boat, track)
+    rel = relative_sd(planned.plan.lines, maps)
     return PlanResult(
         original,
         planned,
-        no_headway(plan.lines, maps, boat),
-        sensitivity(plan, maps, boat, planned, rel),
+        no_headway(planned.plan.lines, maps, boat),
+        sensitivity(planned.plan, maps, boat, planned, rel),
         rel,
+        planned is original,
     )
+
+
+def holds(o: Outcome) -> bool:
+    """Whether a predicted mission already holds every line (p95 within TOL_M, coverage at least 98 %)."""
+    return o.track.stuck_at is None and all(s.p95 <= TOL_M and s.coverage >= 0.98 for s in o.scores)
