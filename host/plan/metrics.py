@@ -97,3 +97,29 @@ def distance_to_path(xy: np.ndarray, wps: np.ndarray) -> np.ndarray:
     p = xy[:, None, :]
     u = np.clip(np.sum((p - a) * d, axis=2) / np.maximum(np.sum(d * d, axis=1), 1e-9), 0.0, 1.0)
     return np.min(np.linalg.norm(p - (a + u[..., None] * d), axis=2), axis=1)
+
+
+def stretches(flags: np.ndarray, s: np.ndarray) -> list[tuple[float, float]]:
+    """(from, to) of each run of True in ``flags`` along positions ``s``."""
+    runs, start = [], None
+    for si, flag in zip(s, flags, strict=True):
+        if flag and start is None:
+            start = si
+        if not flag and start is not None:
+            runs.append((round(float(start), 1), round(float(si), 1)))
+            start = None
+    if start is not None:
+        runs.append((round(float(start), 1), round(float(s[-1]), 1)))
+    return runs
+
+
+def missed_stretches(xy: np.ndarray, lines: np.ndarray, tol: float = TOL_M) -> list[list[tuple[float, float]]]:
+    """Per line, the stretches (m along it) with no track point within ``tol``."""
+    tree = cKDTree(xy)
+    out = []
+    for a, b in lines:
+        length = float(np.hypot(*(b - a)))
+        s = np.linspace(0.0, length, max(int(length / 0.5), 2))
+        near = tree.query(a + (s / length)[:, None] * (b - a))[0]
+        out.append(stretches(near > tol, s))
+    return out

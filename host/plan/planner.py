@@ -14,7 +14,7 @@ import numpy as np
 from .adjust import Plan, adjust, original_plan
 from .boat_model import BoatModel
 from .maps import Maps
-from .metrics import TOL_M, LineScore, score_lines, summary
+from .metrics import TOL_M, LineScore, score_lines, stretches, summary
 from .predict import Track, predict_track
 
 SIGMAS = 2.0  # the current scaled by 1 +- SIGMAS x its relative map uncertainty
@@ -22,6 +22,7 @@ SIGMAS = 2.0  # the current scaled by 1 +- SIGMAS x its relative map uncertainty
 # from a calmer day must not talk the planner out of compensating (a river's discharge varies by more
 # than its map's uncertainty)
 STRESS = 1.5
+COVERAGE = 0.95  # the share of a line within TOL_M of the track that counts as holding it
 
 
 @dataclass
@@ -77,17 +78,7 @@ def no_headway(lines: np.ndarray, maps: Maps, boat: BoatModel) -> list[list[tupl
         s = np.linspace(0.0, length, max(int(length / 2.0), 2))
         e, n, _ = maps.current.sample(a + (s / length)[:, None] * d)
         against = -(e * d[0] + n * d[1]) / length
-        bad = against >= boat.max_speed
-        runs, start = [], None
-        for si, flag in zip(s, bad, strict=True):
-            if flag and start is None:
-                start = si
-            if not flag and start is not None:
-                runs.append((round(start, 1), round(si, 1)))
-                start = None
-        if start is not None:
-            runs.append((round(start, 1), round(length, 1)))
-        out.append(runs)
+        out.append(stretches(against >= boat.max_speed, s))
     return out
 
 
@@ -146,5 +137,5 @@ def plan_mission(
 
 
 def holds(o: Outcome) -> bool:
-    """Whether a predicted mission already holds every line (p95 within TOL_M, coverage at least 98 %)."""
-    return o.track.stuck_at is None and all(s.p95 <= TOL_M and s.coverage >= 0.98 for s in o.scores)
+    """Whether a predicted mission holds every line: p95 within TOL_M and coverage at least COVERAGE."""
+    return o.track.stuck_at is None and all(s.p95 <= TOL_M and s.coverage >= COVERAGE for s in o.scores)

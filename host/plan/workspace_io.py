@@ -9,8 +9,10 @@ import numpy as np
 from forcemap.host.outputs import atomic_write
 from forcemap.host.workbench.workspace import workspace_dir
 
+from .metrics import missed_stretches
+
 PLANS = "plans"
-EVERY = 10  # keep one track point a second (the prediction steps at 0.1 s)
+EVERY = 5  # keep one predicted track point a second (the prediction steps at 0.2 s)
 
 
 def _track(track) -> dict:  # type: ignore[no-untyped-def]
@@ -28,6 +30,8 @@ def save_plan(table: Path, name: str, result, maps) -> Path:  # type: ignore[no-
         "original": {"wps": o.plan.wps.round(3).tolist(), "track": _track(o.track)},
         "planned": {"wps": p.plan.wps.round(3).tolist(), "track": _track(p.track)},
         "result": result.to_json(),
+        "original_misses_m": missed_stretches(o.track.xy, p.plan.lines),
+        "planned_misses_m": missed_stretches(p.track.xy, p.plan.lines),
         "notes": maps.notes,
     }
     path = folder / f"{name}.json"
