@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -21,9 +22,7 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.plan.closed_loop import fly, plan_files, survey
-from forcemap.sim_devices import mission as ms
 from forcemap.sim_devices import scenario as sc
-from forcemap.sim_devices.geo import Geo
 
 SEED_A, SEED_B = 1, 2
 
@@ -48,18 +47,29 @@ def row(name: str, f) -> str:  # type: ignore[no-untyped-def]
     )
 
 
-def closed_loop(work: Path, scenario: str, map_scenario: str, effects: list[str], tag: str) -> list[str]:
+def closed_loop(
+    work: Path, scenario: str, map_scenario: str, effects: list[str], tag: str
+) -> list[str]:
     table = survey(map_scenario, SEED_A, work / f"survey-{Path(map_scenario).stem}")
     t0 = time.perf_counter()
-    result, orig, planned = plan_files(table, "lawnmower", work / f"plan-{tag}", "river" if scenario.startswith("river") or scenario.endswith(".toml") else scenario)
+    result, orig, planned = plan_files(
+        table,
+        "lawnmower",
+        work / f"plan-{tag}",
+        "river" if scenario.startswith("river") or scenario.endswith(".toml") else scenario,
+    )
     t_plan = time.perf_counter() - t0
     dur = 1.5 * max(result.original.track.duration, result.planned.track.duration) + 120
     fo = fly(orig, scenario, SEED_B, effects, dur)
     fp = fly(planned, scenario, SEED_B, effects, dur)
     pred_o, pred_p = result.original.to_json(), result.planned.to_json()
-    print(f"## {tag}: map from {Path(map_scenario).stem} (seed {SEED_A}), flown in {scenario} {effects} (seed {SEED_B})")
+    print(
+        f"## {tag}: map from {Path(map_scenario).stem} (seed {SEED_A}), flown in {scenario} {effects} (seed {SEED_B})"
+    )
     print(f"planning took {t_plan:.1f} s (maps from the workspace's fits, fitted first if missing)")
-    print("| mission | p95 worst line m | worst miss m | coverage (3 m) | downstream turn errors m | time s |")
+    print(
+        "| mission | p95 worst line m | worst miss m | coverage (3 m) | downstream turn errors m | time s |"
+    )
     print("|---|---:|---:|---:|---:|---:|")
     print(row("original, flown", fo))
     print(row("planned, flown", fp))
@@ -69,8 +79,13 @@ def closed_loop(work: Path, scenario: str, map_scenario: str, effects: list[str]
     print(
         f"| planned, predicted | {pred_p['p95_worst_line']:.2f} | {pred_p['miss']:.1f} | {pred_p['coverage']:.1%} | | {pred_p['duration_s']:.0f} |"
     )
-    print(f"map uncertainty of the current: {result.current_scale_sd:.1%}; sensitivity: " + "; ".join(
-        f"{k}: p95 {v['p95_worst_line']:.2f} m, coverage {v['coverage']:.1%}" for k, v in result.sensitivity.items()))
+    print(
+        f"map uncertainty of the current: {result.current_scale_sd:.1%}; sensitivity: "
+        + "; ".join(
+            f"{k}: p95 {v['p95_worst_line']:.2f} m, coverage {v['coverage']:.1%}"
+            for k, v in result.sensitivity.items()
+        )
+    )
     print()
     return [fo, fp, result]
 
@@ -89,25 +104,38 @@ def speed(work: Path) -> None:
     one = frame.to_local(m.latlon)
     passes = [one if k % 2 == 0 else one[::-1] for k in range(16)]
     wps = np.concatenate(passes)
-    lines = np.concatenate([frame.to_local(m.lines_latlon) if k % 2 == 0 else frame.to_local(m.lines_latlon)[::-1, ::-1] for k in range(16)])
+    lines = np.concatenate(
+        [
+            frame.to_local(m.lines_latlon)
+            if k % 2 == 0
+            else frame.to_local(m.lines_latlon)[::-1, ::-1]
+            for k in range(16)
+        ]
+    )
     lo, hi = wps.min(axis=0) - 120.0, wps.max(axis=0) + 120.0
     t0 = time.perf_counter()
     maps = survey_maps(table, sv, (lo[0], hi[0], lo[1], hi[1]), progress=False)
     t_maps = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     result = plan_mission(wps, None, lines, maps, BoatModel())
-    t_plan = time.perf_counter() - t0
+    t_plan, c_plan = time.perf_counter() - t0, time.process_time() - c0
     print("## speed: a 3-hour mission")
     print(
         f"{len(lines)} lines, original {result.original.track.duration / 3600:.2f} h predicted, planned "
         f"{result.planned.track.duration / 3600:.2f} h; maps {t_maps:.1f} s, planning (predict, adjust, "
-        f"sensitivity) {t_plan:.1f} s, total {t_maps + t_plan:.1f} s"
+        f"sensitivity) {t_plan:.1f} s wall, {c_plan:.1f} s CPU; total {t_maps + t_plan:.1f} s wall"
     )
+    with open("/proc/loadavg") as f:
+        print(f"load average while measuring: {f.read().split()[0]} on {os.cpu_count()} cores")
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--work", type=Path, help="folder for the surveys and plans (default: a temporary one)")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--work", type=Path, help="folder for the surveys and plans (default: a temporary one)"
+    )
     ap.add_argument("--only", choices=("river", "lake", "wrong", "speed"))
     args = ap.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_plan-"))

@@ -197,7 +197,11 @@ class Autopilot:
                     s.yaw_rate,
                 )
             elif name == "MISSION_CURRENT":
-                state = mavlink2.MISSION_STATE_ACTIVE if s.wp_total else mavlink2.MISSION_STATE_NO_MISSION
+                state = (
+                    mavlink2.MISSION_STATE_ACTIVE
+                    if s.wp_total
+                    else mavlink2.MISSION_STATE_NO_MISSION
+                )
                 msg = self.mav.mission_current_encode(s.wp_seq, s.wp_total, state, 0)
             elif name == "NAV_CONTROLLER_OUTPUT":
                 msg = self.mav.nav_controller_output_encode(

@@ -10,7 +10,6 @@ non-decreasing ``t_ns`` order. No transport and no host clock: offline it runs a
 from __future__ import annotations
 
 import heapq
-import json
 import math
 import random
 from collections.abc import Callable
@@ -369,13 +368,7 @@ class Simulation:
         if self.truth_dir is not None:
             write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
             self._write_pulses(Path(self.truth_dir) / "pulses.npz")
-            self._write_mission(Path(self.truth_dir))
-
-    def _write_mission(self, folder: Path) -> None:
-        """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
-        ms.save_waypoints(folder / "mission.waypoints", self.mission, self.geo)
-        doc = ms.to_json(self.mission, self.geo)
-        (folder / "mission.json").write_text(json.dumps(doc, indent=1) + "\n")
+            ms.write_truth(Path(self.truth_dir), self.mission, self.geo)
 
     def _note_boot(self) -> None:
         self.boots.append((self.bridge.boot_id, self.bridge.boot_us))

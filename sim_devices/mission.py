@@ -27,9 +27,15 @@ class Mission:
     description: str
     waypoints: np.ndarray  # (n, 2) x east, y north
     loop: bool = True
-    speeds: np.ndarray | None = None  # (n,) ground speed (m/s) on the leg into each waypoint; NaN: cruise
-    lines: np.ndarray | None = None  # (k, 2, 2) the intended survey lines, if the mission was planned
-    seqs: np.ndarray | None = None  # mission item sequence number of each waypoint (MISSION_CURRENT)
+    speeds: np.ndarray | None = (
+        None  # (n,) ground speed (m/s) on the leg into each waypoint; NaN: cruise
+    )
+    lines: np.ndarray | None = (
+        None  # (k, 2, 2) the intended survey lines, if the mission was planned
+    )
+    seqs: np.ndarray | None = (
+        None  # mission item sequence number of each waypoint (MISSION_CURRENT)
+    )
 
 
 def _centred(half: float, spacing: float) -> np.ndarray:
@@ -199,7 +205,9 @@ def save_waypoints(path: str | Path, mission: Mission, geo: Geo) -> None:
     """The mission as a QGC WPL 110 file (home at the first waypoint)."""
     lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
     latlon = np.column_stack([lat, lon])
-    waypoints.write_wpl(path, waypoints.waypoint(*latlon[0]), waypoints.items_for(latlon, mission.speeds))
+    waypoints.write_wpl(
+        path, waypoints.waypoint(*latlon[0]), waypoints.items_for(latlon, mission.speeds)
+    )
 
 
 def intended_lines(mission: Mission) -> np.ndarray:
@@ -239,3 +247,9 @@ def describe_all() -> list[tuple[str, str]]:
         data, _ = _read(n)
         out.append((n, str(data.get("mission", {}).get("description", ""))))
     return out
+
+
+def write_truth(folder: Path, mission: Mission, geo: Geo) -> None:
+    """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
+    save_waypoints(folder / "mission.waypoints", mission, geo)
+    (folder / "mission.json").write_text(json.dumps(to_json(mission, geo), indent=1) + "\n")

@@ -50,7 +50,10 @@ class MissionReceiver:
     def handle(self, msg, now: float) -> list:  # type: ignore[no-untyped-def]
         """Replies (pymavlink messages) to one received message at virtual time ``now``."""
         kind = msg.get_type()
-        if kind == "MISSION_COUNT" and getattr(msg, "mission_type", 0) == M.MAV_MISSION_TYPE_MISSION:
+        if (
+            kind == "MISSION_COUNT"
+            and getattr(msg, "mission_type", 0) == M.MAV_MISSION_TYPE_MISSION
+        ):
             self._peer = (msg.get_srcSystem(), msg.get_srcComponent())
             self._count, self._items, self._retries = int(msg.count), [], 0
             self._active = self._count > 0

@@ -75,7 +75,9 @@ def expected_items(tmp: Path) -> list[tuple]:
 @pytest.mark.parametrize(
     ("drop", "nak_at"), [(set(), None), ({3}, None), (set(), 4)], ids=["clean", "dropped", "nak"]
 )
-def test_upload_is_acknowledged_and_flown(tmp_path: Path, drop: set[int], nak_at: int | None) -> None:
+def test_upload_is_acknowledged_and_flown(
+    tmp_path: Path, drop: set[int], nak_at: int | None
+) -> None:
     sim, n = run_upload(tmp_path, drop, nak_at)
     got = [
         (i.command, i.lat_e7, i.lon_e7, tuple(float(p) for p in i.params))

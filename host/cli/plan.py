@@ -54,7 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--upload", metavar="PORT[,BAUD]", help="send the adjusted mission over MAVLink"
     )
-    parser.add_argument("--json", metavar="OUT", help="write the per-line prediction as JSON (- for stdout)")
+    parser.add_argument(
+        "--json", metavar="OUT", help="write the per-line prediction as JSON (- for stdout)"
+    )
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
@@ -74,9 +76,13 @@ def print_table(result) -> None:  # type: ignore[no-untyped-def]
         f"mission time {o.track.duration:.0f} s -> {p.track.duration:.0f} s; "
         f"map uncertainty of the current: {result.current_scale_sd:.1%} (1 sd, along the lines)"
     )
+    print("how the planned mission's prediction depends on the map:")
     for name, s in result.sensitivity.items():
+        what = name.replace("_x", " x ")
+        if name.startswith("discharge"):
+            what = f"the current {name.split('_x')[1]} x the map's (a higher-discharge day)"
         print(
-            f"  with the {name.replace('_x', ' x ')}: worst-line p95 {s['p95_worst_line']:.2f} m, "
+            f"  {what}: worst-line p95 {s['p95_worst_line']:.2f} m, "
             f"coverage {s['coverage']:.1%}, time {s['duration_s']:.0f} s"
         )
     if result.unchanged:
@@ -119,7 +125,10 @@ def run(args: argparse.Namespace) -> int:
 
     def step(i: int, n: int) -> None:
         if progress:
-            print(f"adjusting: prediction {i} of {n} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+            print(
+                f"adjusting: prediction {i} of {n} ({time.perf_counter() - t0:.1f} s)",
+                file=sys.stderr,
+            )
 
     result = plan_mission(wps, mission.speeds, lines, maps, boat, step)
     print(f"boat: {boat.describe()}")

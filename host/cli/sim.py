@@ -122,13 +122,18 @@ def run_offline(args: argparse.Namespace) -> int:
 
     def progress(t: float, total: float) -> None:
         if t >= total or (t > 1 and int(t) % 300 == 0):
-            print(f"  t={t:7.1f} s of {total:.0f} s ({time.monotonic() - t_start:.1f} s wall)", flush=True)
+            print(
+                f"  t={t:7.1f} s of {total:.0f} s ({time.monotonic() - t_start:.1f} s wall)",
+                flush=True,
+            )
 
     sim = Simulation(
         scen, mis, effects, faults, seed=args.seed, truth_dir=args.truth, instruments=False
     )
     sim.run(args.duration, lambda *a: None, progress=progress)
-    print(f"done: {sim.t:.1f} s simulated in {time.monotonic() - t_start:.1f} s; truth in {args.truth}")
+    print(
+        f"done: {sim.t:.1f} s simulated in {time.monotonic() - t_start:.1f} s; truth in {args.truth}"
+    )
     return 0
 
 

@@ -122,15 +122,11 @@ def start_missed(track: Track, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(dist > 0.7 * TOL_M))
 
 
-def adjust(
-    lines: np.ndarray, maps: Maps, boat: BoatModel, progress=None
-) -> tuple[Plan, Track]:  # type: ignore[no-untyped-def]
+def adjust(lines: np.ndarray, maps: Maps, boat: BoatModel, progress=None) -> tuple[Plan, Track]:  # type: ignore[no-untyped-def]
     """The adjusted plan for ``lines`` (in the order flown) and its predicted track."""
     lines = upstream_first(np.asarray(lines, dtype=float), maps)
     approach = np.full(len(lines), APPROACH_M)
-    shifts = [
-        np.zeros(max(int(round(np.hypot(*(b - a)) / STRETCH_M)), 1) + 1) for a, b in lines
-    ]
+    shifts = [np.zeros(max(int(round(np.hypot(*(b - a)) / STRETCH_M)), 1) + 1) for a, b in lines]
     plan = layout(lines, approach, shifts, maps, boat)
     track = predict_track(plan.wps, plan.speeds, maps, boat)
     for it in range(ITERATIONS):
@@ -160,4 +156,3 @@ def original_plan(wps: np.ndarray, speeds: np.ndarray | None, lines: np.ndarray)
         line_wps.append((ia, ib))
     sp = np.full(len(wps), np.nan) if speeds is None else np.asarray(speeds, dtype=float)
     return Plan(np.asarray(wps, dtype=float), sp, np.asarray(lines, dtype=float), line_wps)
-

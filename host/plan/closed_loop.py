@@ -69,7 +69,9 @@ class Flight:
     summary: dict
     lines: list
     duration_s: float
-    turn_errors: np.ndarray  # Fig. 2: worst distance from the path in the 25 s after each downstream turn
+    turn_errors: (
+        np.ndarray
+    )  # Fig. 2: worst distance from the path in the 25 s after each downstream turn
 
 
 def turn_errors(tr: dict, wps: np.ndarray, flow_deg: float, window_s: float = 25.0) -> np.ndarray:

@@ -113,7 +113,9 @@ def stretches(flags: np.ndarray, s: np.ndarray) -> list[tuple[float, float]]:
     return runs
 
 
-def missed_stretches(xy: np.ndarray, lines: np.ndarray, tol: float = TOL_M) -> list[list[tuple[float, float]]]:
+def missed_stretches(
+    xy: np.ndarray, lines: np.ndarray, tol: float = TOL_M
+) -> list[list[tuple[float, float]]]:
     """Per line, the stretches (m along it) with no track point within ``tol``."""
     tree = cKDTree(xy)
     out = []

@@ -21,7 +21,9 @@ from forcemap.sim_devices import scenario as sc
 from forcemap.sim_devices import waypoints as wp
 from forcemap.sim_devices.geo import Geo
 
-LINE_FRACTION = 0.4  # without explicit lines, legs at least this share of the longest are survey lines
+LINE_FRACTION = (
+    0.4  # without explicit lines, legs at least this share of the longest are survey lines
+)
 
 
 @dataclass
@@ -39,7 +41,9 @@ class Frame:
     def to_latlon(self, xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, dtype=float)
         lat = self.lat0 + np.degrees(xy[..., 1] / EARTH_RADIUS_M)
-        lon = self.lon0 + np.degrees(xy[..., 0] / (EARTH_RADIUS_M * math.cos(math.radians(self.lat0))))
+        lon = self.lon0 + np.degrees(
+            xy[..., 0] / (EARTH_RADIUS_M * math.cos(math.radians(self.lat0)))
+        )
         return np.stack([lat, lon], axis=-1)
 
 

@@ -46,7 +46,9 @@ class Outcome:
 class PlanResult:
     original: Outcome
     planned: Outcome
-    no_headway: list[list[tuple[float, float]]]  # per line, stretches (from, to) in m along the line
+    no_headway: list[
+        list[tuple[float, float]]
+    ]  # per line, stretches (from, to) in m along the line
     sensitivity: dict = field(default_factory=dict)
     current_scale_sd: float = 0.0
     unchanged: bool = False  # the original already held its lines and is kept as it is
@@ -84,29 +86,36 @@ def no_headway(lines: np.ndarray, maps: Maps, boat: BoatModel) -> list[list[tupl
 
 def relative_sd(lines: np.ndarray, maps: Maps) -> float:
     """The map's current speed uncertainty relative to its speed, along the lines."""
-    pts = np.concatenate(
-        [a + np.linspace(0, 1, 50)[:, None] * (b - a) for a, b in lines]
-    )
+    pts = np.concatenate([a + np.linspace(0, 1, 50)[:, None] * (b - a) for a, b in lines])
     e, n, sd = maps.current.sample(pts)
     speed = np.hypot(e, n)
     return float(np.mean(sd) / max(np.mean(speed), 1e-6)) if speed.mean() > 0.05 else 0.0
 
 
+def _deltas(sc: list[LineScore], base: Outcome, duration: float) -> dict:
+    return {
+        **summary(sc),
+        "duration_s": duration,
+        "delta_p95_per_line": [
+            round(s.p95 - b.p95, 3) for s, b in zip(sc, base.scores, strict=True)
+        ],
+        "delta_coverage_per_line": [
+            round(s.coverage - b.coverage, 4) for s, b in zip(sc, base.scores, strict=True)
+        ],
+    }
+
+
 def sensitivity(plan: Plan, maps: Maps, boat: BoatModel, base: Outcome, rel: float) -> dict:
-    """How the planned mission's prediction changes with the current scaled by 1 -+ SIGMAS x rel."""
+    """The planned mission's prediction with the current scaled by 1 -+ SIGMAS x rel (the map's own
+    uncertainty) and by STRESS (a day of higher discharge than the mapped one)."""
     out = {}
-    for sign in (-1, 1):
-        k = 1.0 + sign * SIGMAS * rel
+    for k in (1.0 - SIGMAS * rel, 1.0 + SIGMAS * rel, STRESS):
+        if k == STRESS:
+            name = f"discharge_x{STRESS:g}"
+        else:
+            name = f"current_x{k:.3f}"
         tr = predict_track(plan.wps, plan.speeds, maps, boat, current_scale=k)
-        sc = score_lines(tr.t, tr.xy, plan.lines)
-        out[f"current_x{k:.3f}"] = {
-            **summary(sc),
-            "duration_s": tr.duration,
-            "delta_p95_per_line": [round(s.p95 - b.p95, 3) for s, b in zip(sc, base.scores, strict=True)],
-            "delta_coverage_per_line": [
-                round(s.coverage - b.coverage, 4) for s, b in zip(sc, base.scores, strict=True)
-            ],
-        }
+        out[name] = _deltas(score_lines(tr.t, tr.xy, plan.lines), base, tr.duration)
     return out
 
 
@@ -138,4 +147,6 @@ def plan_mission(
 
 def holds(o: Outcome) -> bool:
     """Whether a predicted mission holds every line: p95 within TOL_M and coverage at least COVERAGE."""
-    return o.track.stuck_at is None and all(s.p95 <= TOL_M and s.coverage >= COVERAGE for s in o.scores)
+    return o.track.stuck_at is None and all(
+        s.p95 <= TOL_M and s.coverage >= COVERAGE for s in o.scores
+    )

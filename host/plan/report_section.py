@@ -19,9 +19,17 @@ def _figure(plan: dict, survey):  # type: ignore[no-untyped-def]
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(11, 4.2))
-    ax.plot(survey.columns["x"], survey.columns["y"], color="0.75", lw=0.6, label="flown (this survey)")
+    ax.plot(
+        survey.columns["x"], survey.columns["y"], color="0.75", lw=0.6, label="flown (this survey)"
+    )
     for k, (a, b) in enumerate(np.array(plan["lines"])):
-        ax.plot([a[0], b[0]], [a[1], b[1]], color="k", lw=2.2, label="intended lines" if k == 0 else None)
+        ax.plot(
+            [a[0], b[0]],
+            [a[1], b[1]],
+            color="k",
+            lw=2.2,
+            label="intended lines" if k == 0 else None,
+        )
     o, p = plan["original"]["track"], plan["planned"]["track"]
     ax.plot(o["x"], o["y"], "--", color="tab:red", lw=1.0, label="original, predicted")
     ax.plot(p["x"], p["y"], color="tab:blue", lw=1.0, label="planned, predicted")

@@ -54,7 +54,9 @@ class Uploader:
 
     def _count(self) -> None:
         self._send(
-            M.MAVLink_mission_count_message(*self.target, len(self.items), M.MAV_MISSION_TYPE_MISSION)
+            M.MAVLink_mission_count_message(
+                *self.target, len(self.items), M.MAV_MISSION_TYPE_MISSION
+            )
         )
 
     def _attempt(self) -> bool:
@@ -143,4 +145,3 @@ def upload_file(port: str, path: str | Path, progress: bool = True) -> int:
         return Uploader(conn, [home, *items], target, log=log).run()
     finally:
         conn.close()
-

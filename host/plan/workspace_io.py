@@ -36,7 +36,9 @@ def save_plan(table: Path, name: str, result, maps) -> Path:  # type: ignore[no-
     }
     path = folder / f"{name}.json"
     with atomic_write(path) as f:
-        f.write(json.dumps(doc, default=lambda v: v.item() if isinstance(v, np.generic) else str(v)))
+        f.write(
+            json.dumps(doc, default=lambda v: v.item() if isinstance(v, np.generic) else str(v))
+        )
     return path
 
 
