@@ -11,10 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from forcemap.host.cli import main
 from forcemap.host.plan.closed_loop import fly, plan_files, survey
+from forcemap.host.plan.report_section import mission_section
+from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices import waypoints as wp
 
 SEED_A, SEED_B = 1, 2
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
@@ -63,3 +67,22 @@ def test_lake_plan_changes_nothing_and_loses_nothing(work: Path) -> None:
     assert fp.summary["coverage"] >= fo.summary["coverage"] - 1e-9 >= 0.95
     assert fp.duration_s <= 1.01 * fo.duration_s
     assert np.isfinite(fp.summary["p95_worst_line"]) and fp.summary["p95_worst_line"] <= 3.0
+
+
+def test_plan_command_and_report_section(work: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    table = survey("river", SEED_A, work / "survey-river")
+    out = work / "cli" / "planned"
+    out.parent.mkdir()
+    args = ["plan", str(table), "--mission", "lawnmower", "-o", str(out), "--json", "-", "--quiet"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "per intended line" in text and "higher-discharge day" in text
+    for suffix in (".waypoints", ".toml", ".json"):
+        assert out.with_name("planned" + suffix).exists()
+    # the outputs are not replaced without --force
+    assert main(args) == 2
+    assert "--force" in capsys.readouterr().err
+    # the report's mission section: the tracks on the map and one row per intended line
+    parts = "\n".join(mission_section(table, load_survey(table)))
+    assert "<h2>Mission</h2>" in parts and 'alt="mission tracks"' in parts
+    assert parts.count("<tr><td>") == 5
