@@ -113,16 +113,16 @@ def speed(work: Path) -> None:
         ]
     )
     lo, hi = wps.min(axis=0) - 120.0, wps.max(axis=0) + 120.0
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     maps = survey_maps(table, sv, (lo[0], hi[0], lo[1], hi[1]), progress=False)
-    t_maps = time.perf_counter() - t0
+    t_maps, c_maps = time.perf_counter() - t0, time.process_time() - c0
     t0, c0 = time.perf_counter(), time.process_time()
     result = plan_mission(wps, None, lines, maps, BoatModel())
     t_plan, c_plan = time.perf_counter() - t0, time.process_time() - c0
     print("## speed: a 3-hour mission")
     print(
         f"{len(lines)} lines, original {result.original.track.duration / 3600:.2f} h predicted, planned "
-        f"{result.planned.track.duration / 3600:.2f} h; maps {t_maps:.1f} s, planning (predict, adjust, "
+        f"{result.planned.track.duration / 3600:.2f} h; maps {t_maps:.1f} s wall ({c_maps:.1f} s CPU), planning (predict, adjust, "
         f"sensitivity) {t_plan:.1f} s wall, {c_plan:.1f} s CPU; total {t_maps + t_plan:.1f} s wall"
     )
     with open("/proc/loadavg") as f:

@@ -106,6 +106,11 @@ class Navigator:
             self._legs[self.leg] = g
         return g
 
+    def target(self) -> tuple[float, float]:
+        """The waypoint ahead (x, y)."""
+        g = self._geometry()
+        return g[2], g[3]
+
     def update(self, x: float, y: float) -> tuple[float, float]:
         """Desired heading (compass rad) and signed cross-track error (m, right of track positive)."""
         for _ in range(len(self.wps)):

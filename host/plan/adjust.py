@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .boat_model import BoatModel
 from .maps import Maps
@@ -95,15 +96,17 @@ def layout(
     return Plan(wps, speeds, lines, line_wps)
 
 
-def offsets_along(track: Track, a: np.ndarray, b: np.ndarray, n_st: int) -> np.ndarray:
-    """Mean signed offset (m, right of the line positive) of the pass along a->b, per stretch end."""
+def offsets_along(
+    xy: np.ndarray, vel: np.ndarray, a: np.ndarray, b: np.ndarray, n_st: int
+) -> np.ndarray:
+    """Mean signed offset (m, right of the line positive) of the track's passes along a->b (positions
+    ``xy``, steps ``vel``), at each stretch end."""
     d = b - a
     length = float(np.hypot(*d))
     u = d / length
-    rel = track.xy - a
+    rel = xy - a
     along = rel @ u
     across = rel[:, 0] * u[1] - rel[:, 1] * u[0]
-    vel = np.gradient(track.xy, axis=0)
     on = (along >= 0) & (along <= length) & (np.abs(across) < 20.0) & (vel @ u > 0)
     out = np.zeros(n_st + 1)
     for k in range(n_st + 1):
@@ -113,13 +116,12 @@ def offsets_along(track: Track, a: np.ndarray, b: np.ndarray, n_st: int) -> np.n
     return out
 
 
-def start_missed(track: Track, a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether the first stretch of the line has no track within the tolerance."""
+def start_missed(tree: cKDTree, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the first stretch of the line has a point with no track (``tree``) within the tolerance."""
     d = b - a
     u = d / float(np.hypot(*d))
     pts = a + np.linspace(0.0, min(30.0, float(np.hypot(*d))), 16)[:, None] * u
-    dist = np.min(np.hypot(track.x[None, :] - pts[:, :1], track.y[None, :] - pts[:, 1:]), axis=1)
-    return bool(np.any(dist > 0.7 * TOL_M))
+    return bool(np.any(tree.query(pts)[0] > 0.7 * TOL_M))
 
 
 def adjust(lines: np.ndarray, maps: Maps, boat: BoatModel, progress=None) -> tuple[Plan, Track]:  # type: ignore[no-untyped-def]
@@ -133,11 +135,13 @@ def adjust(lines: np.ndarray, maps: Maps, boat: BoatModel, progress=None) -> tup
         if progress is not None:
             progress(it + 1, ITERATIONS)
         moved = 0.0
+        xy = track.xy
+        tree, vel = cKDTree(xy), np.gradient(xy, axis=0)
         for i, (a, b) in enumerate(lines):
-            off = offsets_along(track, a, b, len(shifts[i]) - 1)
+            off = offsets_along(xy, vel, a, b, len(shifts[i]) - 1)
             shifts[i] = shifts[i] - off
             moved = max(moved, float(np.abs(off).max()))
-            if start_missed(track, a, b) and approach[i] < APPROACH_MAX_M:
+            if start_missed(tree, a, b) and approach[i] < APPROACH_MAX_M:
                 approach[i] = min(approach[i] * 1.5, APPROACH_MAX_M)
                 moved = np.inf
         if moved < SETTLED_M:

@@ -21,6 +21,7 @@ from forcemap.host.workbench.targets import hyper_rows
 from forcemap.host.workbench.workspace import current_terms, workspace_dir
 
 GRID_STEP_M = 4.0
+MAX_BASIS = 800  # a current or wind field steering a boat needs no detail finer than ~30 m
 PLANNABLE_INPUTS = {"position", "t"}
 
 
@@ -135,7 +136,7 @@ def fit_field(
     out = []
     with small_blas():
         for comp in (e[ok], n[ok]):
-            m = Model(terms, hyper_rows=rows).fit(X, comp)
+            m = Model(terms, max_basis=MAX_BASIS, hyper_rows=rows).fit(X, comp)
             mu, sd = m.predict(G, return_std=True)
             out += [mu.reshape(GX.shape), sd.reshape(GX.shape)]
     return Field(float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms))

@@ -54,6 +54,7 @@ def score_lines(
     window = same_direction_window(lines)
     tree = cKDTree(xy) if len(xy) else None
     vel = np.gradient(xy, axis=0) if len(xy) > 1 else np.zeros_like(xy)
+    slow = 0.3 * np.maximum(np.hypot(vel[:, 0], vel[:, 1]), 1e-9)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.1
     out = []
     for i, (a, b) in enumerate(lines):
@@ -63,7 +64,7 @@ def score_lines(
         rel = xy - a
         along = rel @ u
         across = np.abs(rel[:, 0] * u[1] - rel[:, 1] * u[0])
-        moving = vel @ u > 0.3 * np.maximum(np.linalg.norm(vel, axis=1), 1e-9)
+        moving = vel @ u > slow
         on = (along >= 0) & (along <= length) & (across < window) & moving
         pts = a + np.linspace(0.0, 1.0, max(int(length / 0.5), 2))[:, None] * d
         near = tree.query(pts)[0] if tree is not None else np.full(len(pts), np.inf)

@@ -57,26 +57,30 @@ def predict_track(
     ctl = Controller(boat.cruise_speed, boat.gains)
     cur, wind = maps.current.at, maps.wind.at
     s = b.s
-    n_max = int(t_max / DT)
+    step, nav_update, ctl_update, speed = b.step, nav.update, ctl.update, nav.speed
+    hypot, cruise, radius = math.hypot, boat.cruise_speed, 2 * boat.gains.wp_radius_m
+    end_x, end_y = float(wps[-1, 0]), float(wps[-1, 1])
     ts, xs, ys, legs, thr = [], [], [], [], []
-    best, best_k, stuck = math.inf, 0, None
-    last_leg = nav.leg
-    for k in range(n_max):
-        psi_d, _ = nav.update(s.x, s.y)
-        if nav.done and math.hypot(wps[-1, 0] - s.x, wps[-1, 1] - s.y) < 2 * boat.gains.wp_radius_m:
+    best, best_k, stuck, last_leg = math.inf, 0, None, nav.leg
+    for k in range(int(t_max / DT)):
+        psi_d, _ = nav_update(s.x, s.y)
+        if nav.done and hypot(end_x - s.x, end_y - s.y) < radius:
             break
-        ctl.cruise = nav.speed(boat.cruise_speed)
-        throttle, steer = ctl.update(DT, s.psi, s.r, psi_d, math.hypot(s.ve, s.vn))
-        b.step(DT, throttle, steer, cur(s.x, s.y, current_scale), wind(s.x, s.y))
+        ctl.cruise = speed(cruise)
+        throttle, steer = ctl_update(DT, s.psi, s.r, psi_d, hypot(s.ve, s.vn))
+        step(DT, throttle, steer, cur(s.x, s.y, current_scale), wind(s.x, s.y))
         ts.append((k + 1) * DT)
         xs.append(s.x)
         ys.append(s.y)
         legs.append(nav.leg)
         thr.append(throttle)
+        if k % 10:
+            continue
         # headway: the distance to the waypoint ahead must keep falling
         if nav.leg != last_leg:
             last_leg, best, best_k = nav.leg, math.inf, k
-        d = math.hypot(nav.wps[nav.leg, 0] - s.x, nav.wps[nav.leg, 1] - s.y)
+        tx, ty = nav.target()
+        d = hypot(tx - s.x, ty - s.y)
         if d < best - 1.0:
             best, best_k = d, k
         elif (k - best_k) * DT > STUCK_S:
