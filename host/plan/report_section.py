@@ -18,7 +18,7 @@ def _figure(plan: dict, survey):  # type: ignore[no-untyped-def]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(11, 4.2))
+    fig, ax = plt.subplots(figsize=(11, 3.4))
     ax.plot(
         survey.columns["x"], survey.columns["y"], color="0.75", lw=0.6, label="flown (this survey)"
     )
@@ -40,7 +40,7 @@ def _figure(plan: dict, survey):  # type: ignore[no-untyped-def]
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.set_title(f"mission {plan['name']}: intended, predicted and flown")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), fontsize=7, ncol=4)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     fig.tight_layout()
     return fig
 
