@@ -261,7 +261,9 @@ class Simulation:
         self.ctl.cruise = self.nav.speed(self.cruise)
         sog = math.hypot(s.ve, s.vn)
         self.throttle, steer = self.ctl.update(dt, s.psi, s.r, psi_d, sog)
-        if self.nav.done:  # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
+        if (
+            self.nav.done
+        ):  # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
             self.throttle, steer = 0.0, 0.0
         t_prev = self.t
         self.k += 1
