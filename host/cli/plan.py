@@ -94,7 +94,7 @@ def print_table(result) -> None:  # type: ignore[no-untyped-def]
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.errors import CliError
-    from forcemap.host.outputs import check_output
+    from forcemap.host.outputs import atomic_write, check_output
     from forcemap.host.plan.boat_model import load_boat
     from forcemap.host.plan.maps import survey_maps
     from forcemap.host.plan.mission_io import Frame, output_paths, read_mission, write_outputs
@@ -106,6 +106,8 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.quiet
     for out in output_paths(args.output):
         check_output(out, [args.table, args.mission], args.force)
+    if args.json and args.json != "-":
+        check_output(args.json, [args.table, args.mission], args.force)
     if not args.table.exists():
         raise CliError(f"no such table {args.table}")
     boat = load_boat(args.boat)
@@ -148,7 +150,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {p}")
     if args.json:
         text = json.dumps(report, indent=1)
-        print(text) if args.json == "-" else Path(args.json).write_text(text + "\n")
+        if args.json == "-":
+            print(text)
+        else:
+            with atomic_write(args.json) as f:
+                f.write(text + "\n")
     if args.upload:
         from forcemap.host.plan.upload import upload_file
 
