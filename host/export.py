@@ -54,7 +54,9 @@ def check_logs(paths: Sequence[str | os.PathLike[str]]) -> None:
             with open(path, "rb") as f:
                 head = f.read(len(MCAP_MAGIC))
         except IsADirectoryError:
-            raise CliError(f"{path} is a folder; give MCAP logs, or a folder that holds some") from None
+            raise CliError(
+                f"{path} is a folder; give MCAP logs, or a folder that holds some"
+            ) from None
         except OSError as exc:
             raise CliError(f"{path}: cannot read it ({exc.strerror or exc})") from None
         if head != MCAP_MAGIC:
@@ -239,7 +241,9 @@ def export(paths: Iterable[str | os.PathLike[str]], fmt: str, out: str) -> str:
         return f"{len(table)} samples, {len(table.columns)} columns -> {out}"
     points = track(paths)
     if not points:
-        raise CliError(f"no position in {names}: neither /fix nor /samples has a latitude and longitude")
+        raise CliError(
+            f"no position in {names}: neither /fix nor /samples has a latitude and longitude"
+        )
     if fmt == "geojson":
         doc = geojson(points, samples_table(paths))
         _write_text(out, lambda f: json.dump(doc, f))

@@ -140,10 +140,14 @@ def nmea_sources(nmea: list[str], depth: str | None = None) -> dict[str, str]:
     for name, port in named:
         if name is None:
             n = 1
-            while (name := "nmea" if n == 1 else f"nmea{n}") in out or name in [x for x, _ in named]:
+            while (name := "nmea" if n == 1 else f"nmea{n}") in out or name in [
+                x for x, _ in named
+            ]:
                 n += 1
         if name in out or name in ("bridge", "mavlink"):
-            raise CliError(f"two sources are named {name!r}; name each --nmea NAME=PORT differently")
+            raise CliError(
+                f"two sources are named {name!r}; name each --nmea NAME=PORT differently"
+            )
         out[name] = port
     return out
 
