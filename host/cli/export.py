@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from pathlib import Path
 
 from forcemap.host.errors import CliError
@@ -50,6 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(geojson, kml) from MCAP logs. Truncated logs are read up to their last complete chunk; "
         "rows repeated across files are kept once."
     )
+    parser.description = textwrap.fill(parser.description, 88)
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
     parser.add_argument(

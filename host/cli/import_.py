@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import tempfile
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "Run an existing NMEA 0183 capture or MAVLink telemetry log (.tlog) through the daemon's "
         "pipeline into an MCAP log."
     )
+    parser.description = textwrap.fill(parser.description, 88)
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
     parser.add_argument(

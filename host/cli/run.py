@@ -9,6 +9,7 @@ import platform
 import re
 import signal
 import sys
+import textwrap
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -48,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "to MCAP. Any source may be left out. Ports that are missing or unplugged are retried "
         "until they come back. SIGTERM or Ctrl-C closes the log cleanly."
     )
+    parser.description = textwrap.fill(parser.description, 88)
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
     parser.add_argument(
