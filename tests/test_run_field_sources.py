@@ -76,7 +76,7 @@ def test_nmea_source_names():
     }
     # a later explicit name is not taken by an unnamed source
     assert nmea_sources(["/dev/a", "nmea=/dev/b"]) == {"nmea2": "/dev/a", "nmea": "/dev/b"}
-    with pytest.raises(CliError, match="'mavlink'"):
+    with pytest.raises(CliError, match="'mavlink' is the name of another source"):
         nmea_sources(["mavlink=/dev/a"])
     with pytest.raises(CliError, match="'depth'"):
         nmea_sources(["depth=/dev/a"], "/dev/b")

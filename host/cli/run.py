@@ -138,15 +138,16 @@ def nmea_sources(nmea: list[str], depth: str | None = None) -> dict[str, str]:
     for spec in nmea:
         m = _NAMED.fullmatch(spec)
         named.append((m.group(1), m.group(2)) if m else (None, spec))
+    given = {name for name, _ in named if name}
+    free = (
+        c for n in range(1, len(named) + 2) if (c := f"nmea{n}" if n > 1 else "nmea") not in given
+    )
     out: dict[str, str] = {}
     for name, port in named:
-        if name is None:
-            n = 1
-            while (name := "nmea" if n == 1 else f"nmea{n}") in out or name in [
-                x for x, _ in named
-            ]:
-                n += 1
-        if name in out or name in ("bridge", "mavlink"):
+        name = name or next(free)  # unnamed: the first of nmea, nmea2, ... not given explicitly
+        if name in ("bridge", "mavlink"):
+            raise CliError(f"{name!r} is the name of another source; name the --nmea differently")
+        if name in out:
             raise CliError(
                 f"two sources are named {name!r}; name each --nmea NAME=PORT differently"
             )
