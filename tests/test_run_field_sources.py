@@ -180,3 +180,20 @@ def test_mavlink_only_boat_over_udp(tmp_path):
             daemon.proc.kill()
     assert counts["/mavlink/GLOBAL_POSITION_INT"] == 30
     assert counts["/fix"] == 30
+
+
+def test_nmea_connection_strings():
+    from forcemap.host.sources import SerialOpener, UdpOpener, nmea_opener
+
+    udp = nmea_opener("udp:10110")  # a broadcast: every interface
+    assert isinstance(udp, UdpOpener) and (udp.host, udp.port) == ("0.0.0.0", 10110)
+    one = nmea_opener("udpin:127.0.0.1:10110")
+    assert (one.host, one.port) == ("127.0.0.1", 10110)
+    tcp = nmea_opener("tcp:192.168.4.1:10110")
+    assert isinstance(tcp, SerialOpener) and tcp.url == "socket://192.168.4.1:10110"
+    serial_port = nmea_opener("/dev/ttyUSB0,38400")
+    assert (serial_port.url, serial_port.baudrate) == ("/dev/ttyUSB0", 38400)
+    assert nmea_opener("/dev/ttyUSB0").baudrate == 4800
+    for bad in ("udp:host:notaport", "udp:70000", "udp:"):
+        with pytest.raises(ValueError, match="port from 1 to 65535"):
+            nmea_opener(bad)
