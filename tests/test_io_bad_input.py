@@ -92,6 +92,10 @@ def test_export_of_a_folder_without_logs_or_a_missing_file(tmp_path, capsys):
     assert "no .mcap files" in one_line(capsys, "export")
     assert main(["export", str(tmp_path / "nope.mcap")]) == 2
     assert "no such file" in one_line(capsys, "export")
+    log = _log(tmp_path)
+    assert main(["export", str(log), "-o", f"{tmp_path / 'missing'}/"]) == 2
+    assert "does not exist" in one_line(capsys, "export")
+    assert not (tmp_path / "missing").exists()
 
 
 # --- import -----------------------------------------------------------------------------------

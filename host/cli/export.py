@@ -42,6 +42,8 @@ def output_for(given: str | None, first_input: str, suffix: str) -> str:
         return str(Path(first_input).with_suffix(suffix))
     if given != "-" and Path(given).is_dir():
         return str(Path(given) / Path(first_input).with_suffix(suffix).name)
+    if given.endswith("/"):
+        raise CliError(f"the folder {given} does not exist; create it first")
     return given
 
 
