@@ -230,8 +230,8 @@ def export(paths: Iterable[str | os.PathLike[str]], fmt: str, out: str) -> str:
         table = samples_table(paths)
         if not len(table):
             raise CliError(
-                f"no samples in {names}: the log has no /samples rows (they need a position and "
-                "a measurement); `forcemap log info` shows what it holds"
+                f"no samples in {names}: the log has no /samples rows; "
+                "`forcemap log info FILE` shows what it holds"
             )
         if fmt == "parquet":
             with atomic_path(out) as tmp:

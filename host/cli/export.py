@@ -23,12 +23,11 @@ An existing output is replaced only with --force. `forcemap import` takes the sa
 """
 
 
-def add_output_options(parser: argparse.ArgumentParser, suffix: str, *aliases: str) -> None:
+def add_output_options(parser: argparse.ArgumentParser, suffix: str) -> None:
     """``-o/--output`` (a file, or a folder for a file named like the input) and ``--force``."""
     parser.add_argument(
         "-o",
         "--output",
-        *aliases,
         metavar="OUT",
         help=f"output file, or an existing folder for one named like the input ({suffix}); "
         "default: beside the (first) input",
@@ -48,12 +47,12 @@ def output_for(given: str | None, first_input: str, suffix: str) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.description = (
+    parser.description = textwrap.fill(
         "Write the samples table (csv, parquet; columns in docs/CONVENTIONS.md) or the boat's track "
         "(geojson, kml) from MCAP logs. Truncated logs are read up to their last complete chunk; "
-        "rows repeated across files are kept once."
+        "rows repeated across files are kept once.",
+        88,
     )
-    parser.description = textwrap.fill(parser.description, 88)
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
     parser.add_argument(

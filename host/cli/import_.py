@@ -26,11 +26,11 @@ behind. `forcemap export` takes the same -o and --force.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.description = (
+    parser.description = textwrap.fill(
         "Run an existing NMEA 0183 capture or MAVLink telemetry log (.tlog) through the daemon's "
-        "pipeline into an MCAP log."
+        "pipeline into an MCAP log.",
+        88,
     )
-    parser.description = textwrap.fill(parser.description, 88)
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
     parser.add_argument(

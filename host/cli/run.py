@@ -44,12 +44,12 @@ Every source is optional, but at least one is needed. See docs/DAEMON.md.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.description = (
+    parser.description = textwrap.fill(
         "Read the bridge, NMEA 0183 instruments and the autopilot, align and compensate, and log "
         "to MCAP. Any source may be left out. Ports that are missing or unplugged are retried "
-        "until they come back. SIGTERM or Ctrl-C closes the log cleanly."
+        "until they come back. SIGTERM or Ctrl-C closes the log cleanly.",
+        88,
     )
-    parser.description = textwrap.fill(parser.description, 88)
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
     parser.add_argument(
