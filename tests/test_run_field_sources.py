@@ -197,3 +197,52 @@ def test_nmea_connection_strings():
     for bad in ("udp:host:notaport", "udp:70000", "udp:"):
         with pytest.raises(ValueError, match="port from 1 to 65535"):
             nmea_opener(bad)
+
+
+REAL_NMEA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "nmea"
+
+
+def independent_counts(lines: list[bytes]) -> Counter:
+    """Sentence types of the lines whose checksum is right, computed here without the parser."""
+    counts: Counter = Counter()
+    for line in lines:
+        body, star, given = line.strip()[1:].partition(b"*")
+        check = 0
+        for ch in body:
+            check ^= ch
+        if star and given[:2].upper() == f"{check:02X}".encode():
+            counts[body.split(b",")[0][-3:].decode()] += 1
+    return counts
+
+
+def test_a_real_capture_streamed_live_is_logged_line_for_line(tmp_path):
+    """The first 3000 lines of PacCupStart, through a pty, as a boat's NMEA network would send them."""
+    capture = REAL_NMEA / "PacCupStartNMEA.txt"
+    if not capture.is_file():
+        pytest.fail(f"the real capture {capture} is missing", pytrace=False)
+    lines = capture.read_bytes().splitlines(keepends=True)[:3000]
+    expected = independent_counts(lines)
+    assert sum(expected.values()) == 3000  # checked by hand: this stretch has no corrupt line
+    assert expected["VWR"] == 109 and expected["DBT"] == 109 and expected["RMC"] == 54  # grep -c
+    port = PtyPort(tmp_path / "nmea")
+    out = tmp_path / "out"
+    daemon = DaemonProcess(out, {}, "--nmea", str(port.path))
+    try:
+        daemon.wait_connected(["nmea"])
+        for k in range(0, len(lines), 100):
+            port.write(b"".join(lines[k : k + 100]))
+            wait_drained([port])
+        wait_for_topic(out, "/nmea/sentence", 3000)
+        counts = finish(daemon)
+    finally:
+        port.close()
+        if daemon.proc.poll() is None:
+            daemon.proc.kill()
+    [path] = mcap_files(out)
+    sentences = [m.message for m in read_messages(path, "/nmea/sentence")]
+    assert counts["/nmea/sentence"] == 3000
+    assert all(s["valid"] for s in sentences)
+    got = Counter(s["text"].split(",")[0][-3:] for s in sentences)
+    assert got == expected
+    assert counts["/depth"] == expected["DBT"] + expected["MTW"]
+    assert counts["/fix"] > 0
