@@ -179,7 +179,6 @@ def test_run_with_a_missing_sim_clock_gives_up_in_a_few_seconds(tmp_path, capsys
         (["--depth", "x", "--rotate-mb", "0"], "--rotate-mb"),
         (["--depth", "x", "--rotate-min", "-5"], "--rotate-min"),
         (["--depth", "x", "--rotate-mb", "nan"], "--rotate-mb"),
-        (["--nmea", "a=x", "--nmea", "a=y"], "named 'a'"),
     ],
 )
 def test_run_refuses_what_cannot_work(tmp_path, capsys, args, words):

@@ -15,7 +15,6 @@ from pathlib import Path
 import pytest
 from forcemap.host.cli.run import nmea_sources
 from forcemap.host.daemon import NmeaLines
-from forcemap.host.errors import CliError
 from forcemap.host.mcap_log import read_messages
 from forcemap.host.pipeline import Pipeline
 
@@ -68,18 +67,13 @@ def daemon_out(daemon: DaemonProcess) -> Path:
 
 
 def test_nmea_source_names():
-    assert nmea_sources(["/dev/a", "gps=/dev/b", "socket://h:10110?x=y"], "/dev/d") == {
+    assert nmea_sources(["/dev/a", "udp:10110", "socket://h:10110?x=y"], "/dev/d") == {
         "depth": "/dev/d",
         "nmea": "/dev/a",
-        "gps": "/dev/b",
-        "nmea2": "socket://h:10110?x=y",
+        "nmea2": "udp:10110",
+        "nmea3": "socket://h:10110?x=y",
     }
-    # a later explicit name is not taken by an unnamed source
-    assert nmea_sources(["/dev/a", "nmea=/dev/b"]) == {"nmea2": "/dev/a", "nmea": "/dev/b"}
-    with pytest.raises(CliError, match="'mavlink' is the name of another source"):
-        nmea_sources(["mavlink=/dev/a"])
-    with pytest.raises(CliError, match="'depth'"):
-        nmea_sources(["depth=/dev/a"], "/dev/b")
+    assert nmea_sources([], None) == {}
 
 
 class Sink:
@@ -116,9 +110,9 @@ def test_interleaved_fragments_of_two_instruments_stay_whole_lines():
 def test_nmea_only_boat_with_two_instruments_on_ptys(tmp_path):
     gps, sounder = PtyPort(tmp_path / "gps"), PtyPort(tmp_path / "sounder")
     out = tmp_path / "out"
-    daemon = DaemonProcess(out, {}, "--nmea", f"gps={gps.path}", "--depth", str(sounder.path))
+    daemon = DaemonProcess(out, {}, "--nmea", str(gps.path), "--depth", str(sounder.path))
     try:
-        daemon.wait_connected(["gps", "depth"])
+        daemon.wait_connected(["nmea", "depth"])
         for i in range(10):
             a, b = rmc_sentence(i), depth_sentence(i)
             gps.write(a[:15])
@@ -141,7 +135,7 @@ def test_nmea_only_boat_with_two_instruments_on_ptys(tmp_path):
     start = next(
         m.message for m in read_messages(path, "/daemon/event") if m.message["event"] == "start"
     )
-    assert start["sources"] == ["depth", "gps"] and set(start["absent"]) == {"bridge", "mavlink"}
+    assert start["sources"] == ["depth", "nmea"] and set(start["absent"]) == {"bridge", "mavlink"}
 
 
 def test_nmea_over_udp_like_a_multiplexer(tmp_path):

@@ -6,7 +6,6 @@ import argparse
 import math
 import os
 import platform
-import re
 import signal
 import sys
 import textwrap
@@ -27,13 +26,11 @@ NMEA_BAUD = 4800
 # how long `--clock sim:PATH` waits for the simulator to write its clock file (it takes about 2 s
 # to start on a busy Pi; the daemon is usually started first)
 CLOCK_WAIT_S = 10.0
-# an NMEA source's name, as in `--nmea wind=/dev/ttyUSB1`
-_NAMED = re.compile(r"([A-Za-z][A-Za-z0-9_]*)=(.+)")
 
 EPILOG = """\
 examples:
   forcemap run --bridge /dev/ttyACM0 --nmea /dev/ttyUSB0 --mavlink /dev/ttyAMA0,57600
-  forcemap run --nmea gps=/dev/ttyUSB0,4800 --nmea wind=/dev/ttyUSB1,38400   # NMEA only
+  forcemap run --nmea /dev/ttyUSB0,4800 --nmea /dev/ttyUSB1,38400   # NMEA only: GPS, wind
   forcemap run --nmea udp:10110                  # a WiFi multiplexer's UDP broadcast
   forcemap run --nmea socket://192.168.4.1:10110 # a multiplexer's TCP server
   forcemap run --mavlink udp:0.0.0.0:14550       # an autopilot (with an echo sounder) only
@@ -60,16 +57,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--nmea",
-        metavar="[NAME=]PORT",
+        metavar="PORT",
         action="append",
         default=[],
         help="an NMEA 0183 instrument (give it once per instrument): a device path (PATH,BAUD; "
         f"default {NMEA_BAUD} baud), a pyserial URL (socket://HOST:PORT), udp:[HOST:]PORT (a UDP "
-        "broadcast, usually udp:10110) or tcp:HOST:PORT; NAME= names the source in the log "
-        "(default nmea, nmea2, ...)",
+        "broadcast, usually udp:10110) or tcp:HOST:PORT; the sources are named nmea, nmea2, ... "
+        "in the order given",
     )
     parser.add_argument(
-        "--depth", metavar="PORT", help="the same as --nmea depth=PORT (the echo sounder)"
+        "--depth", metavar="PORT", help="one more NMEA instrument, named depth (as in older logs)"
     )
     parser.add_argument(
         "--mavlink",
@@ -133,25 +130,10 @@ def _positive(name: str, value: float) -> float:
 
 
 def nmea_sources(nmea: list[str], depth: str | None = None) -> dict[str, str]:
-    """Source name -> port for ``--nmea [NAME=]PORT`` (and ``--depth PORT``, named depth)."""
-    named: list[tuple[str | None, str]] = [("depth", depth)] if depth else []
-    for spec in nmea:
-        m = _NAMED.fullmatch(spec)
-        named.append((m.group(1), m.group(2)) if m else (None, spec))
-    given = {name for name, _ in named if name}
-    free = (
-        c for n in range(1, len(named) + 2) if (c := f"nmea{n}" if n > 1 else "nmea") not in given
-    )
-    out: dict[str, str] = {}
-    for name, port in named:
-        name = name or next(free)  # unnamed: the first of nmea, nmea2, ... not given explicitly
-        if name in ("bridge", "mavlink"):
-            raise CliError(f"{name!r} is the name of another source; name the --nmea differently")
-        if name in out:
-            raise CliError(
-                f"two sources are named {name!r}; name each --nmea NAME=PORT differently"
-            )
-        out[name] = port
+    """Source name -> port: ``--depth PORT`` is ``depth``, each ``--nmea PORT`` ``nmea``, ``nmea2``, ..."""
+    out = {"depth": depth} if depth else {}
+    for n, port in enumerate(nmea, 1):
+        out["nmea" if n == 1 else f"nmea{n}"] = port
     return out
 
 
