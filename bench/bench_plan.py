@@ -5,6 +5,7 @@
 1. river: map a 20-minute lawnmower survey (seed A = 1) from its measurements (simulator bytes -> the
    daemon's pipeline -> MCAP -> export -> fit), plan the lawnmower, fly the original and the planned
    waypoint files with seed B = 2, score both on the intended lines with the true track;
+   river-gusts: the same, flown on a gusty day (the `gusts` effect: the wind depends on the seed);
 2. lake: the same; the plan should change almost nothing and lose nothing;
 3. wrong map: plan on a day of lower discharge (current x 0.6), fly on a dam-release day (discharge
    rising from x 1.0 to x 1.6 over the run);
@@ -136,12 +137,15 @@ def main() -> int:
     ap.add_argument(
         "--work", type=Path, help="folder for the surveys and plans (default: a temporary one)"
     )
-    ap.add_argument("--only", choices=("river", "lake", "wrong", "speed"))
+    ap.add_argument("--only", choices=("river", "gusts", "lake", "wrong", "speed"))
     args = ap.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_plan-"))
     print(f"work folder {work}", file=sys.stderr)
     if args.only in (None, "river"):
         closed_loop(work, "river", "river", [], "river")
+    if args.only in (None, "gusts"):
+        # the same map and plan, flown on a day with seeded gusts: seed B now changes the world too
+        closed_loop(work, "river", "river", ["gusts"], "river-gusts")
     if args.only in (None, "lake"):
         closed_loop(work, "lake", "lake", [], "lake")
     if args.only in (None, "wrong"):
