@@ -121,7 +121,7 @@ class DaemonProcess:
                     pass
                 self._cond.notify_all()
 
-    def wait_for(self, pred, timeout: float = 20.0) -> dict:
+    def wait_for(self, pred, timeout: float = 60.0) -> dict:
         """The first event matching ``pred``, waiting for it."""
         deadline = time.monotonic() + timeout
         with self._cond:
@@ -134,7 +134,7 @@ class DaemonProcess:
                     raise TimeoutError(f"no matching event; stderr:\n{''.join(self.lines)}")
                 self._cond.wait(min(left, 0.1))
 
-    def wait_connected(self, sources, timeout: float = 20.0) -> None:
+    def wait_connected(self, sources, timeout: float = 60.0) -> None:
         for s in sources:
             self.wait_for(
                 lambda e, s=s: e.get("event") == "connected" and e.get("source") == s, timeout
