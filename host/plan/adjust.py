@@ -2,7 +2,8 @@
 
 What a waypoint autopilot can be given, and what each fixes:
 
-- **leg direction against the flow**: the pattern is started so that its first line is flown upstream;
+- **order and direction against the flow**: the lines are flown in the order and direction whose
+  first line runs most against the current;
 - **speed per leg** (DO_CHANGE_SPEED): a Rover's speed loop holds *ground* speed, so with the flow it
   throttles back and a jet loses its steering. Each leg running with the current is given the ground
   speed that keeps the calm-water cruise speed through the water (capped below the boat's maximum);
