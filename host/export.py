@@ -12,7 +12,7 @@ from typing import Any, TextIO
 from xml.sax.saxutils import escape
 
 from forcemap.host.mcap_log import read_messages
-from forcemap.host.schemas import SAMPLE_COLUMNS
+from forcemap.host.messages import SAMPLE_COLUMNS
 
 # docs/CONVENTIONS.md, "The samples table": these first, in this order; other numeric fields follow.
 COLUMNS: tuple[str, ...] = SAMPLE_COLUMNS
