@@ -65,12 +65,13 @@ class MavDecoder:
             if d is not None:
                 self.values(ty, d, t)
 
-    def values(self, ty: str, d: dict[str, Any], t: float) -> None:
-        """SI values of one message (``mavlink.to_si``) at host wall time ``t``."""
+    def values(self, ty: str, d: dict[str, Any], t: float, label: str = "") -> None:
+        """SI values of one message (``mavlink.to_si``) at host wall time ``t``; ``label`` names
+        the source in the ``columns`` metadata (default: ``mavlink <TYPE>``)."""
         pipe = self.pipe
         asm = pipe.assembler
         st = asm.state
-        label = "mavlink " + ty
+        label = label or "mavlink " + ty
         if ty == "ATTITUDE":
             pipe.take_nav()
             st.add_heading(t, d["heading"], d["yaw_rate"])

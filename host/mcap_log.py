@@ -91,8 +91,10 @@ class McapLog:
         flush_interval_s: float = FLUSH_INTERVAL_S,
         fsync_interval_s: float = FSYNC_INTERVAL_S,
         compression: CompressionType = CompressionType.ZSTD,
+        first_path: str | os.PathLike[str] | None = None,
     ):
         self.out_dir = Path(out_dir)
+        self._first_path = Path(first_path) if first_path is not None else None
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.rotate_bytes = rotate_bytes
         self.rotate_seconds = rotate_seconds
@@ -126,6 +128,9 @@ class McapLog:
         return self._finished_bytes + (f.tell() if f is not None and not f.closed else 0)
 
     def _new_path(self) -> Path:
+        if self._first_path is not None:  # a file name the caller chose (e.g. a temporary one)
+            path, self._first_path = self._first_path, None
+            return path
         stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
         for n in range(1000):
             suffix = f"-{n}" if n else ""

@@ -163,6 +163,13 @@ class Pipeline:
         except Exception:
             self.internal(source)
 
+    def advance(self, t_wall: float) -> None:
+        """Time has reached ``t_wall`` on a source read without bytes (a DataFlash log)."""
+        if t_wall > self.now:
+            self.now = t_wall
+        self.assembler.drain(self.now, final=False)
+        self._maybe_diagnostics()
+
     def gap(self, source: str, t_wall_ns: int, reason: str) -> None:
         """A source disconnected or reconnected: logged; partial frames and lines are dropped."""
         try:

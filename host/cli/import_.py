@@ -10,14 +10,16 @@ from typing import Any
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "file", metavar="FILE", help="NMEA 0183 capture (text) or MAVLink telemetry log (.tlog)"
+        "file",
+        metavar="FILE",
+        help="NMEA 0183 capture (text), MAVLink telemetry log (.tlog) or DataFlash log (.BIN)",
     )
     parser.add_argument(
         "--out", default=".", metavar="DIR", help="directory for the MCAP file (default: .)"
     )
     parser.add_argument(
         "--format",
-        choices=("nmea", "tlog"),
+        choices=("nmea", "tlog", "dataflash"),
         default=None,
         help="input format (default: from the name and the first bytes)",
     )
@@ -32,18 +34,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _open_log(out: Path, stem: str) -> Any:
-    from forcemap.host.mcap_log import McapLog
+def _out_path(out: Path, stem: str) -> Path:
+    import time
 
-    return McapLog(out, prefix=stem, rotate_bytes=1 << 62, rotate_seconds=float("inf"))
+    return out / f"{stem}-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}.mcap"
+
+
+_UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records"}
 
 
 def summary(res: Any) -> list[str]:
     """Human-readable lines about an ImportResult."""
     c = res.counters
-    out = [
-        f"{res.path}: {res.records} {'lines' if res.format == 'nmea' else 'packets'} ({res.format})"
-    ]
+    out = [f"{res.path}: {res.records} {_UNITS[res.format]} ({res.format})"]
     if res.format == "nmea":
         n = c["depth"]
         out.append(
@@ -52,7 +55,7 @@ def summary(res: Any) -> list[str]:
         out.append(
             f"        {n['rejected']} rejected {dict(sorted(n['rejected_by_reason'].items()))}"
         )
-    else:
+    elif res.format == "tlog":
         m = c["mavlink"]
         out.append(
             f"  MAVLink: {m['messages']} messages, {m['bad_crc']} bad CRC, {m['junk_bytes']} junk bytes"
@@ -68,7 +71,8 @@ def summary(res: Any) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.calibration import ConfigError, load
-    from forcemap.host.importers import ImportFailed, check_importable, import_file
+    from forcemap.host.importers import ImportFailed, check_importable, import_to_mcap
+    from forcemap.host.outputs import check_output
 
     path = Path(args.file)
     try:
@@ -79,15 +83,13 @@ def run(args: argparse.Namespace) -> int:
     except (ConfigError, ImportFailed) as e:
         print(f"forcemap import: {e}", file=sys.stderr)
         return 2
-    log = _open_log(Path(args.out), path.stem)
+    out = check_output(_out_path(Path(args.out), path.stem), [path])
     try:
-        res = import_file(path, log, fmt, cal, args.sync)
+        res = import_to_mcap(path, out, fmt, cal, args.sync)
     except ImportFailed as e:
         print(f"forcemap import: {e}", file=sys.stderr)
         return 2
-    finally:
-        log.close()
     for line in summary(res):
         print(line)
-    print(f"  -> {', '.join(str(p) for p in log.paths)}")
+    print(f"  -> {out}")
     return 0
