@@ -83,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     except (ConfigError, ImportFailed) as e:
         print(f"forcemap import: {e}", file=sys.stderr)
         return 2
+    Path(args.out).mkdir(parents=True, exist_ok=True)
     out = check_output(_out_path(Path(args.out), path.stem), [path])
     try:
         res = import_to_mcap(path, out, fmt, cal, args.sync)
