@@ -96,7 +96,9 @@ class NmeaDecoder:
     # --- readings -----------------------------------------------------------------------------------
 
     def _reading(self, kind: str, t: float, value: tuple, s: Sentence) -> None:
-        self.pipe.assembler.reading(kind, t, value, f"nmea {s.type}")
+        ref = s.data.get("reference") if s.type == "MWV" else None
+        label = f"nmea {s.type} {ref}" if ref else f"nmea {s.type}"
+        self.pipe.assembler.reading(kind, t, value, label)
 
     def _depth(self, s: Sentence, t: float) -> None:
         if s.type == "DBS":
