@@ -19,7 +19,7 @@ from forcemap.host import compensation as comp
 from forcemap.host.cli import main
 from forcemap.host.importers import import_file, import_nmea
 from forcemap.host.mcap_log import FileScan, iter_records, read_messages
-from forcemap.host.pipeline import ListSink
+from forcemap.host.pipeline import ListSink, Pipeline
 from mcap.records import Message
 
 KN = 1852.0 / 3600.0
@@ -273,3 +273,35 @@ def test_no_position_no_time_no_measurements_are_one_line_and_no_file(tmp_path, 
     assert main(["import", str(nomeas), "--out", str(tmp_path / "o")]) == 2
     assert "no measurements in this log" in capsys.readouterr().err
     assert not list((tmp_path / "o").iterdir())
+
+
+def _nmea(body: str) -> bytes:
+    x = 0
+    for ch in body.encode():
+        x ^= ch
+    return f"${body}*{x:02X}\r\n".encode()
+
+
+def test_paddle_wheels_and_a_speed_log_are_both_logged():
+    """A bridge boat that also has a VHW log: the wheels give `current_*`, the log set and drift."""
+    from bench.synth_streams import generate
+
+    events, _ = generate(60, seed=5)
+    vhw = _nmea("IIVHW,,T,,M,2.92,N,5.40,K")
+    extra = [("nmea", mono, wall, vhw) for src, mono, wall, _ in events if src == "depth"]
+    sink = ListSink()
+    pipe = Pipeline(sink=sink)
+    for e in sorted(events + extra, key=lambda e: e[2]):
+        pipe.feed(*e)
+    pipe.close()
+    rows = sink.topic("/samples")
+    assert len(rows) == 60 * 4
+    both = [
+        r for r in rows if r["current_speed"] is not None and r["current_speed_stw"] is not None
+    ]
+    assert len(both) >= 0.9 * len(rows)
+    assert all(r["stw"] == pytest.approx(2.92 * KN) for r in both)
+    cols = [m for n, m in sink.meta if n == "columns"][-1]
+    assert cols["current_speed"].startswith("bridge paddle wheels")
+    assert cols["current_speed_stw"].startswith("nmea VHW")
+    assert len(sink.topic("/current")) == len(rows) and len(sink.topic("/current/stw")) == len(both)

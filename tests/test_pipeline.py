@@ -7,8 +7,8 @@ import random
 
 import jsonschema
 import pytest
-from forcemap.host.pipeline import HOLD_S, ListSink, NullSink, Pipeline
 from forcemap.host.messages import SAMPLE_COLUMNS, record_type
+from forcemap.host.pipeline import HOLD_S, ListSink, NullSink, Pipeline
 from forcemap.protocol import wire
 
 from bench.synth_streams import T0, generate, truth_wind_current
