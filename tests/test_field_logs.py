@@ -305,3 +305,23 @@ def test_paddle_wheels_and_a_speed_log_are_both_logged():
     assert cols["current_speed"].startswith("bridge paddle wheels")
     assert cols["current_speed_stw"].startswith("nmea VHW")
     assert len(sink.topic("/current")) == len(rows) and len(sink.topic("/current/stw")) == len(both)
+
+
+def test_a_fixed_sample_rate_gives_a_grid():
+    """With ``sample_rate_hz`` the rows fall on a fixed grid instead of the fastest stream's readings."""
+    from forcemap.host.importers import nmea_line_times
+    from forcemap.host.nmea import LineSplitter
+
+    path = REAL / "nmea" / "bundg_zeus_9.log"
+    splitter = LineSplitter()
+    lines = splitter.feed(path.read_bytes()) + splitter.flush()
+    times, _ = nmea_line_times(lines)
+    sink = ListSink()
+    pipe = Pipeline(sink=sink, sample_rate_hz=0.5)
+    for line, t in zip(lines, times, strict=True):
+        pipe.feed("nmea", int(t * 1e9), int(t * 1e9), line + b"\n")
+    pipe.close()
+    ts = [r["t"] for r in sink.topic("/samples")]
+    assert all(t % 2.0 == pytest.approx(0.0, abs=1e-6) for t in ts)
+    assert all(b - a == pytest.approx(2.0, abs=1e-6) for a, b in zip(ts, ts[1:], strict=False))
+    assert abs(len(ts) - (times[-1] - times[0]) / 2.0) <= 3
