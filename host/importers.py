@@ -15,7 +15,7 @@ An import that gives no samples says why in one line (no position, no time, no m
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,6 +30,10 @@ from forcemap.host.pipeline import Pipeline, Sink
 FORMATS = ("nmea", "tlog", "dataflash")
 DATAFLASH_MAGIC = b"\xa3\x95"
 DAY = 86400.0
+MAX_TLOG_US = (1 << 63) // 1000  # the latest time an MCAP log can hold (year 2262)
+# a DataFlash log starts with its FMT records: the magic, then message type 128 (FMT), 89 bytes each
+DATAFLASH_FMT = DATAFLASH_MAGIC + b"\x80"
+DATAFLASH_FMT_LEN = 89
 IMPORT_DIAG_PERIOD_S = 10.0  # /diagnostics every 10 s of log time (the daemon: every second)
 
 
@@ -48,6 +52,14 @@ class ImportResult:
     notes: list[str] = field(default_factory=list)
 
 
+def is_dataflash(head: bytes) -> bool:
+    """True when ``head`` (the first bytes of a file) is the start of a DataFlash log: FMT records."""
+    if not head.startswith(DATAFLASH_FMT):
+        return False
+    nxt = head[DATAFLASH_FMT_LEN : DATAFLASH_FMT_LEN + len(DATAFLASH_MAGIC)]
+    return len(head) < DATAFLASH_FMT_LEN + 2 or nxt == DATAFLASH_MAGIC
+
+
 def detect_format(path: str | Path) -> str:
     """``nmea``, ``tlog`` or ``dataflash`` from the name and the first bytes; else ImportFailed."""
     p = Path(path)
@@ -56,7 +68,7 @@ def detect_format(path: str | Path) -> str:
             head = f.read(4096)
     except OSError as e:
         raise ImportFailed(f"{p}: cannot read: {e.strerror or e}") from None
-    if head.startswith(DATAFLASH_MAGIC):
+    if is_dataflash(head):
         return "dataflash"
     if p.suffix.lower() == ".tlog":
         return "tlog"
@@ -66,7 +78,8 @@ def detect_format(path: str | Path) -> str:
     if sum(ln[:1] in (b"$", b"!") for ln in lines) >= max(1, len(lines) // 10):
         return "nmea"
     raise ImportFailed(
-        f"{p.name}: neither NMEA 0183 text, a MAVLink tlog nor a DataFlash log; give --format"
+        f"{p.name}: not a format forcemap recognises (NMEA 0183 text, a MAVLink tlog or an "
+        "ArduPilot .BIN log); if it is one of them, give --format nmea|tlog|dataflash"
     )
 
 
@@ -147,7 +160,7 @@ def import_nmea(
     times, how = nmea_line_times(lines)
     if how.startswith("no UTC"):
         raise ImportFailed(
-            f"{Path(path).name}: no time in this log (no RMC, GGA, GLL or ZDA with UTC)"
+            f"{Path(path).name}: no time in this log (no NMEA RMC, GGA, GLL or ZDA with UTC)"
         )
     pipe = Pipeline(
         calibration,
@@ -202,6 +215,9 @@ def tlog_records(data: bytes) -> Iterator[tuple[int, bytes]]:
             i += 1
             continue
         (us,) = struct.unpack_from(">Q", data, i)
+        if us > MAX_TLOG_US:  # not a time: these bytes do not frame a record
+            i += 1
+            continue
         yield us, data[i + 8 : i + 8 + size]
         i += 8 + size
 
@@ -274,10 +290,12 @@ def import_to_mcap(
     fmt: str | None = None,
     calibration: Calibration | None = None,
     sync: str | None = None,
+    check: Callable[[ImportResult], None] | None = None,
 ) -> ImportResult:
     """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
 
-    ImportFailed (and no file) when the log cannot give samples; the message says why.
+    ImportFailed (and no file) when the log cannot give samples; the message says why. ``check``
+    may refuse the result first (by raising), with the same effect.
     """
     fmt = check_importable(path, fmt)
     with atomic_path(out) as tmp:
@@ -288,6 +306,8 @@ def import_to_mcap(
             res = import_file(path, log, fmt, calibration, sync)
         finally:
             log.close()
+        if check is not None:
+            check(res)
         reason = why_no_samples(res)
         if reason:
             raise ImportFailed(reason)

@@ -133,7 +133,8 @@ class CountingLog:
     def __init__(self, out=".", **kw):
         self.counts: Counter[str] = Counter()
         self.meta: dict[str, dict] = {}
-        self.paths = [Path(out) / "in-memory"]
+        self.paths = [Path(out) / "in-memory.mcap"]
+        self.path = self.paths[0]
 
     def write(self, topic, log_time_ns, message):
         self.counts[topic] += 1

@@ -3,19 +3,42 @@
 from __future__ import annotations
 
 import argparse
-import sys
+import textwrap
 from pathlib import Path
 from typing import Any
 
+from forcemap.host.cli.export import add_output_options, output_for
+from forcemap.host.errors import CliError
+from forcemap.host.outputs import check_output
+
+EPILOG = """\
+examples:
+  forcemap import capture.nmea                 # -> capture.mcap beside it
+  forcemap import flight.tlog -o logs/         # -> logs/flight.mcap
+  forcemap import capture.txt --format nmea -o survey.mcap
+  forcemap export survey.mcap -o survey.csv    # then the samples table, as for `forcemap run`
+
+An existing output is replaced only with --force; a file that cannot be imported leaves nothing
+behind. `forcemap export` takes the same -o and --force.
+"""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = textwrap.fill(
+        "Run an existing NMEA 0183 capture, MAVLink telemetry log (.tlog) or ArduPilot DataFlash "
+        "log (.BIN) through the daemon's pipeline into an MCAP log with the samples table.",
+        88,
+    )
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = EPILOG
     parser.add_argument(
         "file",
         metavar="FILE",
         help="NMEA 0183 capture (text), MAVLink telemetry log (.tlog) or DataFlash log (.BIN)",
     )
+    add_output_options(parser, ".mcap")
     parser.add_argument(
-        "--out", default=".", metavar="DIR", help="directory for the MCAP file (default: .)"
+        "--out", metavar="DIR", dest="out_dir", help="the older form of -o DIR (created if missing)"
     )
     parser.add_argument(
         "--format",
@@ -32,12 +55,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="boat-state matching (default: the config's sync.mode)",
     )
-
-
-def _out_path(out: Path, stem: str) -> Path:
-    import time
-
-    return out / f"{stem}-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}.mcap"
 
 
 _UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records"}
@@ -69,10 +86,33 @@ def summary(res: Any) -> list[str]:
     return out
 
 
+def check_found(res: Any) -> None:
+    """Refuse an import that found nothing it could read (random bytes, the wrong --format)."""
+    c = res.counters
+    name = Path(res.path).name
+    if res.format == "nmea" and not c.get("depth", {}).get("accepted", 1):
+        raise CliError(f"{name}: no valid NMEA 0183 sentence in its {res.records} lines")
+    if res.format == "tlog" and not c.get("mavlink", {}).get("messages", 1):
+        raise CliError(f"{name}: no MAVLink packet with a valid checksum in it")
+
+
+def _output(args: argparse.Namespace, path: Path) -> Path:
+    if args.out_dir is not None and args.output is not None:
+        raise CliError("give -o/--output or the older --out DIR, not both")
+    if args.out_dir is not None:
+        try:
+            Path(args.out_dir).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CliError(f"cannot create the folder {args.out_dir} ({exc.strerror})") from None
+        return Path(args.out_dir) / f"{path.stem}.mcap"
+    if args.output == "-":
+        raise CliError("an MCAP log needs an output file (-o FILE.mcap) or folder")
+    return Path(output_for(args.output, str(path), ".mcap"))
+
+
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.calibration import ConfigError, load
     from forcemap.host.importers import ImportFailed, check_importable, import_to_mcap
-    from forcemap.host.outputs import check_output
 
     path = Path(args.file)
     try:
@@ -81,15 +121,12 @@ def run(args: argparse.Namespace) -> int:
             raise ImportFailed(f"{path}: no such file")
         fmt = check_importable(path, args.format)
     except (ConfigError, ImportFailed) as e:
-        print(f"forcemap import: {e}", file=sys.stderr)
-        return 2
-    Path(args.out).mkdir(parents=True, exist_ok=True)
-    out = check_output(_out_path(Path(args.out), path.stem), [path])
+        raise CliError(str(e)) from None
+    out = check_output(_output(args, path), [path], args.force)
     try:
-        res = import_to_mcap(path, out, fmt, cal, args.sync)
+        res = import_to_mcap(path, out, fmt, cal, args.sync, check=check_found)
     except ImportFailed as e:
-        print(f"forcemap import: {e}", file=sys.stderr)
-        return 2
+        raise CliError(str(e)) from None
     for line in summary(res):
         print(line)
     print(f"  -> {out}")
