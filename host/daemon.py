@@ -12,6 +12,7 @@ from typing import Any, Protocol
 
 from forcemap.host.arrival_clock import Clock, SystemClock
 from forcemap.host.mcap_log import McapLog
+from forcemap.host.messages import DaemonEvent, DaemonStatus, RawChunk, Record, as_json
 from forcemap.host.sources import Chunk, Reader, SourceEvent, Transport
 from forcemap.host.status import Reporter, Status
 
@@ -44,13 +45,13 @@ class ObservedSink:
         self.reporter = reporter
         self._reported: dict[str, int] = {}
 
-    def write(self, topic: str, log_time_ns: int, message: dict[str, Any]) -> None:
+    def write(self, topic: str, log_time_ns: int, message: Record) -> None:
         try:
             self.log.write(topic, log_time_ns, message)
         except Exception as exc:
             self.failed("log_write", exc, topic=topic)
             return
-        self.status.observe(topic, message)
+        self.status.observe(topic, as_json(message))
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         try:
@@ -68,13 +69,10 @@ class ObservedSink:
             self.reporter.event("error", reason=reason, error=tb, count=n, **fields)
 
 
-def raw_message(chunk: Chunk) -> dict[str, Any]:
+def raw_message(chunk: Chunk) -> RawChunk:
     """A ``/raw/<source>`` message: the bytes as read (base64) with their arrival stamps."""
-    return {
-        "t_mono_ns": chunk.t_mono_ns,
-        "t_wall_ns": chunk.t_wall_ns,
-        "data": base64.b64encode(chunk.data).decode("ascii"),
-    }
+    data = base64.b64encode(chunk.data).decode("ascii")
+    return RawChunk(chunk.t_mono_ns, chunk.t_wall_ns, data)
 
 
 class RawOnly:
@@ -187,7 +185,7 @@ class Daemon:
 
     def _event(self, event: str, **fields: Any) -> None:
         self.reporter.event(event, **fields)
-        self.sink.write("/daemon/event", self.clock.wall_ns(), {"event": event, **fields})
+        self.sink.write("/daemon/event", self.clock.wall_ns(), DaemonEvent(event, fields))
 
     def _handle(self, item: Chunk | SourceEvent) -> None:
         if isinstance(item, Chunk):
@@ -204,7 +202,7 @@ class Daemon:
         if item.detail:
             fields["detail"] = item.detail
         self.reporter.event(item.kind, **fields)
-        self.sink.write("/daemon/event", item.t_wall_ns, {"event": item.kind, **fields})
+        self.sink.write("/daemon/event", item.t_wall_ns, DaemonEvent(item.kind, fields))
         if item.kind == "disconnected":
             try:
                 self.pipeline.gap(item.source, item.t_wall_ns, item.reason)
@@ -225,7 +223,7 @@ class Daemon:
         st.file_bytes = self.log.bytes_written
         st.update_rates()
         snap = st.snapshot()
-        self.sink.write("/daemon/status", self.clock.wall_ns(), snap)
+        self.sink.write("/daemon/status", self.clock.wall_ns(), DaemonStatus(snap))
         self.reporter.status(st, final=final)
 
     def run(self) -> int:

@@ -81,7 +81,7 @@ class Sink:
         self.messages: list[tuple[str, dict]] = []
 
     def write(self, topic, log_time_ns, message):
-        self.messages.append((topic, message))
+        self.messages.append((topic, message.to_json()))  # the pipeline writes typed records
 
     def metadata(self, name, data):
         pass
