@@ -151,7 +151,11 @@ def nmea_line_times(lines: list[bytes]) -> tuple[list[float], str]:
 
 
 def import_nmea(
-    path: str | Path, sink: Sink, calibration: Calibration | None = None, sync: str | None = None
+    path: str | Path,
+    sink: Sink,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    sample_rate_hz: float | None = None,
 ) -> ImportResult:
     """An NMEA 0183 capture through the pipeline's NMEA path."""
     data = Path(path).read_bytes()
@@ -166,6 +170,7 @@ def import_nmea(
         calibration,
         sink,
         sync=sync,
+        sample_rate_hz=sample_rate_hz,
         config={"import": str(path), "format": "nmea", "timing": how},
         diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
     )
@@ -179,13 +184,18 @@ def import_nmea(
 
 
 def import_dataflash(
-    path: str | Path, sink: Sink, calibration: Calibration | None = None, sync: str | None = None
+    path: str | Path,
+    sink: Sink,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    sample_rate_hz: float | None = None,
 ) -> ImportResult:
     """An ArduPilot DataFlash log (.BIN) through the sample assembler (forcemap.host.dataflash)."""
     pipe = Pipeline(
         calibration,
         sink,
         sync=sync,
+        sample_rate_hz=sample_rate_hz,
         config={"import": str(path), "format": "dataflash", "timing": "the log's own clock"},
         diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
     )
@@ -223,7 +233,11 @@ def tlog_records(data: bytes) -> Iterator[tuple[int, bytes]]:
 
 
 def import_tlog(
-    path: str | Path, sink: Sink, calibration: Calibration | None = None, sync: str | None = None
+    path: str | Path,
+    sink: Sink,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    sample_rate_hz: float | None = None,
 ) -> ImportResult:
     """A MAVLink telemetry log through the pipeline's MAVLink path, at its recorded arrival times."""
     data = Path(path).read_bytes()
@@ -231,6 +245,7 @@ def import_tlog(
         calibration,
         sink,
         sync=sync,
+        sample_rate_hz=sample_rate_hz,
         config={"import": str(path), "format": "tlog", "timing": "tlog receive times"},
         diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
     )
@@ -258,15 +273,13 @@ def import_file(
     fmt: str | None = None,
     calibration: Calibration | None = None,
     sync: str | None = None,
+    sample_rate_hz: float | None = None,
 ) -> ImportResult:
     """Import one file in the given or detected format."""
     fmt = check_importable(path, fmt)
-    if fmt == "nmea":
-        return import_nmea(path, sink, calibration, sync)
-    if fmt == "tlog":
-        return import_tlog(path, sink, calibration, sync)
-    if fmt == "dataflash":
-        return import_dataflash(path, sink, calibration, sync)
+    readers = {"nmea": import_nmea, "tlog": import_tlog, "dataflash": import_dataflash}
+    if fmt in readers:
+        return readers[fmt](path, sink, calibration, sync, sample_rate_hz)
     raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
 
 
@@ -291,6 +304,7 @@ def import_to_mcap(
     calibration: Calibration | None = None,
     sync: str | None = None,
     check: Callable[[ImportResult], None] | None = None,
+    sample_rate_hz: float | None = None,
 ) -> ImportResult:
     """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
 
@@ -303,7 +317,7 @@ def import_to_mcap(
             Path(tmp).parent, first_path=tmp, rotate_bytes=1 << 62, rotate_seconds=float("inf")
         )
         try:
-            res = import_file(path, log, fmt, calibration, sync)
+            res = import_file(path, log, fmt, calibration, sync, sample_rate_hz)
         finally:
             log.close()
         if check is not None:

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from forcemap.host.errors import CliError
 from forcemap.host.workbench.errors import WorkbenchError
 
 
@@ -50,3 +52,27 @@ def write_json(path: Path | None, data: dict) -> None:
 def print_notes(survey) -> None:
     for n in survey.notes:
         print(f"note: {n}", file=sys.stderr)
+
+
+def positive(name: str, value: float) -> float:
+    """``value`` if it is a finite number above 0, else a one-line CliError naming ``name``."""
+    if not math.isfinite(value) or value <= 0:
+        raise CliError(f"{name} must be a number above 0, not {value:g}")
+    return value
+
+
+def add_sample_rate(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--sample-rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="samples per second in the table (default: one per reading of the fastest measurement "
+        "source; with a bridge, one per bridge SAMPLE)",
+    )
+
+
+def sample_rate(args: argparse.Namespace) -> float | None:
+    """The checked ``--sample-rate``, or None for the default pacing."""
+    rate = args.sample_rate
+    return None if rate is None else positive("--sample-rate", rate)

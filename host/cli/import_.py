@@ -7,6 +7,7 @@ import textwrap
 from pathlib import Path
 from typing import Any
 
+from forcemap.host.cli.common import add_sample_rate, sample_rate
 from forcemap.host.cli.export import add_output_options, output_for
 from forcemap.host.errors import CliError
 from forcemap.host.outputs import check_output
@@ -55,6 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="boat-state matching (default: the config's sync.mode)",
     )
+    add_sample_rate(parser)
 
 
 _UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records"}
@@ -124,7 +126,9 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     out = check_output(_output(args, path), [path], args.force)
     try:
-        res = import_to_mcap(path, out, fmt, cal, args.sync, check=check_found)
+        res = import_to_mcap(
+            path, out, fmt, cal, args.sync, check=check_found, sample_rate_hz=sample_rate(args)
+        )
     except ImportFailed as e:
         raise CliError(str(e)) from None
     for line in summary(res):

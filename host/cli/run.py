@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import platform
 import signal
@@ -15,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from forcemap.host.arrival_clock import Clock, SimClock, parse_clock
+from forcemap.host.cli.common import add_sample_rate, positive, sample_rate
 from forcemap.host.daemon import Daemon
 from forcemap.host.errors import CliError
 from forcemap.host.mcap_log import McapLog
@@ -115,18 +115,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="boat-state matching: interpolate at each sample's time (default), or the paper's "
         "nearest-neighbour ApproximateTime scheme; overrides sync.mode in the config",
     )
+    add_sample_rate(parser)
     parser.add_argument("--prefix", default="run", help="file name prefix (default: run)")
     parser.add_argument(
         "--raw",
         action="store_true",
         help="also log every chunk of bytes as read (/raw/<source>, base64), for replaying later",
     )
-
-
-def _positive(name: str, value: float) -> float:
-    if not math.isfinite(value) or value <= 0:
-        raise CliError(f"{name} must be a number above 0, not {value:g}")
-    return value
 
 
 def nmea_sources(nmea: list[str], depth: str | None = None) -> dict[str, str]:
@@ -177,7 +172,9 @@ def start_clock(spec: str, wait_s: float) -> Clock:
     return clock
 
 
-def _pipeline_factory(cal: Any, sync: str, speed: float) -> Callable[[Any], Any]:
+def _pipeline_factory(
+    cal: Any, sync: str, speed: float, sample_rate_hz: float | None = None
+) -> Callable[[Any], Any]:
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
 
     def make(sink: Any) -> Any:
@@ -186,7 +183,7 @@ def _pipeline_factory(cal: Any, sync: str, speed: float) -> Callable[[Any], Any]
         # how long a sample waits for the autopilot is host time: a busy machine's stall is
         # `speed` times longer on an accelerated simulator's clock
         hold_s = pipeline.HOLD_S * max(1.0, speed)
-        return pipeline.Pipeline(cal, sink, sync=sync, hold_s=hold_s)
+        return pipeline.Pipeline(cal, sink, sync=sync, hold_s=hold_s, sample_rate_hz=sample_rate_hz)
 
     return make
 
@@ -228,9 +225,9 @@ def _stop_on_signals(daemon: Daemon) -> None:
 def run(args: argparse.Namespace) -> int:
     from forcemap.host import calibration
 
-    rotate_bytes = int(_positive("--rotate-mb", args.rotate_mb) * 1024 * 1024)
-    rotate_seconds = _positive("--rotate-min", args.rotate_min) * 60.0
-    _positive("--clock-wait", args.clock_wait)
+    rotate_bytes = int(positive("--rotate-mb", args.rotate_mb) * 1024 * 1024)
+    rotate_seconds = positive("--rotate-min", args.rotate_min) * 60.0
+    positive("--clock-wait", args.clock_wait)
     openers, nmea = _openers(args)
     try:
         cal = calibration.load(args.config)
@@ -248,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
         _record_setup(log, args, nmea, sync)
         daemon = Daemon(
             openers,
-            _pipeline_factory(cal, sync, clock.speed),
+            _pipeline_factory(cal, sync, clock.speed, sample_rate(args)),
             log,
             clock=clock,
             reporter=Reporter(sys.stderr, live=False if args.quiet else None),
