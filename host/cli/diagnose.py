@@ -57,12 +57,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     def body() -> int:
         from forcemap.host.workbench.diagnose import diagnose
+        from forcemap.host.workbench.errors import WorkbenchError
         from forcemap.host.workbench.fitting import resolve_terms
         from forcemap.host.workbench.model import small_blas
         from forcemap.host.workbench.spec import BASELINE
         from forcemap.host.workbench.table import load_survey
         from forcemap.host.workbench.workspace import current_terms, save_diagnosis, workspace_dir
 
+        if args.rounds < 1:
+            raise WorkbenchError(f"--rounds must be at least 1, not {args.rounds}")
         survey = load_survey(args.table)
         ws = workspace_dir(args.table)
         if args.model or args.effects:
