@@ -123,6 +123,6 @@ def test_throttle_held_per_leg_leaks_nothing(tmp_path, seed, target):
     table = synth.make_survey("river", [], seed, 1200.0, tmp_path, held_throttle=True)
     survey = load_survey(table)
     # the case is real: the ground speed follows the current and the throttle changes leg by leg
-    assert np.std(survey.columns["throttle"]) > 5.0
+    assert np.std(survey.columns["throttle"]) > 3.0  # its noise alone: 2.0
     d = diagnose(survey, target, rounds=1, progress=False)
     assert not d.missing_effect_found, d.summary()

@@ -236,8 +236,8 @@ def _prefer_direct_cause(results: list[Candidate], pair_gain) -> list[Candidate]
         return results
     lead = results[0]
     for i, c in enumerate(results[1:PROXY_WINDOW], start=1):
-        if is_proxy(c.covariate):
-            continue
+        if is_proxy(c.covariate) or c.consequence:
+            continue  # a consequence of the field is no direct cause (sog reads the current it explains)
         if c.improvement < 0.5 * lead.improvement or c.improvement < PROXY_LEFTOVER:
             continue
         if pair_gain(c.covariate, lead.covariate) < PROXY_LEFTOVER:
