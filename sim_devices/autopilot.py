@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from .geo import Geo
+from .mission_protocol import MissionReceiver
 
 # (message, period s): ArduPilot Rover's default SRx_ stream rates
 RATES = {
@@ -18,6 +19,8 @@ RATES = {
     "GLOBAL_POSITION_INT": 0.2,
     "ATTITUDE": 0.1,
     "VFR_HUD": 0.25,
+    "MISSION_CURRENT": 1.0,  # EXTENDED_STATUS group
+    "NAV_CONTROLLER_OUTPUT": 1.0,
 }
 ROVER_MODE_AUTO = 10
 BASE_MODE = (
@@ -40,6 +43,12 @@ class NavState:
     ve: float
     vn: float
     throttle: float  # 0..1
+    wp_seq: int = 1  # mission item the boat is heading for (MISSION_CURRENT)
+    wp_total: int = 0
+    xtrack: float = 0.0  # m, right of the track positive (NAV_CONTROLLER_OUTPUT.xtrack_error)
+    nav_bearing_deg: float = 0.0  # the guidance's desired heading
+    target_bearing_deg: float = 0.0  # bearing to the waypoint
+    wp_dist: float = 0.0
 
 
 class Autopilot:
@@ -68,6 +77,27 @@ class Autopilot:
         self._last_vel = (0.0, 0.0)
         self._dr: tuple[float, float] | None = None
         self._last_t = 0.0
+        self.uplink = MissionReceiver()  # the mission protocol, vehicle side
+        self._rx = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        self._rx.robust_parsing = True
+
+    def receive(self, data: bytes, t: float) -> list[bytes]:
+        """Bytes from the ground station at sim time ``t``; the encoded replies."""
+        out: list[bytes] = []
+        try:
+            msgs = self._rx.parse_buffer(data) or []
+        except Exception:  # pymavlink can raise on garbage; a real autopilot drops it
+            self._rx = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+            self._rx.robust_parsing = True
+            msgs = []
+        for msg in msgs:
+            if msg.get_type() != "BAD_DATA":
+                out += [self._pack(r) for r in self.uplink.handle(msg, t)]
+        return out
+
+    def uplink_due(self, t: float) -> list[bytes]:
+        """The vehicle's own re-requests of a stalled upload."""
+        return [self._pack(r) for r in self.uplink.tick(t)]
 
     def _pack(self, msg) -> bytes:  # type: ignore[no-untyped-def]
         buf = msg.pack(self.mav)
@@ -166,6 +196,18 @@ class Autopilot:
                     0.0,
                     s.yaw_rate,
                 )
+            elif name == "MISSION_CURRENT":
+                state = (
+                    mavlink2.MISSION_STATE_ACTIVE
+                    if s.wp_total
+                    else mavlink2.MISSION_STATE_NO_MISSION
+                )
+                msg = self.mav.mission_current_encode(s.wp_seq, s.wp_total, state, 0)
+            elif name == "NAV_CONTROLLER_OUTPUT":
+                msg = self.mav.nav_controller_output_encode(
+                    0.0, 0.0, int(round(s.nav_bearing_deg)), int(round(s.target_bearing_deg)),
+                    min(int(round(s.wp_dist)), 65535), 0.0, 0.0, s.xtrack,
+                )  # fmt: skip
             else:
                 msg = self.mav.vfr_hud_encode(
                     sog, sog, int(round(heading)) % 360, int(round(s.throttle * 100)), 0.0, 0.0

@@ -47,14 +47,21 @@ class Navigator:
     """Follows a waypoint list leg by leg with line-of-sight guidance, like ArduPilot's AUTO mode."""
 
     def __init__(
-        self, waypoints: np.ndarray, loop: bool = True, gains: Gains | None = None
+        self,
+        waypoints: np.ndarray,
+        loop: bool = True,
+        gains: Gains | None = None,
+        speeds: np.ndarray | None = None,
     ) -> None:
         self.wps = np.asarray(waypoints, dtype=float)
         self.loop = loop
+        # ground speed on the leg into each waypoint (DO_CHANGE_SPEED), NaN: the cruise speed
+        self.speeds = None if speeds is None else np.asarray(speeds, dtype=float)
         self.g = gains or Gains()
         self.leg = 1  # heading from wps[leg-1] to wps[leg]
         self.legs_done = 0
         self.done = False
+        self._legs: dict[int, tuple[float, ...]] = {}
 
     def _advance(self) -> None:
         self.legs_done += 1
@@ -65,7 +72,16 @@ class Navigator:
                 self.leg = len(self.wps) - 1
                 return
             self.wps = self.wps[::-1].copy()  # survey the pattern again in reverse
+            self.speeds = None
+            self._legs = {}
             self.leg = 1
+
+    def speed(self, cruise: float) -> float:
+        """The ground speed commanded on the current leg."""
+        if self.speeds is None:
+            return cruise
+        s = float(self.speeds[self.leg])
+        return s if math.isfinite(s) and s > 0 else cruise
 
     def _switch_distance(self, tx: float, ty: float) -> float:
         """How far before a waypoint to start the turn onto the next leg (calm-water turn anticipation)."""
@@ -77,21 +93,35 @@ class Navigator:
             self.g.wp_radius_m, self.g.turn_radius_m * math.tan(min(turn, math.radians(120)) / 2)
         )
 
+    def _geometry(self) -> tuple[float, float, float, float, float, float, float]:
+        """(ax, ay, bx, by, unit tx, ty, length) of the current leg, and its turn-switch distance (cached)."""
+        g = self._legs.get(self.leg)
+        if g is None:
+            a, b = self.wps[self.leg - 1], self.wps[self.leg]
+            dx, dy = float(b[0] - a[0]), float(b[1] - a[1])
+            length = math.hypot(dx, dy) or 1e-9
+            tx, ty = dx / length, dy / length
+            g = (float(a[0]), float(a[1]), float(b[0]), float(b[1]), tx, ty, length)
+            g = (*g, self._switch_distance(tx, ty))
+            self._legs[self.leg] = g
+        return g
+
+    def target(self) -> tuple[float, float]:
+        """The waypoint ahead (x, y)."""
+        g = self._geometry()
+        return g[2], g[3]
+
     def update(self, x: float, y: float) -> tuple[float, float]:
         """Desired heading (compass rad) and signed cross-track error (m, right of track positive)."""
         for _ in range(len(self.wps)):
-            a, b = self.wps[self.leg - 1], self.wps[self.leg]
-            dx, dy = b[0] - a[0], b[1] - a[1]
-            length = math.hypot(dx, dy) or 1e-9
-            tx, ty = dx / length, dy / length
-            along = (x - a[0]) * tx + (y - a[1]) * ty
-            early = self._switch_distance(tx, ty)
+            ax, ay, bx, by, tx, ty, length, early = self._geometry()
+            along = (x - ax) * tx + (y - ay) * ty
             if self.done or (
-                length - along > early and math.hypot(b[0] - x, b[1] - y) > self.g.wp_radius_m
+                length - along > early and math.hypot(bx - x, by - y) > self.g.wp_radius_m
             ):
                 break
             self._advance()
-        xte = -(x - a[0]) * ty + (y - a[1]) * tx  # left of track positive here
+        xte = -(x - ax) * ty + (y - ay) * tx  # left of track positive here
         bearing = math.atan2(tx, ty)
         return (bearing + math.atan2(xte, self.g.lookahead_m)) % (2 * math.pi), -xte
 

@@ -92,9 +92,9 @@ class Simulation:
         a, b = wps[0], wps[1]
         psi = math.atan2(b[0] - a[0], b[1] - a[1]) % (2 * math.pi)
         self.boat = Boat(BoatParams(), BoatState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
-        cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
-        self.nav = Navigator(wps, loop=self.mission.loop)
-        self.ctl = Controller(cruise)
+        self.cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
+        self.nav = Navigator(wps, loop=self.mission.loop, speeds=self.mission.speeds)
+        self.ctl = Controller(self.cruise)
         icfg = InstrumentConfig.from_table(tables.get("instruments", {}))
         mis = self._effect("wheel_misalignment")
         up = self._effect("anemometer_upwash")
@@ -151,6 +151,7 @@ class Simulation:
         self.rows: list[tuple[float, ...]] = []
         self.extra: list[tuple[float, ...]] = []
         self.throttle = 0.0
+        self.psi_d, self.xte = psi, 0.0
         self.stats = {"bridge": 0, "depth": 0, "mavlink": 0}
         self._update_point()
 
@@ -256,8 +257,14 @@ class Simulation:
         dt = DT
         s, p = self.boat.s, self.p
         psi_d, xte = self.nav.update(s.x, s.y)
+        self.psi_d, self.xte = psi_d, xte
+        self.ctl.cruise = self.nav.speed(self.cruise)
         sog = math.hypot(s.ve, s.vn)
         self.throttle, steer = self.ctl.update(dt, s.psi, s.r, psi_d, sog)
+        if (
+            self.nav.done
+        ):  # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
+            self.throttle, steer = 0.0, 0.0
         t_prev = self.t
         self.k += 1
         t_new = self.k * dt
@@ -313,12 +320,41 @@ class Simulation:
             data = "".join(x + "\r\n" for x in lines).encode("ascii", "replace")
             for t_ns, piece in self.uart_depth.send(self._ns(t_new), data):
                 self._push(t_ns, "depth", piece)
-        msgs = self.autopilot.messages(
-            NavState(t_new, s.x, s.y, heading_deg, s.r, s.ve, s.vn, self.throttle)
-        )
+        msgs = self.autopilot.messages(self._nav_state(t_new, heading_deg))
+        msgs += self.autopilot.uplink_due(t_new)
         if msgs:
             for t_ns, piece in self.uart_mav.send(self._ns(t_new), b"".join(msgs)):
                 self._push(t_ns + self.mav_latency_ns, "mavlink", piece)
+
+    def _nav_state(self, t: float, heading_deg: float) -> NavState:
+        s, nav = self.boat.s, self.nav
+        wx, wy = nav.wps[nav.leg]
+        seqs = self.mission.seqs
+        return NavState(
+            t, s.x, s.y, heading_deg, s.r, s.ve, s.vn, self.throttle,
+            wp_seq=int(seqs[nav.leg]) if seqs is not None else nav.leg + 1,
+            wp_total=int(seqs[-1]) + 1 if seqs is not None else len(nav.wps) + 1,
+            xtrack=self.xte,
+            nav_bearing_deg=math.degrees(self.psi_d) % 360.0,
+            target_bearing_deg=math.degrees(math.atan2(wx - s.x, wy - s.y)) % 360.0,
+            wp_dist=math.hypot(wx - s.x, wy - s.y),
+        )  # fmt: skip
+
+    def uplink(self, data: bytes) -> None:
+        """Bytes a ground station wrote to the autopilot's port; a mission it completes is flown at once."""
+        replies = self.autopilot.receive(data, self.t)
+        if replies:
+            for t_ns, piece in self.uart_mav.send(self._ns(self.t), b"".join(replies)):
+                self._push(t_ns + self.mav_latency_ns, "mavlink", piece)
+        rx = self.autopilot.uplink
+        if rx.new_mission and rx.accepted:
+            rx.new_mission = False
+            s = self.boat.s
+            try:
+                self.mission = ms.from_items(rx.accepted, self.geo, (s.x, s.y))
+            except ValueError:
+                return  # nothing to fly: keep the current mission, as Rover does
+            self.nav = Navigator(self.mission.waypoints, loop=False, speeds=self.mission.speeds)
 
     def advance(self, t_s: float, progress: Progress | None = None) -> None:
         """Step until sim time ``t_s`` (s since the start), capped at the run's duration."""
@@ -336,6 +372,7 @@ class Simulation:
         if self.truth_dir is not None:
             write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
             self._write_pulses(Path(self.truth_dir) / "pulses.npz")
+            ms.write_truth(Path(self.truth_dir), self.mission, self.geo)
 
     def _note_boot(self) -> None:
         self.boots.append((self.bridge.boot_id, self.bridge.boot_us))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import tomllib
 from dataclasses import dataclass
@@ -11,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from . import waypoints
 from .geo import Geo
 from .scenario import Scenario
 
@@ -25,6 +27,15 @@ class Mission:
     description: str
     waypoints: np.ndarray  # (n, 2) x east, y north
     loop: bool = True
+    speeds: np.ndarray | None = (
+        None  # (n,) ground speed (m/s) on the leg into each waypoint; NaN: cruise
+    )
+    lines: np.ndarray | None = (
+        None  # (k, 2, 2) the intended survey lines, if the mission was planned
+    )
+    seqs: np.ndarray | None = (
+        None  # mission item sequence number of each waypoint (MISSION_CURRENT)
+    )
 
 
 def _centred(half: float, spacing: float) -> np.ndarray:
@@ -79,8 +90,25 @@ def builtin_names() -> list[str]:
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
 
 
+def _sidecar_lines(path: Path) -> dict[str, Any]:
+    """The intended lines of a planned waypoint file, from the FILE.json written beside it (if any)."""
+    side = path.with_suffix(".json")
+    try:
+        lines = json.loads(side.read_text())["lines"]
+        return {"lines_latlon": [ln["latlon"] for ln in lines]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+
+
 def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
     p = Path(name_or_path)
+    if p.suffix == ".waypoints" or (p.is_file() and p.read_bytes()[:7] == b"QGC WPL"):
+        _, items = waypoints.read_wpl(p)
+        latlon, speeds, seqs = waypoints.nav_points(items)
+        m = {"latlon": latlon.tolist(), "speeds": speeds.tolist(), "seqs": seqs.tolist()}
+        m["loop"] = False
+        m.update(_sidecar_lines(p))
+        return {"mission": {"description": f"waypoint file {p.name}", **m}}, p.stem
     if p.suffix == ".toml" or p.exists():
         return tomllib.loads(p.read_text()), p.stem
     res = resources.files("forcemap.sim_devices") / MISSION_DIR / f"{name_or_path}.toml"
@@ -116,7 +144,101 @@ def load(name_or_path: str | Mission, scenario: Scenario) -> Mission:
         wps = np.array(m["points"], dtype=float)
     if len(wps) < 2:
         raise ValueError(f"mission {name} needs at least two waypoints")
-    return Mission(name, str(m.get("description", "")), wps, bool(m.get("loop", True)))
+    speeds = lines = None
+    if "speeds" in m:
+        speeds = np.array([np.nan if v is None else v for v in m["speeds"]], dtype=float)
+        if speeds.shape != (len(wps),):
+            raise ValueError(f"mission {name}: speeds needs one value per waypoint")
+    if "lines_latlon" in m:
+        geo = Geo(scenario.lat0, scenario.lon0)
+        ll = np.array(m["lines_latlon"], dtype=float).reshape(-1, 2, 2)
+        lines = np.stack(geo.to_local(ll[..., 0], ll[..., 1]), axis=-1)
+    elif "lines" in m:
+        lines = np.array(m["lines"], dtype=float).reshape(-1, 2, 2)
+    seqs = np.array(m["seqs"], dtype=int) if "seqs" in m else None
+    return Mission(
+        name, str(m.get("description", "")), wps, bool(m.get("loop", True)), speeds, lines, seqs
+    )
+
+
+def from_items(items: list[waypoints.Item], geo: Geo, start: tuple[float, float]) -> Mission:
+    """A mission received over MAVLink (home first), flown from the boat's position ``start``."""
+    latlon, speeds, seqs = waypoints.nav_points(items[1:])
+    if len(latlon) == 0:
+        raise ValueError("the mission has no NAV_WAYPOINT")
+    wps = np.column_stack(geo.to_local(latlon[:, 0], latlon[:, 1]))
+    return Mission(
+        "uploaded",
+        f"{len(items)} items received over MAVLink",
+        np.vstack([np.asarray(start, dtype=float), wps]),
+        False,
+        np.concatenate([[speeds[0]], speeds]),
+        None,
+        np.concatenate([[seqs[0]], seqs]),
+    )
+
+
+def save_toml(path: str | Path, mission: Mission, geo: Geo) -> None:
+    """The mission in the simulator's TOML format (lat/lon, so it flies in any scenario at that place)."""
+    lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
+    rows = ",\n  ".join(f"[{a:.8f}, {b:.8f}]" for a, b in zip(lat, lon, strict=True))
+    out = [
+        "[mission]",
+        f"description = {json.dumps(mission.description)}",
+        f"loop = {'true' if mission.loop else 'false'}",
+        f"latlon = [\n  {rows},\n]",
+    ]
+    if mission.speeds is not None:
+        vals = ", ".join("nan" if not np.isfinite(v) else f"{v:.3f}" for v in mission.speeds)
+        out.append(f"speeds = [{vals}]  # ground speed on the leg into each waypoint; nan: cruise")
+    if mission.lines is not None:
+        la, lo = geo.to_latlon(mission.lines[..., 0], mission.lines[..., 1])
+        segs = ",\n  ".join(
+            f"[[{la[i, 0]:.8f}, {lo[i, 0]:.8f}], [{la[i, 1]:.8f}, {lo[i, 1]:.8f}]]"
+            for i in range(len(la))
+        )
+        out.append(f"lines_latlon = [\n  {segs},\n]  # the intended survey lines")
+    Path(path).write_text("\n".join(out) + "\n")
+
+
+def save_waypoints(path: str | Path, mission: Mission, geo: Geo) -> None:
+    """The mission as a QGC WPL 110 file (home at the first waypoint)."""
+    lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
+    latlon = np.column_stack([lat, lon])
+    waypoints.write_wpl(
+        path, waypoints.waypoint(*latlon[0]), waypoints.items_for(latlon, mission.speeds)
+    )
+
+
+def intended_lines(mission: Mission) -> np.ndarray:
+    """The lines the mission is meant to survey: its own, or else every leg between waypoints."""
+    if mission.lines is not None:
+        return mission.lines
+    return np.stack([mission.waypoints[:-1], mission.waypoints[1:]], axis=1)
+
+
+def to_json(mission: Mission, geo: Geo) -> dict[str, Any]:
+    """Waypoints and intended lines in lat/lon and local metres (the truth's mission.json)."""
+    lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
+    lines = intended_lines(mission)
+    la, lo = geo.to_latlon(lines[..., 0], lines[..., 1])
+    speeds = mission.speeds if mission.speeds is not None else np.full(len(lat), np.nan)
+    return {
+        "name": mission.name,
+        "loop": mission.loop,
+        "lat0": geo.lat0,
+        "lon0": geo.lon0,
+        "waypoints": [
+            {"lat": float(a), "lon": float(b), "x": float(x), "y": float(y),
+             "speed": None if not np.isfinite(s) else float(s)}
+            for a, b, (x, y), s in zip(lat, lon, mission.waypoints, speeds, strict=True)
+        ],
+        "lines": [
+            {"latlon": [[float(la[i, j]), float(lo[i, j])] for j in range(2)],
+             "xy": lines[i].tolist()}
+            for i in range(len(lines))
+        ],
+    }  # fmt: skip
 
 
 def describe_all() -> list[tuple[str, str]]:
@@ -125,3 +247,9 @@ def describe_all() -> list[tuple[str, str]]:
         data, _ = _read(n)
         out.append((n, str(data.get("mission", {}).get("description", ""))))
     return out
+
+
+def write_truth(folder: Path, mission: Mission, geo: Geo) -> None:
+    """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
+    save_waypoints(folder / "mission.waypoints", mission, geo)
+    (folder / "mission.json").write_text(json.dumps(to_json(mission, geo), indent=1) + "\n")

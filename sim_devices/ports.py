@@ -56,6 +56,16 @@ class PortSet:
         else:
             self.bytes_written[source] += n
 
+    def read(self, source: str) -> bytes:
+        """What the host wrote to a port (the ground station's MAVLink to the autopilot), without waiting."""
+        port = self.ports.get(source)
+        if port is None:
+            return b""
+        try:
+            return os.read(port.master, 4096)
+        except (BlockingIOError, OSError):
+            return b""
+
     def bridge_writable(self) -> bool:
         """False while the host is not reading the bridge port, so the firmware drops frames itself."""
         port = self.ports.get("bridge")
@@ -119,6 +129,9 @@ def run_live(
     try:
         while sim.t < duration_s and not (stop is not None and stop.is_set()):
             target = v_anchor + (time.monotonic_ns() - mono_anchor) * 1e-9 * speed
+            uplink = ports.read("mavlink")
+            if uplink:
+                sim.uplink(uplink)
             if target > sim.t:
                 sim.advance(min(target, sim.t + 0.5, duration_s))  # a step at a time: stop works
             target = v_anchor + (time.monotonic_ns() - mono_anchor) * 1e-9 * speed

@@ -69,6 +69,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "forcemap.host.cli.report",
         "write a self-contained HTML report of a survey's maps and diagnosis",
     ),
+    "plan": (
+        "forcemap.host.cli.plan",
+        "predict a waypoint mission through the mapped current and adjust it to hold its lines",
+    ),
 }
 
 EPILOG = """\

@@ -21,6 +21,7 @@ examples:
                --effects depth_current --faults default --ports /tmp/ports --truth /tmp/truth
   forcemap sim --scenario lake --ports /tmp/ports                # real time, no hidden effect
   forcemap sim --scenario my_river.toml --mission my_mission.toml --ports /tmp/ports
+  forcemap sim --mission planned.waypoints --duration 15m --truth /tmp/flown   # offline, seconds
 
 then, in another shell:
   forcemap run --bridge /tmp/ports/bridge --depth /tmp/ports/depth \\
@@ -31,7 +32,9 @@ Ports: DIR/bridge (the real bridge firmware on emulated pins, COBS frames), DIR/
 DIR/clock holds the virtual clock's anchor, so the daemon can stamp arrivals at --speed N.
 Effects: name or name:key=value:...  (e.g. wheel_misalignment:wheel=2:angle_deg=15).
 Faults: a set (default, none) or kind:key=value:... (e.g. pull:source=bridge:at=120:for=5,reset:at=300).
-Truth (--truth DIR): effects.json, fields.npz, samples.csv as in docs/CONVENTIONS.md. Ctrl-C stops cleanly.
+Truth (--truth DIR): effects.json, fields.npz, samples.csv as in docs/CONVENTIONS.md, and the mission
+flown: mission.waypoints (QGC WPL 110) and mission.json (waypoints and intended lines, lat/lon and local m).
+Without --ports the simulator runs offline as fast as it can and writes only the truth. Ctrl-C stops cleanly.
 """
 
 
@@ -58,7 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--scenario", default="river", help="built-in name (river, lake) or a scenario TOML path"
     )
     parser.add_argument(
-        "--mission", default="lawnmower", help="built-in name or a mission TOML path"
+        "--mission",
+        default="lawnmower",
+        help="built-in name, a mission TOML path, or a QGC WPL 110 file (.waypoints)",
     )
     parser.add_argument(
         "--duration",
@@ -97,13 +102,54 @@ def print_list() -> None:
         print(f"  {line}")
 
 
+def run_offline(args: argparse.Namespace) -> int:
+    """No ports: the world, the boat and the autopilot only, as fast as the machine goes; the truth is written."""
+    from forcemap.sim_devices.engine import Simulation
+
+    try:
+        scen = sc.load(args.scenario)
+        mis = ms.load(args.mission, scen)
+        effects = fx.parse_list(args.effects) if args.effects is not None else None
+        faults = fl.parse(args.faults)
+    except (ValueError, OSError) as e:
+        print(f"forcemap sim: {e}", file=sys.stderr)
+        return 2
+    from pathlib import Path
+
+    Path(args.truth).mkdir(parents=True, exist_ok=True)
+    t_start = time.monotonic()
+    print(f"{scen.name} / {mis.name}, {args.duration:.0f} s offline", flush=True)
+
+    def progress(t: float, total: float) -> None:
+        if t >= total or (t > 1 and int(t) % 300 == 0):
+            print(
+                f"  t={t:7.1f} s of {total:.0f} s ({time.monotonic() - t_start:.1f} s wall)",
+                flush=True,
+            )
+
+    sim = Simulation(
+        scen, mis, effects, faults, seed=args.seed, truth_dir=args.truth, instruments=False
+    )
+    sim.run(args.duration, lambda *a: None, progress=progress)
+    print(
+        f"done: {sim.t:.1f} s simulated in {time.monotonic() - t_start:.1f} s; truth in {args.truth}"
+    )
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     if args.list:
         print_list()
         return 0
     if not args.ports:
-        print("forcemap sim: --ports DIR is required (or --list)", file=sys.stderr)
-        return 2
+        if not args.truth:
+            print(
+                "forcemap sim: give --ports DIR (live, behind virtual serial ports) or --truth DIR "
+                "(offline, as fast as it goes), or --list",
+                file=sys.stderr,
+            )
+            return 2
+        return run_offline(args)
     from forcemap.sim_devices.engine import Simulation
     from forcemap.sim_devices.ports import SOURCES, PortSet, run_live
 

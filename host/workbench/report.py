@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.plan.report_section import mission_section
 from forcemap.host.workbench import clock_offset, plots
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
@@ -199,5 +200,6 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
         parts.append(_img(plots.history_figure(history), "error history"))
     else:
         parts.append("<p>No fits recorded yet.</p>")
+    parts += mission_section(table, survey)  # `forcemap plan`'s newest plan, if any
     body = "\n".join(parts)
     return f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>forcemap report: {html.escape(table.name)}</title><style>{CSS}</style></head><body>\n{body}\n</body></html>\n"

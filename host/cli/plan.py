@@ -1,0 +1,163 @@
+"""`forcemap plan`: predict a waypoint mission through the mapped current and wind, and adjust it to hold its lines."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from forcemap.host.cli.common import add_table, teach
+
+EPILOG = """\
+The maps are the survey's latest fits of current_speed and wind_speed (`forcemap fit`; fitted first if
+there are none). The boat model is the simulator's Jetyak with a Rover-like autopilot (ground-speed
+loop, line-of-sight guidance); --boat BOAT.toml overrides it:
+  [boat]        cruise_speed, max_speed (through water), turn_rate_deg_s
+  [hull]        any BoatParams field     [controller]  any Gains field (steer_kp, lookahead_m, ...)
+
+The adjusted mission keeps the intended lines (in PLANNED.json and PLANNED.toml) and adds run-in and
+overrun waypoints, moves turn points against the predicted drift, flies the first line upstream and
+sets the speed per leg (DO_CHANGE_SPEED). Docs: docs/PLAN.md.
+
+examples:
+  forcemap plan survey.csv --mission lawnmower -o planned             # simulator mission by name
+  forcemap plan survey.csv --mission survey.waypoints -o planned      # Mission Planner / QGC file
+  forcemap plan logs/run-1.mcap --mission my.toml --boat boat.toml -o planned --json -
+  forcemap plan survey.csv --mission survey.waypoints -o planned --upload /dev/ttyACM0,115200
+
+writes PLANNED.waypoints (QGC WPL 110: load it in Mission Planner or QGroundControl), PLANNED.toml
+(`forcemap sim --mission PLANNED.toml`) and PLANNED.json (waypoints, intended lines, the prediction).
+"""
+
+MARGIN_M = 120.0
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    teach(parser, EPILOG)
+    add_table(parser)
+    parser.add_argument(
+        "--mission",
+        required=True,
+        help="QGC WPL 110 file (.waypoints), simulator mission TOML, or a built-in mission name",
+    )
+    parser.add_argument(
+        "-o", "--output", type=Path, required=True, help="PLANNED: writes .waypoints, .toml, .json"
+    )
+    parser.add_argument("--boat", type=Path, help="TOML overriding the boat and controller model")
+    parser.add_argument(
+        "--scenario",
+        default="river",
+        help="where a simulator mission in local metres is laid out (default river)",
+    )
+    parser.add_argument(
+        "--upload", metavar="PORT[,BAUD]", help="send the adjusted mission over MAVLink"
+    )
+    parser.add_argument(
+        "--json", metavar="OUT", help="write the per-line prediction as JSON (- for stdout)"
+    )
+    parser.add_argument("--force", action="store_true", help="replace existing outputs")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
+def print_table(result) -> None:  # type: ignore[no-untyped-def]
+    o, p = result.original, result.planned
+    print("per intended line (predicted): original -> planned")
+    print(" line  length   p95 m          worst m        coverage         time s      no headway")
+    for i, (a, b) in enumerate(zip(o.scores, p.scores, strict=True)):
+        nh = result.no_headway[i]
+        print(
+            f" {i:4d} {b.length:6.0f}  {a.p95:5.1f} -> {b.p95:4.1f}  {a.miss:5.1f} -> {b.miss:4.1f}"
+            f"  {a.coverage:6.1%} -> {b.coverage:6.1%}  {a.time_s:5.0f} -> {b.time_s:4.0f}"
+            f"  {'none' if not nh else ', '.join(f'{s:.0f}-{e:.0f} m' for s, e in nh)}"
+        )
+    print(
+        f"mission time {o.track.duration:.0f} s -> {p.track.duration:.0f} s; "
+        f"map uncertainty of the current: {result.current_scale_sd:.1%} (1 sd, along the lines)"
+    )
+    print("how the planned mission's prediction depends on the map:")
+    for name, s in result.sensitivity.items():
+        what = name.replace("_x", " x ")
+        if name.startswith("discharge"):
+            what = f"the current {name.split('_x')[1]} x the map's (a higher-discharge day)"
+        print(
+            f"  {what}: worst-line p95 {s['p95_worst_line']:.2f} m, "
+            f"coverage {s['coverage']:.1%}, time {s['duration_s']:.0f} s"
+        )
+    if result.unchanged:
+        print("the mission already holds its lines in the mapped current: written unchanged")
+    for tr, what in ((o.track, "original"), (p.track, "planned")):
+        if tr.stuck_at is not None:
+            print(f"the {what} mission makes no headway toward waypoint {tr.stuck_at}")
+
+
+def run(args: argparse.Namespace) -> int:
+    from forcemap.host.errors import CliError
+    from forcemap.host.outputs import atomic_write, check_output
+    from forcemap.host.plan.boat_model import load_boat
+    from forcemap.host.plan.maps import survey_maps
+    from forcemap.host.plan.mission_io import Frame, output_paths, read_mission, write_outputs
+    from forcemap.host.plan.planner import plan_mission
+    from forcemap.host.plan.workspace_io import save_plan
+    from forcemap.host.workbench.errors import WorkbenchError
+    from forcemap.host.workbench.table import load_survey
+
+    progress = not args.quiet
+    for out in output_paths(args.output):
+        check_output(out, [args.table, args.mission], args.force)
+    if args.json and args.json != "-":
+        check_output(args.json, [args.table, args.mission], args.force)
+    if not args.table.exists():
+        raise CliError(f"no such table {args.table}")
+    boat = load_boat(args.boat)
+    mission = read_mission(args.mission, args.scenario)
+    try:
+        survey = load_survey(args.table)
+        frame = Frame(survey.lat0, survey.lon0)
+        wps = frame.to_local(mission.latlon)
+        lines = frame.to_local(mission.lines_latlon)
+        lo, hi = wps.min(axis=0) - MARGIN_M, wps.max(axis=0) + MARGIN_M
+        maps = survey_maps(args.table, survey, (lo[0], hi[0], lo[1], hi[1]), progress)
+    except WorkbenchError as e:
+        raise CliError(str(e)) from e
+    for n in maps.notes:
+        print(f"note: {n}", file=sys.stderr)
+    t0 = time.perf_counter()
+
+    def step(i: int, n: int) -> None:
+        if progress:
+            print(
+                f"adjusting: prediction {i} of {n} ({time.perf_counter() - t0:.1f} s)",
+                file=sys.stderr,
+            )
+
+    result = plan_mission(wps, mission.speeds, lines, maps, boat, step)
+    print(f"boat: {boat.describe()}")
+    print_table(result)
+    report = result.to_json()
+    plan = result.planned.plan
+    paths = write_outputs(
+        args.output,
+        frame.to_latlon(plan.wps),
+        plan.speeds,
+        frame.to_latlon(plan.lines),
+        report,
+        f"{mission.name} adjusted by forcemap plan for {args.table.name}",
+    )
+    save_plan(args.table, mission.name, result, maps)
+    for p in paths:
+        print(f"wrote {p}")
+    if args.json:
+        text = json.dumps(report, indent=1)
+        if args.json == "-":
+            print(text)
+        else:
+            with atomic_write(args.json) as f:
+                f.write(text + "\n")
+    if args.upload:
+        from forcemap.host.plan.upload import upload_file
+
+        n = upload_file(args.upload, paths[0], progress=progress)
+        print(f"uploaded {n} mission items to {args.upload}; the vehicle acknowledged them")
+    return 0

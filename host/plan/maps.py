@@ -1,0 +1,166 @@
+"""Current and wind maps for planning: the survey's latest fits, as vector fields on a grid with their uncertainty.
+
+A vector is mapped through its east and north components, each with the terms of the workspace's latest
+fit of its speed (`forcemap fit` is run first if there is none). Terms in covariates other than position
+and time cannot be evaluated along a future track; they are left out, with a note. Time is held at
+mid-survey: the map is the survey's average state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from forcemap.host.workbench.model import Model, small_blas
+from forcemap.host.workbench.progress import note
+from forcemap.host.workbench.spec import BASELINE, parse_term
+from forcemap.host.workbench.table import Survey, is_circular
+from forcemap.host.workbench.targets import hyper_rows
+from forcemap.host.workbench.workspace import current_terms, workspace_dir
+
+GRID_STEP_M = 4.0
+MAX_BASIS = 800  # a current or wind field steering a boat needs no detail finer than ~30 m
+PLANNABLE_INPUTS = {"position", "t"}
+
+
+@dataclass
+class Field:
+    """A gridded vector field (m/s, the velocity of the medium) with the standard deviation of each component."""
+
+    x0: float
+    y0: float
+    step: float
+    east: np.ndarray  # (ny, nx)
+    north: np.ndarray
+    east_sd: np.ndarray
+    north_sd: np.ndarray
+    terms: list[str] = field(default_factory=list)
+    _lists: tuple = field(default=(), repr=False)
+
+    def at(self, x: float, y: float, scale: float = 1.0) -> tuple[float, float]:
+        """Bilinear (east, north) at one point (the edge value outside the grid); ``scale`` x the field."""
+        if not self._lists:
+            ny, nx = self.east.shape
+            self._lists = (self.east.tolist(), self.north.tolist(), nx - 1.000001, ny - 1.000001)
+        e, n, fx_max, fy_max = self._lists
+        fx = (x - self.x0) / self.step
+        fy = (y - self.y0) / self.step
+        fx = 0.0 if fx < 0.0 else (fx_max if fx > fx_max else fx)
+        fy = 0.0 if fy < 0.0 else (fy_max if fy > fy_max else fy)
+        i, j = int(fx), int(fy)
+        a, b = fx - i, fy - j
+        e0, e1, n0, n1 = e[j], e[j + 1], n[j], n[j + 1]
+        ve = (1 - b) * ((1 - a) * e0[i] + a * e0[i + 1]) + b * ((1 - a) * e1[i] + a * e1[i + 1])
+        vn = (1 - b) * ((1 - a) * n0[i] + a * n0[i + 1]) + b * ((1 - a) * n1[i] + a * n1[i + 1])
+        return scale * ve, scale * vn
+
+    def sample(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(east, north, speed standard deviation) at many points (nearest grid node)."""
+        ny, nx = self.east.shape
+        i = np.clip(np.rint((xy[:, 0] - self.x0) / self.step).astype(int), 0, nx - 1)
+        j = np.clip(np.rint((xy[:, 1] - self.y0) / self.step).astype(int), 0, ny - 1)
+        sd = np.hypot(self.east_sd[j, i], self.north_sd[j, i]) / math.sqrt(2.0)
+        return self.east[j, i], self.north[j, i], sd
+
+    @classmethod
+    def still(cls) -> Field:
+        z = np.zeros((2, 2))
+        return cls(0.0, 0.0, 1e6, z, z, z, z, ["none"])
+
+
+@dataclass
+class Maps:
+    """What the planner knows of the water and the air, in the survey's local frame."""
+
+    current: Field
+    wind: Field
+    lat0: float
+    lon0: float
+    notes: list[str] = field(default_factory=list)
+
+
+def plannable_terms(terms: list[str]) -> tuple[list[str], list[str]]:
+    """(terms evaluable along a future track, terms left out)."""
+    keep, drop = [], []
+    for t in terms:
+        try:
+            spec = parse_term(t, is_circular)
+        except Exception:  # a clock offset or anything else that is not a map term
+            drop.append(t)
+            continue
+        (keep if set(spec.inputs) <= PLANNABLE_INPUTS else drop).append(t)
+    return (keep or list(BASELINE)), drop
+
+
+def latest_terms(table: Path, survey: Survey, target: str, progress: bool) -> list[str]:
+    """Terms of the workspace's latest fit of ``target``; fit the baseline and record it if there is none."""
+    ws = workspace_dir(table)
+    terms = current_terms(ws, target)
+    if terms is None:
+        from forcemap.host.workbench.fitting import fit_target, record
+
+        note(f"no fit of {target} in {ws}: fitting the baseline first", progress)
+        record(table, fit_target(survey, target, list(BASELINE), progress=progress))
+        terms = current_terms(ws, target) or list(BASELINE)
+    return terms
+
+
+def _grid(bounds: tuple[float, float, float, float], step: float) -> tuple[np.ndarray, np.ndarray]:
+    x0, x1, y0, y1 = bounds
+    gx = np.arange(x0, x1 + step, step)
+    gy = np.arange(y0, y1 + step, step)
+    return gx, gy
+
+
+def fit_field(
+    survey: Survey,
+    prefix: str,
+    terms: list[str],
+    bounds: tuple[float, float, float, float],
+    step: float = GRID_STEP_M,
+) -> Field:
+    """Fit the east and north components of ``prefix`` and predict them, with std, on a grid over ``bounds``."""
+    vt = survey.vector_target(f"{prefix}_speed")
+    e, n = survey.components(vt)  # type: ignore[arg-type]
+    ok = np.isfinite(e) & np.isfinite(n)
+    X = {"position": survey.xy[ok], "t": survey.trel[ok]}
+    rows = hyper_rows(survey.subset(ok))
+    gx, gy = _grid(bounds, step)
+    GX, GY = np.meshgrid(gx, gy)
+    G = {
+        "position": np.column_stack([GX.ravel(), GY.ravel()]),
+        "t": np.full(GX.size, float(np.median(survey.trel))),
+    }
+    out = []
+    with small_blas():
+        for comp in (e[ok], n[ok]):
+            m = Model(terms, max_basis=MAX_BASIS, hyper_rows=rows).fit(X, comp)
+            mu, sd = m.predict(G, return_std=True)
+            out += [mu.reshape(GX.shape), sd.reshape(GX.shape)]
+    return Field(float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms))
+
+
+def survey_maps(
+    table: Path,
+    survey: Survey,
+    bounds: tuple[float, float, float, float],
+    progress: bool = True,
+) -> Maps:
+    """Current (and wind, when the table has it) over ``bounds`` (survey frame, m) from the latest fits."""
+    notes: list[str] = []
+    fields: dict[str, Field] = {}
+    for prefix in ("current", "wind"):
+        if survey.vector_target(f"{prefix}_speed") is None:
+            notes.append(f"the table has no {prefix}: planning without it")
+            fields[prefix] = Field.still()
+            continue
+        terms, dropped = plannable_terms(latest_terms(table, survey, f"{prefix}_speed", progress))
+        if dropped:
+            notes.append(
+                f"{prefix}: left out {', '.join(dropped)} (not known along a future track)"
+            )
+        note(f"mapping {prefix}: {' + '.join(terms)} on east and north components ...", progress)
+        fields[prefix] = fit_field(survey, prefix, terms, bounds)
+    return Maps(fields["current"], fields["wind"], survey.lat0, survey.lon0, notes)

@@ -1,0 +1,88 @@
+"""`forcemap plan` against the simulator's truth: map a survey from its measurements, plan, fly both missions.
+
+The maps come from measurements only: the simulator's bytes go through the daemon's pipeline into MCAP
+and are exported to a samples table (`make_survey`), then fitted. The missions are flown from the
+written waypoint files, with another seed, and scored with the true track on the intended lines.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from forcemap.host.cli import main
+from forcemap.host.plan.closed_loop import fly, plan_files, survey
+from forcemap.host.plan.report_section import mission_section
+from forcemap.host.workbench.table import load_survey
+from forcemap.sim_devices import waypoints as wp
+
+SEED_A, SEED_B = 1, 2
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("plan")
+
+
+def flights(work: Path, scenario: str):  # type: ignore[no-untyped-def]
+    table = survey(scenario, SEED_A, work / f"survey-{scenario}")
+    result, orig, planned = plan_files(table, "lawnmower", work / f"plan-{scenario}", scenario)
+    dur = 1.5 * max(result.original.track.duration, result.planned.track.duration) + 120
+    return (
+        result,
+        orig,
+        planned,
+        fly(orig, scenario, SEED_B, [], dur),
+        fly(planned, scenario, SEED_B, [], dur),
+    )
+
+
+def test_river_plan_holds_the_lines_the_original_misses(work: Path) -> None:
+    result, orig, planned, fo, fp = flights(work, "river")
+    # the original blows its downstream turns out by 7-25 m (the paper's Fig. 2) and leaves lines uncovered
+    assert 7.0 <= fo.summary["miss"] <= 25.0
+    assert fo.turn_errors.min() > 5.0 and fo.summary["coverage"] < 0.9
+    # the planned mission, flown in the true river: p95 distance <= 3 m on every line, coverage >= 95 %
+    assert fp.summary["p95_worst_line"] <= 3.0
+    assert fp.summary["coverage"] >= 0.95
+    assert all(s["coverage"] >= 0.95 for s in fp.lines)
+    # the prediction saw it coming, on both missions
+    assert result.original.to_json()["miss"] > 7.0 and result.planned.to_json()["coverage"] >= 0.95
+    # the written mission changes speed per leg, and keeps its intended lines beside it
+    _, items = wp.read_wpl(planned)
+    assert any(i.command == wp.DO_CHANGE_SPEED for i in items)
+    assert planned.with_suffix(".json").exists() and not result.unchanged
+
+
+def test_lake_plan_changes_nothing_and_loses_nothing(work: Path) -> None:
+    result, orig, planned, fo, fp = flights(work, "lake")
+    assert result.unchanged
+    _, a = wp.read_wpl(orig)
+    _, b = wp.read_wpl(planned)
+    assert [(i.command, i.lat_e7, i.lon_e7) for i in a] == [
+        (i.command, i.lat_e7, i.lon_e7) for i in b
+    ]
+    assert fp.summary["coverage"] >= fo.summary["coverage"] - 1e-9 >= 0.95
+    assert fp.duration_s <= 1.01 * fo.duration_s
+    assert np.isfinite(fp.summary["p95_worst_line"]) and fp.summary["p95_worst_line"] <= 3.0
+
+
+def test_plan_command_and_report_section(work: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    table = survey("river", SEED_A, work / "survey-river")
+    out = work / "cli" / "planned"
+    out.parent.mkdir()
+    args = ["plan", str(table), "--mission", "lawnmower", "-o", str(out), "--json", "-", "--quiet"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "per intended line" in text and "higher-discharge day" in text
+    for suffix in (".waypoints", ".toml", ".json"):
+        assert out.with_name("planned" + suffix).exists()
+    # the outputs are not replaced without --force
+    assert main(args) == 2
+    assert "--force" in capsys.readouterr().err
+    # the report's mission section: the tracks on the map and one row per intended line
+    parts = "\n".join(mission_section(table, load_survey(table)))
+    assert "<h2>Mission</h2>" in parts and 'alt="mission tracks"' in parts
+    assert parts.count("<tr><td>") == 5
