@@ -15,6 +15,9 @@ Then, in one process, it times:
   estimators, the samples table rows, diagnostics.
 
 It prints each as a multiple of real time and the share of one core that real-time operation needs.
+
+Then it replays the real NMEA captures in ``../shared/data/real/nmea`` (line times from their UTC,
+as ``forcemap import`` does; not timed) through the pipeline, each timed against its own duration.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from forcemap.host.pipeline import NullSink, Pipeline  # noqa: E402
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
@@ -93,6 +97,39 @@ def run_pipeline(reads, sync: str) -> tuple[float, Pipeline, NullSink]:
     return time.process_time() - t0, pipe, sink
 
 
+REAL_NMEA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "nmea"
+
+
+def run_real_nmea(target: float) -> bool:
+    """Each real NMEA capture through the pipeline; True if all meet ``target`` x real time."""
+    from forcemap.host.importers import nmea_line_times
+    from forcemap.host.nmea import LineSplitter
+
+    ok = True
+    for path in sorted(REAL_NMEA.glob("*.*")):
+        if path.suffix in (".md", ".csv"):
+            continue
+        splitter = LineSplitter()
+        lines = splitter.feed(path.read_bytes()) + splitter.flush()
+        times, _ = nmea_line_times(lines)
+        span = times[-1] - times[0]
+        pipe = Pipeline(sink=NullSink())
+        t0 = time.process_time()
+        for line, t in zip(lines, times, strict=True):
+            ns = int(t * 1e9)
+            pipe.feed("nmea", ns, ns, line + b"\n")
+        pipe.close()
+        cpu = time.process_time() - t0
+        c = pipe.counters()
+        x = span / cpu if cpu > 0 else float("inf")
+        ok = ok and x >= target and not c["errors"]
+        print(
+            f"real NMEA {path.name}: {len(lines):,} lines, {span:,.0f} s of log, "
+            f"{c['samples']['emitted']:,} samples in {cpu:.2f} s CPU = {x:,.0f}x real time"
+        )
+    return ok
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
@@ -141,6 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         f"({100 * pipe_s / d:.3f}% of a core); {pipe_s / base_s:.1f}x the baseline's cost"
     )
     ok = d / pipe_s >= args.target and not c["errors"]
+    ok = run_real_nmea(args.target) and ok
     print(
         f"target {args.target:g}x real time: {'met' if ok else 'NOT met'}"
         + (f"; errors {c['errors']}" if c["errors"] else "")

@@ -228,6 +228,15 @@ def current_over_ground(
     return fe + boat_east, fn + boat_north
 
 
+def current_from_stw(stw: float, heading_deg: float, boat_east: float, boat_north: float) -> Vec:
+    """Set and drift: water velocity over ground = ground velocity - STW along the heading.
+
+    The log measures the water passing the hull along the keel only; leeway (the hull slipping
+    sideways) is taken as zero, so it shows up as a cross-track current (docs/COMPENSATION.md).
+    """
+    return current_over_ground(-stw, 0.0, heading_deg, boat_east, boat_north)
+
+
 # --- depth ----------------------------------------------------------------------------------------
 
 

@@ -7,11 +7,12 @@ import queue
 import threading
 import time
 import traceback
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from forcemap.host.arrival_clock import Clock, SystemClock
 from forcemap.host.mcap_log import McapLog
+from forcemap.host.messages import DaemonEvent, DaemonStatus, RawChunk, Record, as_json
 from forcemap.host.sources import Chunk, Reader, SourceEvent, Transport
 from forcemap.host.status import Reporter, Status
 
@@ -44,13 +45,13 @@ class ObservedSink:
         self.reporter = reporter
         self._reported: dict[str, int] = {}
 
-    def write(self, topic: str, log_time_ns: int, message: dict[str, Any]) -> None:
+    def write(self, topic: str, log_time_ns: int, message: Record) -> None:
         try:
             self.log.write(topic, log_time_ns, message)
         except Exception as exc:
             self.failed("log_write", exc, topic=topic)
             return
-        self.status.observe(topic, message)
+        self.status.observe(topic, as_json(message))
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         try:
@@ -68,13 +69,10 @@ class ObservedSink:
             self.reporter.event("error", reason=reason, error=tb, count=n, **fields)
 
 
-def raw_message(chunk: Chunk) -> dict[str, Any]:
+def raw_message(chunk: Chunk) -> RawChunk:
     """A ``/raw/<source>`` message: the bytes as read (base64) with their arrival stamps."""
-    return {
-        "t_mono_ns": chunk.t_mono_ns,
-        "t_wall_ns": chunk.t_wall_ns,
-        "data": base64.b64encode(chunk.data).decode("ascii"),
-    }
+    data = base64.b64encode(chunk.data).decode("ascii")
+    return RawChunk(chunk.t_mono_ns, chunk.t_wall_ns, data)
 
 
 class RawOnly:
@@ -96,49 +94,6 @@ class RawOnly:
         pass
 
 
-class NmeaLines:
-    """Several NMEA 0183 instruments into the pipeline's one NMEA input, whole lines at a time.
-
-    Each source's bytes are split into lines on their own, so two instruments whose bytes arrive
-    interleaved never make one line of two halves; complete lines go to the pipeline as source
-    ``NMEA_INPUT``. A gap on one source drops only that source's partial line.
-    """
-
-    NMEA_INPUT = "depth"
-
-    def __init__(self, pipeline: PipelineLike, sources: Collection[str]):
-        # imported here, like the pipeline: if it cannot be, the daemon still logs raw bytes
-        from forcemap.host.nmea import LineSplitter
-
-        self.pipeline = pipeline
-        self._splitter = LineSplitter
-        self.splitters = {name: LineSplitter() for name in sources}
-
-    def feed(self, source: str, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
-        splitter = self.splitters.get(source)
-        if splitter is None:
-            self.pipeline.feed(source, t_mono_ns, t_wall_ns, data)
-            return
-        lines = splitter.feed(data)
-        if lines:
-            text = b"".join(line + b"\r\n" for line in lines)
-            self.pipeline.feed(self.NMEA_INPUT, t_mono_ns, t_wall_ns, text)
-
-    def gap(self, source: str, t_wall_ns: int, reason: str) -> None:
-        if source in self.splitters:
-            self.splitters[source] = self._splitter()
-        self.pipeline.gap(source, t_wall_ns, reason)
-
-    def counters(self) -> dict:
-        return self.pipeline.counters()
-
-    def flush(self) -> None:
-        self.pipeline.flush()
-
-    def close(self) -> None:
-        self.pipeline.close()
-
-
 class Daemon:
     """Runs readers for the given sources and feeds their bytes to the pipeline until stopped."""
 
@@ -153,9 +108,7 @@ class Daemon:
         absent: list[str] | None = None,
         status_interval_s: float = STATUS_INTERVAL_S,
         record_raw: bool = False,
-        nmea: Collection[str] = (),
     ):
-        """``nmea``: the sources that are NMEA 0183 instruments (see ``NmeaLines``)."""
         self.clock = clock or SystemClock()
         self.record_raw = record_raw
         self.log = log
@@ -169,8 +122,7 @@ class Daemon:
         self.status = Status({n: r.stats for n, r in self.readers.items()}, absent)
         self.sink = ObservedSink(log, self.status, self.reporter)
         try:
-            pipeline = make_pipeline(self.sink)
-            self.pipeline = NmeaLines(pipeline, nmea) if nmea else pipeline
+            self.pipeline = make_pipeline(self.sink)
         except ValueError:
             raise  # an invalid calibration: the caller reports it
         except Exception as exc:
@@ -187,7 +139,7 @@ class Daemon:
 
     def _event(self, event: str, **fields: Any) -> None:
         self.reporter.event(event, **fields)
-        self.sink.write("/daemon/event", self.clock.wall_ns(), {"event": event, **fields})
+        self.sink.write("/daemon/event", self.clock.wall_ns(), DaemonEvent(event, fields))
 
     def _handle(self, item: Chunk | SourceEvent) -> None:
         if isinstance(item, Chunk):
@@ -204,7 +156,7 @@ class Daemon:
         if item.detail:
             fields["detail"] = item.detail
         self.reporter.event(item.kind, **fields)
-        self.sink.write("/daemon/event", item.t_wall_ns, {"event": item.kind, **fields})
+        self.sink.write("/daemon/event", item.t_wall_ns, DaemonEvent(item.kind, fields))
         if item.kind == "disconnected":
             try:
                 self.pipeline.gap(item.source, item.t_wall_ns, item.reason)
@@ -225,7 +177,7 @@ class Daemon:
         st.file_bytes = self.log.bytes_written
         st.update_rates()
         snap = st.snapshot()
-        self.sink.write("/daemon/status", self.clock.wall_ns(), snap)
+        self.sink.write("/daemon/status", self.clock.wall_ns(), DaemonStatus(snap))
         self.reporter.status(st, final=final)
 
     def run(self) -> int:

@@ -13,8 +13,8 @@ from xml.sax.saxutils import escape
 
 from forcemap.host.errors import CliError
 from forcemap.host.mcap_log import MCAP_MAGIC, read_messages
+from forcemap.host.messages import SAMPLE_COLUMNS
 from forcemap.host.outputs import atomic_path, atomic_write
-from forcemap.host.schemas import SAMPLE_COLUMNS
 
 # docs/CONVENTIONS.md, "The samples table": these first, in this order; other numeric fields follow.
 COLUMNS: tuple[str, ...] = SAMPLE_COLUMNS

@@ -1,25 +1,33 @@
-"""Existing logs through the live pipeline: NMEA 0183 captures and MAVLink telemetry logs (tlog).
+"""Existing logs through the live pipeline: NMEA 0183 captures, MAVLink telemetry logs (tlog) and
+ArduPilot DataFlash logs (.BIN).
 
 NMEA captures carry no receive times. Each line gets one from the sentences' own UTC: every line
 where the UTC time of day (RMC, GGA, GLL, ZDA) moves forward is an anchor, and lines between
 anchors are spread evenly; the date comes from the first RMC or ZDA that has one (else 1970-01-01).
 A capture with no UTC at all is paced at 1 s per line. tlogs carry the ground station's receive
-time (8-byte big-endian UNIX microseconds) before each packet, used as the arrival time.
+time (8-byte big-endian UNIX microseconds) before each packet, used as the arrival time. DataFlash
+logs are read by ``forcemap.host.dataflash``.
+
+An import that gives no samples says why in one line (no position, no time, no measurements), and
+``import_to_mcap`` then leaves no file behind.
 """
 
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from forcemap.host.calibration import Calibration
+from forcemap.host.dataflash import DataflashDecoder
+from forcemap.host.mcap_log import McapLog
 from forcemap.host.nmea import LineSplitter, NmeaParser
+from forcemap.host.outputs import atomic_path
 from forcemap.host.pipeline import Pipeline, Sink
 
-FORMATS = ("nmea", "tlog")
+FORMATS = ("nmea", "tlog", "dataflash")
 DATAFLASH_MAGIC = b"\xa3\x95"
 DAY = 86400.0
 MAX_TLOG_US = (1 << 63) // 1000  # the latest time an MCAP log can hold (year 2262)
@@ -53,7 +61,7 @@ def is_dataflash(head: bytes) -> bool:
 
 
 def detect_format(path: str | Path) -> str:
-    """``nmea`` or ``tlog`` from the name and the first bytes; ImportFailed for anything else."""
+    """``nmea``, ``tlog`` or ``dataflash`` from the name and the first bytes; else ImportFailed."""
     p = Path(path)
     try:
         with open(p, "rb") as f:
@@ -61,9 +69,7 @@ def detect_format(path: str | Path) -> str:
     except OSError as e:
         raise ImportFailed(f"{p}: cannot read: {e.strerror or e}") from None
     if is_dataflash(head):
-        raise ImportFailed(
-            f"{p.name}: an ArduPilot DataFlash (.BIN) log, not a MAVLink stream; import the telemetry .tlog instead"
-        )
+        return "dataflash"
     if p.suffix.lower() == ".tlog":
         return "tlog"
     if len(head) > 8 and head[8] in (0xFD, 0xFE):
@@ -72,24 +78,22 @@ def detect_format(path: str | Path) -> str:
     if sum(ln[:1] in (b"$", b"!") for ln in lines) >= max(1, len(lines) // 10):
         return "nmea"
     raise ImportFailed(
-        f"{p.name}: not a format forcemap recognises (NMEA 0183 text or a MAVLink tlog); "
-        "if it is one of them, give --format nmea|tlog"
+        f"{p.name}: not a format forcemap recognises (NMEA 0183 text, a MAVLink tlog or an "
+        "ArduPilot .BIN log); if it is one of them, give --format nmea|tlog|dataflash"
     )
 
 
 def check_importable(path: str | Path, fmt: str | None = None) -> str:
-    """The format to import ``path`` with: ``fmt`` if given (a DataFlash log is refused anyway)."""
+    """The format to import ``path`` with: ``fmt`` if given, else detected."""
     if fmt is None:
         return detect_format(path)
     if fmt not in FORMATS:
         raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
     try:
-        with open(path, "rb") as f:
-            head = f.read(DATAFLASH_FMT_LEN + 2)
+        with open(path, "rb"):
+            pass
     except OSError as e:
         raise ImportFailed(f"{path}: cannot read: {e.strerror or e}") from None
-    if is_dataflash(head):
-        detect_format(path)  # raises the DataFlash error
     return fmt
 
 
@@ -154,6 +158,10 @@ def import_nmea(
     splitter = LineSplitter()
     lines = splitter.feed(data) + splitter.flush()
     times, how = nmea_line_times(lines)
+    if how.startswith("no UTC"):
+        raise ImportFailed(
+            f"{Path(path).name}: no time in this log (no NMEA RMC, GGA, GLL or ZDA with UTC)"
+        )
     pipe = Pipeline(
         calibration,
         sink,
@@ -166,6 +174,30 @@ def import_nmea(
         pipe.feed("depth", ns, ns, line + b"\n")
     pipe.close()
     res = ImportResult(str(path), "nmea", len(lines), pipe.counters(), [how])
+    _check_errors(pipe, res)
+    return res
+
+
+def import_dataflash(
+    path: str | Path, sink: Sink, calibration: Calibration | None = None, sync: str | None = None
+) -> ImportResult:
+    """An ArduPilot DataFlash log (.BIN) through the sample assembler (forcemap.host.dataflash)."""
+    pipe = Pipeline(
+        calibration,
+        sink,
+        sync=sync,
+        config={"import": str(path), "format": "dataflash", "timing": "the log's own clock"},
+        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
+    )
+    reader = DataflashDecoder(pipe)
+    try:
+        reader.read(str(path))
+    except Exception as e:  # DFReader on a file that is not DataFlash
+        raise ImportFailed(f"{Path(path).name}: not a readable DataFlash log ({e})") from None
+    pipe.close()
+    used = ", ".join(f"{k} {n}" for k, n in sorted(reader.used.items())) or "none"
+    res = ImportResult(str(path), "dataflash", reader.records, pipe.counters())
+    res.notes.append(f"DataFlash records used: {used}")
     _check_errors(pipe, res)
     return res
 
@@ -233,4 +265,50 @@ def import_file(
         return import_nmea(path, sink, calibration, sync)
     if fmt == "tlog":
         return import_tlog(path, sink, calibration, sync)
+    if fmt == "dataflash":
+        return import_dataflash(path, sink, calibration, sync)
     raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
+
+
+def why_no_samples(res: ImportResult) -> str:
+    """One line on why an import gave no samples ('' if it gave some)."""
+    c = res.counters
+    if c["samples"]["emitted"]:
+        return ""
+    name = Path(res.path).name
+    if not c.get("last_fix"):
+        return f"{name}: no position in this log (no GPS fix), so no samples"
+    return (
+        f"{name}: no measurements in this log (no wind, depth, speed through water or water "
+        "temperature), so no samples"
+    )
+
+
+def import_to_mcap(
+    path: str | Path,
+    out: str | Path,
+    fmt: str | None = None,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    check: Callable[[ImportResult], None] | None = None,
+) -> ImportResult:
+    """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
+
+    ImportFailed (and no file) when the log cannot give samples; the message says why. ``check``
+    may refuse the result first (by raising), with the same effect.
+    """
+    fmt = check_importable(path, fmt)
+    with atomic_path(out) as tmp:
+        log = McapLog(
+            Path(tmp).parent, first_path=tmp, rotate_bytes=1 << 62, rotate_seconds=float("inf")
+        )
+        try:
+            res = import_file(path, log, fmt, calibration, sync)
+        finally:
+            log.close()
+        if check is not None:
+            check(res)
+        reason = why_no_samples(res)
+        if reason:
+            raise ImportFailed(reason)
+    return res

@@ -9,7 +9,19 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 # messages the pipeline turns into SI values; everything else is only logged raw
-USED = ("GLOBAL_POSITION_INT", "GPS_RAW_INT", "ATTITUDE", "VFR_HUD", "SYSTEM_TIME", "HEARTBEAT")
+USED = (
+    "GLOBAL_POSITION_INT",
+    "GPS_RAW_INT",
+    "ATTITUDE",
+    "VFR_HUD",
+    "SYSTEM_TIME",
+    "HEARTBEAT",
+    "WIND",
+    "RANGEFINDER",
+    "DISTANCE_SENSOR",
+    "WATER_DEPTH",
+)
+SENSOR_DOWNWARD = 25  # MAV_SENSOR_ROTATION_PITCH_270: a distance sensor looking down (echo sounder)
 MAV_AUTOPILOT_INVALID = 8
 MAV_TYPE_GCS = 6
 
@@ -136,6 +148,24 @@ def to_si(m: Any) -> dict[str, Any] | None:
             "throttle": float(m.throttle),
             "alt": m.alt,
             "climb": m.climb,
+        }
+    if t == "WIND":  # ArduPilot: direction the wind comes FROM, deg; speed m/s
+        return {"dir": m.direction % 360.0, "speed": m.speed}
+    if t == "RANGEFINDER":
+        return {"distance": m.distance}
+    if t == "DISTANCE_SENSOR":
+        return {
+            "time_boot_ms": m.time_boot_ms,
+            "distance": m.current_distance * 0.01,
+            "orientation": m.orientation,
+            "valid": m.min_distance <= m.current_distance <= m.max_distance,
+        }
+    if t == "WATER_DEPTH":
+        return {
+            "time_boot_ms": m.time_boot_ms,
+            "distance": m.distance,
+            "temperature": m.temperature,
+            "healthy": bool(m.healthy),
         }
     if t == "SYSTEM_TIME":
         return {"time_unix_usec": m.time_unix_usec, "time_boot_ms": m.time_boot_ms}

@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any, BinaryIO, NamedTuple
 
+from forcemap.host.messages import Record, as_json, record_type
 from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
@@ -25,38 +26,14 @@ FSYNC_INTERVAL_S = 5.0
 ROTATE_BYTES = 256 * 1024 * 1024
 ROTATE_SECONDS = 3600.0
 
-# Used when host/schemas.py has no schema for a topic: Foxglove's map panel needs this exact name.
-LOCATION_FIX_SCHEMA: dict[str, Any] = {
-    "title": "foxglove.LocationFix",
-    "type": "object",
-    "properties": {
-        "timestamp": {
-            "type": "object",
-            "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
-        },
-        "frame_id": {"type": "string"},
-        "latitude": {"type": "number"},
-        "longitude": {"type": "number"},
-        "altitude": {"type": "number"},
-        "position_covariance": {"type": "array", "items": {"type": "number"}},
-        "position_covariance_type": {"type": "integer"},
-    },
-}
 
-
-def schema_for(topic: str) -> tuple[str, dict[str, Any]]:
-    """(schema name, JSON schema) for a topic: host/schemas.py's if it knows it, else permissive."""
-    try:
-        from forcemap.host import schemas  # written by the pipeline's engineer; optional here
-
-        found = schemas.schema_for(topic)
-        if found:
-            name, schema = found
-            return str(name), dict(schema)
-    except Exception:
-        pass
-    if topic == "/fix":
-        return "foxglove.LocationFix", LOCATION_FIX_SCHEMA
+def schema_for(
+    topic: str, message: Record | dict[str, Any] | None = None
+) -> tuple[str, dict[str, Any]]:
+    """(schema name, JSON schema): the record's own, else the topic's record type, else permissive."""
+    rtype = type(message) if isinstance(message, Record) else record_type(topic)
+    if rtype is not None:
+        return rtype.NAME, rtype.json_schema()
     name = "forcemap." + (topic.strip("/").replace("/", ".") or "message")
     return name, {"title": name, "type": "object"}
 
@@ -115,10 +92,12 @@ class McapLog:
         flush_interval_s: float = FLUSH_INTERVAL_S,
         fsync_interval_s: float = FSYNC_INTERVAL_S,
         compression: CompressionType = CompressionType.ZSTD,
+        first_path: str | os.PathLike[str] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ):
         self._clock = clock
         self.out_dir = Path(out_dir)
+        self._first_path = Path(first_path) if first_path is not None else None
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.rotate_bytes = rotate_bytes
         self.rotate_seconds = rotate_seconds
@@ -152,6 +131,9 @@ class McapLog:
         return self._finished_bytes + (f.tell() if f is not None and not f.closed else 0)
 
     def _new_path(self) -> Path:
+        if self._first_path is not None:  # a file name the caller chose (e.g. a temporary one)
+            path, self._first_path = self._first_path, None
+            return path
         stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
         for n in range(1000):
             suffix = f"-{n}" if n else ""
@@ -186,13 +168,13 @@ class McapLog:
             os.fsync(self._file.fileno())
             self._synced_at = now
 
-    def _channel(self, topic: str) -> int:
+    def _channel(self, topic: str, message: Record | dict[str, Any]) -> int:
         assert self._writer is not None
         channel_id = self._channels.get(topic)
         if channel_id is not None:
             return channel_id
         if topic not in self._schemas:
-            self._schemas[topic] = schema_for(topic)
+            self._schemas[topic] = schema_for(topic, message)
         name, schema = self._schemas[topic]
         schema_id = self._schema_ids.get(name)
         if schema_id is None:
@@ -206,14 +188,16 @@ class McapLog:
         self._channels[topic] = channel_id
         return channel_id
 
-    def write(self, topic: str, log_time_ns: int, message: dict[str, Any]) -> None:
-        """Log one message on ``topic`` at ``log_time_ns`` (UNIX ns)."""
-        data = encode_json(message)
+    def write(self, topic: str, log_time_ns: int, message: Record | dict[str, Any]) -> None:
+        """Log one message on ``topic`` at ``log_time_ns`` (UNIX ns); a record brings its schema."""
+        data = encode_json(as_json(message))
         with self._lock:
             if self._closed:
                 raise ValueError("McapLog is closed")
             assert self._writer is not None
-            self._writer.add_message(self._channel(topic), int(log_time_ns), data, int(log_time_ns))
+            self._writer.add_message(
+                self._channel(topic, message), int(log_time_ns), data, int(log_time_ns)
+            )
             self.messages += 1
             self.topic_counts[topic] = self.topic_counts.get(topic, 0) + 1
             self._maintain()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import datetime as _dt
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -10,53 +9,11 @@ from typing import Any
 
 import pynmea2
 from forcemap.host.compensation import depth_below_surface as depth_below_surface_m
+from forcemap.host.nmea_fields import KNOT, SPECS, extract
 
-KNOT = 1852.0 / 3600.0
-KMH = 1000.0 / 3600.0
-FOOT = 0.3048
-FATHOM = 1.8288
+__all__ = ["KNOT", "LineSplitter", "NmeaParser", "Sentence", "depth_below_surface", "extract"]
+
 MAX_LINE = 120  # NMEA allows 82 characters; real talkers overrun a little
-
-REASONS = (
-    "too_long",
-    "not_ascii",
-    "no_start",
-    "spliced",
-    "no_checksum",
-    "bad_checksum",
-    "parse_error",
-    "field_count",
-    "bad_field",
-)
-
-# Field specs per sentence type, after the address field. Each entry: "f" number, "i" integer,
-# "t" hhmmss(.ss), "d" ddmmyy, "lat" ddmm.mm, "lon" dddmm.mm, "=XY" one of those letters
-# (case-insensitive), "s" any text. Every field may be empty. (min_fields, max_fields, specs)
-SPECS: dict[str, tuple[int, int, tuple[str, ...]]] = {
-    "DPT": (2, 3, ("f", "f", "f")),
-    "DBT": (6, 6, ("f", "=F", "f", "=M", "f", "=F")),
-    "MTW": (2, 2, ("f", "=C")),
-    "RMC": (
-        11,
-        13,
-        ("t", "=AV", "lat", "=NS", "lon", "=EW", "f", "f", "d", "f", "=EW", "=ADENSMFRP", "=SCUV"),
-    ),
-    "GGA": (
-        14,
-        14,
-        ("t", "lat", "=NS", "lon", "=EW", "i", "i", "f", "f", "=M", "f", "=M", "f", "s"),
-    ),
-    "VTG": (8, 9, ("f", "=T", "f", "=M", "f", "=N", "f", "=K", "=ADENSMFRP")),
-    "HDT": (2, 2, ("f", "=T")),
-    "HDM": (2, 2, ("f", "=M")),
-    "HDG": (5, 5, ("f", "f", "=EW", "f", "=EW")),
-    "VHW": (8, 8, ("f", "=T", "f", "=M", "f", "=N", "f", "=K")),
-    "MWV": (5, 5, ("f", "=RT", "f", "=KMNS", "=AV")),
-    "VWR": (8, 8, ("f", "=LR", "f", "=N", "f", "=M", "f", "=K")),
-    "MWD": (8, 8, ("f", "=T", "f", "=M", "f", "=N", "f", "=M")),
-    "ZDA": (6, 6, ("t", "i", "i", "i", "i", "i")),
-    "GLL": (6, 7, ("lat", "=NS", "lon", "=EW", "t", "=AV", "=ADENSMFRP")),
-}
 
 
 def _xor(body: str) -> int:
@@ -105,149 +62,6 @@ def _check(kind: str, s: str) -> bool:
     if kind[0] == "=":
         return len(s) == 1 and s.upper() in kind[1:]
     return True
-
-
-def _f(s: str) -> float | None:
-    return float(s) if s else None
-
-
-def _latlon(v: str, hemi: str, deg_digits: int) -> float | None:
-    if not v or not hemi:
-        return None
-    x = int(v[:deg_digits]) + float(v[deg_digits:]) / 60.0
-    return -x if hemi.upper() in "SW" else x
-
-
-def _tod(s: str) -> float | None:
-    """Seconds since midnight UTC from hhmmss(.ss)."""
-    if not s:
-        return None
-    return int(s[:2]) * 3600 + int(s[2:4]) * 60 + float(s[4:])
-
-
-def _signed(v: str, hemi: str) -> float | None:
-    if not v:
-        return None
-    x = float(v)
-    return -x if hemi.upper() == "W" else x
-
-
-def _speed(v: str, unit: str) -> float | None:
-    if not v:
-        return None
-    return float(v) * {"N": KNOT, "K": KMH, "M": 1.0, "S": 1609.344 / 3600.0}.get(
-        unit.upper(), math.nan
-    )
-
-
-def _wrap180(deg: float) -> float:
-    a = deg % 360.0
-    return a - 360.0 if a > 180.0 else a
-
-
-def extract(stype: str, d: list[str]) -> dict[str, Any]:
-    """SI values from a validated sentence's fields (see SPECS). Missing fields are None."""
-    d = d + [""] * (SPECS[stype][1] - len(d)) if stype in SPECS else d
-    if stype == "DPT":
-        return {"depth_m": _f(d[0]), "offset_m": _f(d[1])}
-    if stype == "DBT":
-        m = _f(d[2])
-        if m is None and d[0]:
-            m = float(d[0]) * FOOT
-        if m is None and d[4]:
-            m = float(d[4]) * FATHOM
-        return {"depth_m": m}
-    if stype == "MTW":
-        return {"water_temp": _f(d[0])}
-    if stype == "RMC":
-        out = {
-            "tod": _tod(d[0]),
-            "status": d[1].upper() or None,
-            "lat": _latlon(d[2], d[3], 2),
-            "lon": _latlon(d[4], d[5], 3),
-            "sog": _speed(d[6], "N"),
-            "cog": _f(d[7]),
-            "variation": _signed(d[9], d[10]),
-            "utc": None,
-        }
-        if d[0] and d[8]:
-            day, mon, yy = int(d[8][:2]), int(d[8][2:4]), int(d[8][4:])
-            try:
-                base = _dt.datetime(2000 + yy if yy < 80 else 1900 + yy, mon, day, tzinfo=_dt.UTC)
-                out["utc"] = base.timestamp() + out["tod"]
-            except ValueError:
-                pass
-        return out
-    if stype == "GGA":
-        return {
-            "tod": _tod(d[0]),
-            "lat": _latlon(d[1], d[2], 2),
-            "lon": _latlon(d[3], d[4], 3),
-            "quality": int(d[5]) if d[5] else None,
-            "satellites": int(d[6]) if d[6] else None,
-            "hdop": _f(d[7]),
-            "alt": _f(d[8]),
-        }
-    if stype == "GLL":
-        return {
-            "lat": _latlon(d[0], d[1], 2),
-            "lon": _latlon(d[2], d[3], 3),
-            "tod": _tod(d[4]),
-            "status": d[5].upper() or None,
-        }
-    if stype == "VTG":
-        sog = _speed(d[4], "N")
-        if sog is None:
-            sog = _speed(d[6], "K")
-        return {"cog": _f(d[0]), "cog_mag": _f(d[2]), "sog": sog}
-    if stype == "HDT":
-        return {"heading": _f(d[0])}
-    if stype == "HDM":
-        return {"heading_mag": _f(d[0])}
-    if stype == "HDG":
-        return {
-            "heading_mag": _f(d[0]),
-            "deviation": _signed(d[1], d[2]),
-            "variation": _signed(d[3], d[4]),
-        }
-    if stype == "VHW":
-        stw = _speed(d[4], "N")
-        if stw is None:
-            stw = _speed(d[6], "K")
-        return {"heading": _f(d[0]), "heading_mag": _f(d[2]), "stw": stw}
-    if stype == "MWV":
-        a = _f(d[0])
-        return {
-            "angle": None if a is None else _wrap180(a),
-            "reference": d[1].upper() or None,
-            "speed": _speed(d[2], d[3]) if d[3] else None,
-            "status": d[4].upper() or None,
-        }
-    if stype == "VWR":
-        a = _f(d[0])
-        if a is not None and d[1].upper() == "L":
-            a = -a
-        sp = _speed(d[2], "N")  # knots first: one decimal of a knot is the finest of the three
-        if sp is None:
-            sp = _speed(d[4], "M")
-        if sp is None:
-            sp = _speed(d[6], "K")
-        return {"angle": None if a is None else _wrap180(a), "speed": sp}
-    if stype == "MWD":
-        sp = _speed(d[4], "N")
-        if sp is None:
-            sp = _speed(d[6], "M")
-        return {"dir": _f(d[0]), "dir_mag": _f(d[2]), "speed": sp}
-    if stype == "ZDA":
-        out = {"tod": _tod(d[0]), "utc": None}
-        if d[0] and d[1] and d[2] and d[3]:
-            try:
-                base = _dt.datetime(int(d[3]), int(d[2]), int(d[1]), tzinfo=_dt.UTC)
-                out["utc"] = base.timestamp() + out["tod"]
-            except ValueError:
-                pass
-        return out
-    return {}
 
 
 @dataclass(slots=True)
@@ -383,9 +197,7 @@ class NmeaParser:
             self.accepted["other"] += 1
             return Sentence(text, True, "", addr[:2], addr[2:], {})
         try:
-            msg = pynmea2.parse(text, check=True)
-        except pynmea2.ChecksumError:
-            return self._reject(text, "bad_checksum")
+            msg = pynmea2.parse(text)  # the checksum is already checked above
         except (pynmea2.ParseError, ValueError, TypeError, AttributeError):
             return self._reject(text, "parse_error")
         talker = getattr(msg, "talker", "") or ""

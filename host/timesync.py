@@ -9,7 +9,7 @@ from typing import Any
 
 
 @dataclass(frozen=True)
-class Mapping:
+class ClockMap:
     """host_s = device_s + offset_s + drift * (device_s - ref_device_s), valid for one epoch."""
 
     source: str
@@ -164,7 +164,7 @@ class SourceClock:
         self.report_s = report_s
         self.report_every_s = report_every_s
         self.report_min_s = report_min_s
-        self._reported: Mapping | None = None
+        self._reported: ClockMap | None = None
         self._reported_at = 0.0
 
     @property
@@ -182,8 +182,8 @@ class SourceClock:
 
     def observe(
         self, device_s: float, host_s: float, key: Any = None
-    ) -> tuple[float, Mapping | None]:
-        """Add a point; returns (host time of ``device_s``, the Mapping if it is to be reported)."""
+    ) -> tuple[float, ClockMap | None]:
+        """Add a point; returns (host time of ``device_s``, the ClockMap if it is to be reported)."""
         fit = self.fit
         if (
             fit is None
@@ -216,7 +216,7 @@ class SourceClock:
         changed = self.fit.add(device_s, host_s)
         return self.fit.to_host(device_s), self._report(device_s) if changed else None
 
-    def _report(self, device_s: float) -> Mapping | None:
+    def _report(self, device_s: float) -> ClockMap | None:
         """The mapping if it is new, moved by more than ``report_s`` here, or is due."""
         m = self.mapping()
         last = self._reported
@@ -237,12 +237,12 @@ class SourceClock:
     def to_host(self, device_s: float) -> float | None:
         return None if self.fit is None else self.fit.to_host(device_s)
 
-    def mapping(self) -> Mapping | None:
+    def mapping(self) -> ClockMap | None:
         f = self.fit
         if f is None:
             return None
         span = (f.last or 0.0) - (f.first or 0.0)
-        return Mapping(self.name, self.epoch, f.offset, f.drift, f.ref, f.points, span)
+        return ClockMap(self.name, self.epoch, f.offset, f.drift, f.ref, f.points, span)
 
 
 class UtcFix:

@@ -15,6 +15,8 @@ Directions are where the wind comes FROM, degrees clockwise from the bow, in (-1
 
 from __future__ import annotations
 
+from forcemap.host.compensation import wrap180
+
 # (vane direction in degrees, resistance in ohms), from the SparkFun SEN-15901 datasheet
 DEFAULT_TABLE: tuple[tuple[float, float], ...] = (
     (0.0, 33_000.0),
@@ -39,12 +41,6 @@ ADC_FULL_SCALE = 65535
 # Farther than this (read_u16 counts) from every table entry is not a vane reading: open circuit
 # (full scale), short circuit (0) or a broken cable. Half the smallest gap between entries is 298.
 DEFAULT_REJECT_COUNTS = 1500
-
-
-def wrap_relative(deg: float) -> float:
-    """An angle in degrees mapped to (-180, 180]."""
-    a = deg % 360.0
-    return a - 360.0 if a > 180.0 else a
 
 
 def ideal_raw(
@@ -119,4 +115,4 @@ class VaneDecoder:
         if dist > self.reject_counts:
             self.rejected += 1
             return None
-        return wrap_relative(deg + self.mounting_offset)
+        return wrap180(deg + self.mounting_offset)

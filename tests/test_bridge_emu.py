@@ -8,7 +8,8 @@ the board resets near the end. The host recovers exact pulse counts, edge times 
 import random
 
 import pytest
-from forcemap.host.vane import decode_vane, wrap_relative
+from forcemap.host.compensation import wrap180
+from forcemap.host.vane import decode_vane
 from forcemap.protocol import wire
 from forcemap.sim_devices.bridge_emu import EmulatedBridge, add_bounce, vane_voltage
 from forcemap.sim_devices.usb_cdc import UsbCdc
@@ -124,7 +125,7 @@ def test_vane_positions_through_firmware(i):
     samples = [f for f in wire.StreamDecoder().feed(bytes(out)) if f.msg_type == wire.SAMPLE]
     assert len(samples) == 5
     for f in samples[1:]:
-        assert decode_vane(f.fields["vane_raw"]) == wrap_relative(i * 22.5)
+        assert decode_vane(f.fields["vane_raw"]) == wrap180(i * 22.5)
 
 
 def test_usb_write_timeout_is_counted_and_sampling_goes_on():

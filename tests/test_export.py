@@ -13,7 +13,7 @@ import pytest
 from forcemap.host.cli import main
 from forcemap.host.export import COLUMNS, samples_table
 from forcemap.host.mcap_log import McapLog
-from forcemap.host.schemas import location_fix
+from forcemap.host.messages import LocationFix
 
 ROOT = Path(__file__).resolve().parents[1]
 T0 = 1_750_000_000.0
@@ -44,7 +44,7 @@ def _log(tmp_path: Path, n: int = 40, fixes: bool = True, **over) -> Path:
             t_ns = int((T0 + i * 0.25) * 1e9)
             log.write("/samples", t_ns, _row(i, **over))
             if fixes:
-                log.write("/fix", t_ns, location_fix(t_ns, 47.0 + i * 1e-5, 8.0 + i * 2e-5))
+                log.write("/fix", t_ns, LocationFix.at(t_ns, 47.0 + i * 1e-5, 8.0 + i * 2e-5))
     return log.path
 
 

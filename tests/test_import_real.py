@@ -8,15 +8,14 @@ log, to keep the suite fast.
 
 from __future__ import annotations
 
-import re
 from collections import Counter
 from pathlib import Path
 
 import pytest
-from forcemap.host.cli import import_ as import_cli
+from forcemap.host import importers
 from forcemap.host.cli import main
-from forcemap.host.importers import tlog_records
-from forcemap.host.mcap_log import read_messages
+from forcemap.host.importers import import_file, tlog_records, why_no_samples
+from forcemap.host.mcap_log import McapLog, read_messages
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 if not REAL.is_dir():
@@ -92,12 +91,14 @@ NMEA = {
         },
     ),
 }
+NO_MEASUREMENTS = "no measurements in this log"
 TLOG = {
     "ardusub_2023-05-04_bluerov_small.tlog": (
         35916,
         35912,
         {"1/100/259": 1, "1/100/260": 1, "1/100/262": 1, "1/100/269": 1},
         792,
+        NO_MEASUREMENTS,  # a BlueROV at a dock: GPS, but no sounder, log or wind sensor
     ),
     "ardusub_2023-04-18_bluerov_distance_sensor_badcrc.tlog": (
         52103,
@@ -113,8 +114,15 @@ TLOG = {
             "1/100/269": 1,
         },
         0,  # no GPS fix in this log
+        "no position in this log",  # its sonar (DISTANCE_SENSOR, orientation 25) is read all the same
     ),
-    "copter_2015-07-05_droneshare_flight.tlog": (76792, 75477, {"255/0/142": 1314}, 2684),
+    "copter_2015-07-05_droneshare_flight.tlog": (
+        76792,
+        75477,
+        {"255/0/142": 1314},
+        2684,
+        NO_MEASUREMENTS,
+    ),
 }
 TO_MCAP = {"bundg_zeus_9.log"}
 
@@ -122,7 +130,7 @@ TO_MCAP = {"bundg_zeus_9.log"}
 class CountingLog:
     """Stands in for McapLog: counts messages per topic."""
 
-    def __init__(self, out, **kw):
+    def __init__(self, out=".", **kw):
         self.counts: Counter[str] = Counter()
         self.meta: dict[str, dict] = {}
         self.paths = [Path(out) / "in-memory.mcap"]
@@ -135,7 +143,7 @@ class CountingLog:
         self.meta[name] = data
 
     def close(self):
-        self.path.write_bytes(b"")  # the command renames the finished log into place
+        pass
 
 
 @pytest.fixture
@@ -145,11 +153,11 @@ def run_import(tmp_path, monkeypatch):
     def run(name, *extra):
         if name not in TO_MCAP:
 
-            def fake(out, stem):
+            def fake(out, **kw):
                 logs.append(CountingLog(out))
                 return logs[-1]
 
-            monkeypatch.setattr(import_cli, "_open_log", fake)
+            monkeypatch.setattr(importers, "McapLog", fake)
         path = next(REAL.glob(f"*/{name}"))
         rc = main(["import", str(path), "--out", str(tmp_path), *extra])
         return rc, (logs[-1] if logs else None), tmp_path
@@ -182,32 +190,37 @@ def test_nmea_capture(name, run_import, capsys):
 
 
 @pytest.mark.parametrize("name", sorted(TLOG))
-def test_tlog(name, run_import, capsys):
-    packets, good, bad, gpi_fixes = TLOG[name]
-    rc, log, out = run_import(name)
-    text = capsys.readouterr().out
-    assert rc == 0, text
-    assert f"{packets} packets (tlog)" in text
-    assert f"MAVLink: {good} messages, {sum(bad.values())} bad CRC" in text
-    worst = max(bad, key=bad.get)
-    assert f"sysid/compid/msgid {worst}: {bad[worst]}" in text
-    if log is not None:
-        counts = log.counts
-    else:
-        files = list(out.glob("*.mcap"))
-        counts = Counter(m.topic for m in read_messages(files[0]))
-    assert sum(n for t, n in counts.items() if t.startswith("/mavlink/")) == good
-    assert counts["/boat/state"] == gpi_fixes
-
-
-def test_dataflash_bin_is_refused_in_one_line(run_import, capsys):
-    rc, _, out = run_import("ardusub_4.1_bluerov_small.BIN")
+def test_tlog(name, tmp_path, capsys):
+    """Counts pinned through the importer; the command says in one line why there are no samples
+    (exit 2) and leaves no file."""
+    packets, good, bad, gpi_fixes, reason = TLOG[name]
+    path = REAL / "mavlink" / name
+    log = CountingLog()
+    res = import_file(path, log)
+    c = res.counters["mavlink"]
+    assert res.records == packets and c["messages"] == good
+    assert c["bad_crc_by_sender_msgid"] == bad
+    assert sum(n for t, n in log.counts.items() if t.startswith("/mavlink/")) == good
+    assert log.counts["/boat/state"] == gpi_fixes
+    assert log.counts["/samples"] == 0 and reason in why_no_samples(res)
+    assert main(["import", str(path), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
-    assert rc == 2
-    assert err.count("\n") == 1 and "DataFlash" in err and ".tlog" in err
-    rc, _, out = run_import("ardusub_4.1_bluerov_small.BIN", "--format", "tlog")
-    assert rc == 2 and "DataFlash" in capsys.readouterr().err
-    assert not list(out.glob("*.mcap"))
+    assert err.count("\n") == 1 and reason in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_dataflash_without_gps_says_so_in_one_line(tmp_path, capsys):
+    """The real ArduSub .BIN has no GPS: one line, exit 2, no file (with or without --format)."""
+    path = REAL / "mavlink" / "ardusub_4.1_bluerov_small.BIN"
+    for extra in ([], ["--format", "dataflash"]):
+        assert main(["import", str(path), "--out", str(tmp_path), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "no position in this log" in err
+    assert not list(tmp_path.iterdir())
+    log = CountingLog()
+    res = import_file(path, log)
+    assert res.format == "dataflash" and res.records == 7510  # as PROVENANCE.md counts them
+    assert log.counts["/dataflash/ATT"] == 237 and log.counts["/fix"] == 0
 
 
 def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
@@ -246,15 +259,12 @@ def test_tlog_to_mcap_round_trip(tmp_path, capsys):
             break
     part = tmp_path / "part.tlog"
     part.write_bytes(data[:end])
-    assert main(["import", str(part), "--out", str(tmp_path / "out")]) == 0
-    text = capsys.readouterr().out
-    assert "3000 packets (tlog)" in text
-    good, bad = (
-        int(x) for x in re.search(r"MAVLink: (\d+) messages, (\d+) bad CRC", text).groups()
-    )
+    with McapLog(tmp_path / "out", prefix="part") as log:
+        res = import_file(part, log)
+    assert res.records == 3000
+    good, bad = res.counters["mavlink"]["messages"], res.counters["mavlink"]["bad_crc"]
     assert good + bad == 3000
-    files = list((tmp_path / "out").glob("*.mcap"))
-    assert files == [tmp_path / "out" / "part.mcap"]  # the old --out DIR form still works
+    files = list((tmp_path / "out").glob("part-*.mcap"))
     assert len(files) == 1
     msgs = list(read_messages(files[0]))
     counts = Counter(m.topic for m in msgs)

@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 import random
 
+import jsonschema
 import pytest
+from forcemap.host.messages import SAMPLE_COLUMNS, record_type
 from forcemap.host.pipeline import HOLD_S, ListSink, NullSink, Pipeline
-from forcemap.host.schemas import SAMPLE_COLUMNS, schema_for
 from forcemap.protocol import wire
 
 from bench.synth_streams import T0, generate, truth_wind_current
@@ -46,7 +47,11 @@ def test_topics_metadata_and_counts(survey):
         "/samples",
     ):
         assert t in topics, t
-    assert {n for n, _ in sink.meta} == {"calibration", "config", "hello"}
+    assert {n for n, _ in sink.meta} == {"calibration", "config", "hello", "columns"}
+    columns = [m for n, m in sink.meta if n == "columns"][-1]
+    assert columns["wind_speed"].startswith("bridge anemometer+vane + mavlink ATTITUDE")
+    assert columns["current_speed"].startswith("bridge paddle wheels")
+    assert columns["depth"] == "nmea DPT" and columns["lat"] == "mavlink GLOBAL_POSITION_INT"
     c = pipe.counters()
     assert c["bridge"]["samples"] == 240 * 4 == len(sink.topic("/samples"))
     assert c["bridge"]["rejected"]["total"] == 0 and c["bridge"]["lost_frames"] == 0
@@ -61,7 +66,10 @@ def test_samples_are_table_rows(survey):
     for r in rows:
         assert tuple(r) == SAMPLE_COLUMNS
     r = rows[len(rows) // 2]
-    assert all(r[k] is not None for k in SAMPLE_COLUMNS), r
+    from_elsewhere = {"stw", "current_speed_stw", "current_dir_stw"}
+    from_elsewhere |= {"wind_speed_instrument", "wind_dir_instrument"}
+    assert all(r[k] is not None for k in SAMPLE_COLUMNS if k not in from_elsewhere), r
+    assert all(r[k] is None for k in from_elsewhere), r  # empty, not zero: no log, no wind sensor
     assert 0 <= r["heading"] < 360 and 0 <= r["wind_dir"] < 360 and 0 <= r["current_dir"] < 360
     assert (
         r["depth"] == pytest.approx(3.0, abs=2.5)
@@ -99,17 +107,14 @@ def test_true_wind_and_current_against_truth(survey):
 
 
 def test_every_message_matches_its_schema(survey):
-    jsonschema = pytest.importorskip("jsonschema")
+    """Every message of the run against the schema of the topic's record type."""
     sink = survey[2]
-    seen: dict[str, int] = {}
     for topic, log_ns, msg in sink.messages:
-        if seen.get(topic, 0) >= 20:
-            continue
-        seen[topic] = seen.get(topic, 0) + 1
-        name, schema = schema_for(topic)
-        jsonschema.validate(msg, schema)
+        rtype = record_type(topic)
+        assert rtype is not None, topic
+        jsonschema.validate(msg, rtype.json_schema())
         assert isinstance(log_ns, int) and log_ns > 1_700_000_000 * 10**9
-    assert schema_for("/fix")[0] == "foxglove.LocationFix"
+    assert record_type("/fix").NAME == "foxglove.LocationFix"
     fix = sink.topic("/fix")[0]
     assert set(fix) == {
         "timestamp",

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pytest
 from forcemap.host.cli.run import nmea_sources
-from forcemap.host.daemon import NmeaLines
 from forcemap.host.mcap_log import read_messages
 from forcemap.host.pipeline import Pipeline
 
@@ -81,7 +80,7 @@ class Sink:
         self.messages: list[tuple[str, dict]] = []
 
     def write(self, topic, log_time_ns, message):
-        self.messages.append((topic, message))
+        self.messages.append((topic, message.to_json()))  # the pipeline writes typed records
 
     def metadata(self, name, data):
         pass
@@ -89,18 +88,20 @@ class Sink:
 
 def test_interleaved_fragments_of_two_instruments_stay_whole_lines():
     sink = Sink()
-    lines = NmeaLines(Pipeline(None, sink), ["gps", "sounder"])
+    lines = Pipeline(
+        None, sink
+    )  # splits each NMEA source ("nmea*", "depth*") into lines on its own
     gps = [rmc_sentence(i) for i in range(6)]
     sounder = [depth_sentence(i) for i in range(6)]
     t = 1_780_000_000_000_000_000
     for k, (a, b) in enumerate(zip(gps, sounder, strict=True)):
         for part in (slice(0, 20), slice(20, None)):  # half a line from each, in turn
-            lines.feed("gps", t + k, t + k, a[part])
-            lines.feed("sounder", t + k, t + k, b[part])
-    lines.gap("sounder", t + 10, "device_gone")
-    lines.feed("sounder", t + 11, t + 11, b"$SDDPT,9.9")  # a partial line lost in the gap ...
-    lines.gap("sounder", t + 12, "device_gone")
-    lines.feed("sounder", t + 13, t + 13, depth_sentence(7))  # ... does not spoil the next one
+            lines.feed("nmea", t + k, t + k, a[part])
+            lines.feed("nmea2", t + k, t + k, b[part])
+    lines.gap("nmea2", t + 10, "device_gone")
+    lines.feed("nmea2", t + 11, t + 11, b"$SDDPT,9.9")  # a partial line lost in the gap ...
+    lines.gap("nmea2", t + 12, "device_gone")
+    lines.feed("nmea2", t + 13, t + 13, depth_sentence(7))  # ... does not spoil the next one
     sentences = [m for topic, m in sink.messages if topic == "/nmea/sentence"]
     assert len(sentences) == 13
     assert all(s["valid"] for s in sentences), [s for s in sentences if not s["valid"]]
@@ -108,7 +109,7 @@ def test_interleaved_fragments_of_two_instruments_stay_whole_lines():
 
 
 def test_nmea_only_boat_with_two_instruments_on_ptys(tmp_path):
-    gps, sounder = PtyPort(tmp_path / "gps"), PtyPort(tmp_path / "sounder")
+    gps, sounder = PtyPort(tmp_path / "nmea"), PtyPort(tmp_path / "nmea2")
     out = tmp_path / "out"
     daemon = DaemonProcess(out, {}, "--nmea", str(gps.path), "--depth", str(sounder.path))
     try:

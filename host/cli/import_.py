@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
 import textwrap
 from pathlib import Path
 from typing import Any
 
 from forcemap.host.cli.export import add_output_options, output_for
 from forcemap.host.errors import CliError
-from forcemap.host.outputs import atomic_path, check_output
+from forcemap.host.outputs import check_output
 
 EPILOG = """\
 examples:
@@ -27,14 +25,16 @@ behind. `forcemap export` takes the same -o and --force.
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = textwrap.fill(
-        "Run an existing NMEA 0183 capture or MAVLink telemetry log (.tlog) through the daemon's "
-        "pipeline into an MCAP log.",
+        "Run an existing NMEA 0183 capture, MAVLink telemetry log (.tlog) or ArduPilot DataFlash "
+        "log (.BIN) through the daemon's pipeline into an MCAP log with the samples table.",
         88,
     )
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
     parser.add_argument(
-        "file", metavar="FILE", help="NMEA 0183 capture (text) or MAVLink telemetry log (.tlog)"
+        "file",
+        metavar="FILE",
+        help="NMEA 0183 capture (text), MAVLink telemetry log (.tlog) or DataFlash log (.BIN)",
     )
     add_output_options(parser, ".mcap")
     parser.add_argument(
@@ -42,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--format",
-        choices=("nmea", "tlog"),
+        choices=("nmea", "tlog", "dataflash"),
         default=None,
         help="input format (default: from the name and the first bytes)",
     )
@@ -57,18 +57,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _open_log(out: Path, stem: str) -> Any:
-    from forcemap.host.mcap_log import McapLog
-
-    return McapLog(out, prefix=stem, rotate_bytes=1 << 62, rotate_seconds=float("inf"))
+_UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records"}
 
 
 def summary(res: Any) -> list[str]:
     """Human-readable lines about an ImportResult."""
     c = res.counters
-    out = [
-        f"{res.path}: {res.records} {'lines' if res.format == 'nmea' else 'packets'} ({res.format})"
-    ]
+    out = [f"{res.path}: {res.records} {_UNITS[res.format]} ({res.format})"]
     if res.format == "nmea":
         n = c["depth"]
         out.append(
@@ -77,7 +72,7 @@ def summary(res: Any) -> list[str]:
         out.append(
             f"        {n['rejected']} rejected {dict(sorted(n['rejected_by_reason'].items()))}"
         )
-    else:
+    elif res.format == "tlog":
         m = c["mavlink"]
         out.append(
             f"  MAVLink: {m['messages']} messages, {m['bad_crc']} bad CRC, {m['junk_bytes']} junk bytes"
@@ -117,7 +112,7 @@ def _output(args: argparse.Namespace, path: Path) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.calibration import ConfigError, load
-    from forcemap.host.importers import ImportFailed, check_importable, import_file
+    from forcemap.host.importers import ImportFailed, check_importable, import_to_mcap
 
     path = Path(args.file)
     try:
@@ -128,20 +123,10 @@ def run(args: argparse.Namespace) -> int:
     except (ConfigError, ImportFailed) as e:
         raise CliError(str(e)) from None
     out = check_output(_output(args, path), [path], args.force)
-    # the log is written in a temporary folder beside the output and renamed into place whole
-    with (
-        atomic_path(out) as tmp,
-        tempfile.TemporaryDirectory(dir=tmp.parent, prefix=".forcemap-import-") as work,
-    ):
-        log = _open_log(Path(work), path.stem)
-        try:
-            res = import_file(path, log, fmt, cal, args.sync)
-        except ImportFailed as e:
-            raise CliError(str(e)) from None
-        finally:
-            log.close()
-        check_found(res)
-        os.replace(log.path, tmp)
+    try:
+        res = import_to_mcap(path, out, fmt, cal, args.sync, check=check_found)
+    except ImportFailed as e:
+        raise CliError(str(e)) from None
     for line in summary(res):
         print(line)
     print(f"  -> {out}")

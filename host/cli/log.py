@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import bisect
 import json
 import os
+import statistics
 import sys
 from array import array
 from collections.abc import Iterable
@@ -20,6 +22,7 @@ from mcap.writer import CompressionType, Writer
 # a topic has a gap where consecutive messages are further apart than this many mean periods
 GAP_FACTOR = 10.0
 MIN_GAP_S = 2.0
+WIND_PAIR_S = 2.0  # an instrument true wind and a computed one this close in time are compared
 # counters whose names contain one of these are shown by `info`
 ERROR_WORDS = (
     "reject",
@@ -76,6 +79,8 @@ class LogInfo:
     events: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
     last_diagnostics: dict[str, Any] | None = None
     last_status: dict[str, Any] | None = None
+    columns: dict[str, str] = field(default_factory=dict)
+    winds: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
 
     @property
     def start_ns(self) -> int:
@@ -163,7 +168,9 @@ def scan_file(path: str | os.PathLike[str]) -> LogInfo:
             ti.first_ns = min(ti.first_ns, record.log_time)
             ti.last_ns = max(ti.last_ns, record.log_time)
             ti.times.append(record.log_time)
-            if channel.topic in ("/diagnostics", "/daemon/status", "/daemon/event"):
+            if channel.topic == "/wind/true":
+                _add_wind(info, record.data)
+            elif channel.topic in ("/diagnostics", "/daemon/status", "/daemon/event"):
                 try:
                     msg = json.loads(record.data)
                 except ValueError:
@@ -176,10 +183,66 @@ def scan_file(path: str | os.PathLike[str]) -> LogInfo:
                     info.events.append((record.log_time, msg))
         elif isinstance(record, Metadata):
             info.metadata.append(record.name)
+            if record.name == "columns":
+                info.columns = dict(record.metadata)
     info.complete = scan.complete and not scan.truncated
     info.truncated = scan.truncated
     info.error = scan.error
     return info
+
+
+def _add_wind(info: LogInfo, data: bytes) -> None:
+    try:
+        m = json.loads(data)
+    except ValueError:
+        return
+    if isinstance(m.get("speed"), int | float) and isinstance(m.get("dir"), int | float):
+        route = m.get("route") or "computed"
+        info.winds.setdefault(route, []).append((float(m["t"]), m["speed"], m["dir"]))
+
+
+def wind_routes(info: LogInfo, max_dt: float = WIND_PAIR_S) -> dict[str, Any] | None:
+    """How the instrument's true wind differs from the computed one, over pairs close in time."""
+    comp, inst = sorted(info.winds.get("computed", [])), info.winds.get("instrument", [])
+    if not comp or not inst:
+        return None
+    times = [c[0] for c in comp]
+    ds, dd = [], []
+    for t, speed, direction in inst:
+        i = bisect.bisect_left(times, t)
+        near = [c for c in comp[max(i - 1, 0) : i + 1] if abs(c[0] - t) <= max_dt]
+        if near:
+            c = min(near, key=lambda c: abs(c[0] - t))
+            ds.append(speed - c[1])
+            dd.append((direction - c[2] + 180.0) % 360.0 - 180.0)
+    if not ds:
+        return {"pairs": 0}
+    return {
+        "pairs": len(ds),
+        "speed_mean": statistics.fmean(ds),
+        "speed_median_abs": statistics.median(abs(x) for x in ds),
+        "dir_mean": statistics.fmean(dd),
+        "dir_median_abs": statistics.median(abs(x) for x in dd),
+    }
+
+
+def _print_columns_and_winds(info: LogInfo, w: Any) -> None:
+    if info.columns:
+        w("\n  samples columns fed by:\n")
+        for col, label in info.columns.items():
+            w(f"    {col:<24}{label}\n")
+    routes = wind_routes(info)
+    if routes is None:
+        return
+    w(f"\n  true wind, both routes: {routes['pairs']} instrument readings within ")
+    w(f"{WIND_PAIR_S:g} s of a computed one\n")
+    if routes["pairs"]:
+        w(
+            f"    instrument - computed: speed {routes['speed_mean']:+.2f} m/s mean, "
+            f"{routes['speed_median_abs']:.2f} median |diff|; direction {routes['dir_mean']:+.1f} deg "
+            f"mean, {routes['dir_median_abs']:.1f} median |diff|\n"
+            "    (an instrument's true wind is often over the water, the computed one over ground)\n"
+        )
 
 
 def _fmt_time(ns: int) -> str:
@@ -219,6 +282,7 @@ def print_info(info: LogInfo, out: TextIO | None = None) -> None:
             w(f"    {topic:<30}{_fmt_time(int(start * 1e9))}  {length:.2f} s\n")
         if len(gaps) > 50:
             w(f"    ... {len(gaps) - 50} more\n")
+    _print_columns_and_winds(info, w)
     errors = info.error_counters()
     if errors:
         w("\n  errors, rejections and gaps (last recorded counters):\n")
@@ -249,6 +313,8 @@ def info_json(info: LogInfo) -> dict[str, Any]:
         "outages": info.outages(),
         "gaps": [{"topic": t, "start": s, "length_s": g} for t, s, g in info.gaps()],
         "errors": info.error_counters(),
+        "columns": info.columns,
+        "true_wind_routes": wind_routes(info),
     }
 
 

@@ -254,7 +254,6 @@ def run(args: argparse.Namespace) -> int:
             reporter=Reporter(sys.stderr, live=False if args.quiet else None),
             absent=absent,
             record_raw=args.raw,
-            nmea=nmea,
         )
     except ValueError as exc:  # the pipeline rejects the calibration (e.g. degenerate wheels)
         log.close()
