@@ -211,11 +211,20 @@ def test_diagnose_json_contract(survey_csv, tmp_path, capsys):
     )
     assert code == 0
     d = json.loads(out_json.read_text())
-    assert set(d) == {"target", "baseline", "missing_effect_found", "candidates"}
+    assert set(d) == {
+        "target",
+        "baseline",
+        "missing_effect_found",
+        "candidates",
+        "advice",
+        "rounds",
+    }
     assert set(d["baseline"]) == {"terms", "cv_rmse"}
-    assert d["candidates"] and all(
-        set(c) == {"covariate", "cv_rmse", "improvement", "explanation"} for c in d["candidates"]
-    )
+    keys = {"covariate", "cv_rmse", "improvement", "explanation"}
+    keys |= {"identifiable", "confounded_with", "null_gains"}
+    assert d["candidates"] and all(set(c) == keys for c in d["candidates"])
+    assert d["rounds"][0]["candidates"] == d["candidates"]
+    assert d["rounds"][0]["added"] == ("gp(depth, matern32)" if d["missing_effect_found"] else None)
     gains = [c["improvement"] for c in d["candidates"]]
     assert gains[1:] == sorted(gains[1:], reverse=True)
     assert d["missing_effect_found"] is True and d["candidates"][0]["covariate"] == "depth"

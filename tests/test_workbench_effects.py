@@ -2,8 +2,9 @@
 
 Every survey is made by `forcemap.sim_devices.offline.make_survey`: the simulated river and instruments, the real
 firmware, the daemon's pipeline, an MCAP log and its exported samples table. For each effect the
-diagnosis must rank the right covariate first, call it significant, and adding a term in it must cut the
-blocked-CV RMSE by at least 30 %. Two seeds per effect.
+diagnosis must rank the right covariate first, call it significant (identifiable, above its null), and adding
+a term in it must cut the blocked-CV RMSE by at least 30 %. Two seeds per effect. The surveys without an
+effect must report none in any round. (tests/test_workbench_identify.py has the cases a survey cannot tell.)
 
 "The right covariate" is a set where the survey cannot tell its members apart. On a lawnmower survey the
 heading takes two values, one per leg direction, and in a steady wind and a steady flow `heading`,
@@ -46,10 +47,10 @@ CASES = [(e, t, x, s) for e, t, x in EFFECTS for s in SEEDS]
 def test_hidden_effect_is_found_and_fixes_the_error(tmp_path, effect, target, expected, seed):
     table = make_survey("river", [effect], seed=seed, duration_s=DURATION_S, out_dir=tmp_path)
     survey = load_survey(table)
-    d = diagnose(survey, target, progress=False)
+    d = diagnose(survey, target, rounds=1, progress=False)
     best = d.candidates[0]
     assert best.covariate in expected, d.summary()
-    assert d.missing_effect_found and best.significant, d.summary()
+    assert d.missing_effect_found and best.significant and best.identifiable, d.summary()
     assert best.improvement >= 0.30, d.summary()
     # the same gain when the user adds the term with `fit --effects` (at diagnose's spatial resolution)
     kw = {"progress": False, "max_basis": DIAGNOSE_MAX_BASIS}

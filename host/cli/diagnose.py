@@ -26,6 +26,7 @@ docs/WORKBENCH.md.
 examples:
   forcemap diagnose survey.csv --target current_speed
   forcemap diagnose survey.csv --target wind_speed --json diag.json
+  forcemap diagnose survey.csv --target current_speed --rounds 1     # only the first finding
   forcemap fit survey.csv --target current_speed --effects depth   # add what diagnose found ...
   forcemap diagnose survey.csv --target current_speed              # ... and look for the next effect
 """
@@ -43,18 +44,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)"
     )
+    parser.add_argument(
+        "--rounds",
+        type=int,
+        default=3,
+        metavar="N",
+        help="add each finding and diagnose again, at most N times (default 3)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 
 def run(args: argparse.Namespace) -> int:
     def body() -> int:
         from forcemap.host.workbench.diagnose import diagnose
+        from forcemap.host.workbench.errors import WorkbenchError
         from forcemap.host.workbench.fitting import resolve_terms
         from forcemap.host.workbench.model import small_blas
         from forcemap.host.workbench.spec import BASELINE
         from forcemap.host.workbench.table import load_survey
         from forcemap.host.workbench.workspace import current_terms, save_diagnosis, workspace_dir
 
+        if args.rounds < 1:
+            raise WorkbenchError(f"--rounds must be at least 1, not {args.rounds}")
         survey = load_survey(args.table)
         ws = workspace_dir(args.table)
         if args.model or args.effects:
@@ -64,7 +75,9 @@ def run(args: argparse.Namespace) -> int:
         else:
             terms = current_terms(ws, args.target) or list(BASELINE)
         with small_blas():
-            result = diagnose(survey, args.target, terms, progress=not args.quiet)
+            result = diagnose(
+                survey, args.target, terms, rounds=args.rounds, progress=not args.quiet
+            )
         print_notes(survey)
         save_diagnosis(ws, args.target, result.details())
         if args.json and str(args.json) != "-":

@@ -10,6 +10,7 @@ from forcemap.host.cli.common import add_table, guarded, teach
 EPILOG = """\
 Every `forcemap fit` of the table is recorded in TABLE.forcemap/history.json. history prints them and
 plots the CV RMSE of each target relative to its first fit, so you see the error fall as effects are added.
+The latest `forcemap diagnose` of each target follows, round by round: what it added and the error falling.
 
 examples:
   forcemap history survey.csv
@@ -27,27 +28,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     def body() -> int:
+        from forcemap.host.workbench.diagnosis import round_steps
         from forcemap.host.workbench.errors import WorkbenchError
-        from forcemap.host.workbench.workspace import load_history, workspace_dir
+        from forcemap.host.workbench.workspace import load_diagnoses, load_history, workspace_dir
 
         ws = workspace_dir(args.table, create=False)
         history = load_history(ws)
-        if not history:
+        diagnoses = load_diagnoses(ws)
+        if not history and not diagnoses:
             raise WorkbenchError(
                 f"no fits recorded for {args.table}; run `forcemap fit {args.table} --target ...` first"
             )
-        print(
-            f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms"
-        )
+        if history:
+            print(
+                f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms"
+            )
         for h in history:
             print(
                 f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "
                 f"{h['cv_mae']:>9.4g} {h['coverage95']:>6.1%}  {' + '.join(h['terms'])}"
             )
-        from forcemap.host.workbench import plots
+        for target, d in diagnoses.items():
+            print(f"diagnose {target}:")
+            print("\n".join(f"  {line}" for line in round_steps(d)))
+        if history:
+            from forcemap.host.workbench import plots
 
-        path = plots.save(plots.history_figure(history), args.plot or ws / "history.png")
-        print(f"wrote {path}")
+            path = plots.save(plots.history_figure(history), args.plot or ws / "history.png")
+            print(f"wrote {path}")
         return 0
 
     return guarded("history", body)

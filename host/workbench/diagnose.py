@@ -1,113 +1,52 @@
-"""Find the missing effect: add a term in each candidate covariate, measure the blocked-CV gain, rank and test.
+"""Find the missing effects: add a term in each candidate covariate, measure the blocked-CV gain, judge it against
+a null and against what position can tell, add the finding and look again.
 
-Causes and consequences. The boat's kinematics (sog, cog, crab = heading - cog, yaw_rate, throttle) respond to
-the current and wind that push it: at a held-out place they carry information about the very field being
+Causes and consequences. The boat's kinematics (sog, cog, crab = heading - cog, throttle) respond to the
+current and wind that push it: at a held-out place they carry information about the very field being
 mapped, so in spatially blocked CV they "predict" it although no effect is missing. A genuine instrument error
 that grows with boat speed, or appears in turns, is different: it is there even where the field is known. So a
 kinematic covariate of a wind or current target is credited only with the gain that survives random
 (interleaved) folds, where every held-out sample has measured neighbours and the field is known: the smaller of
 its blocked and random-fold gains, and the larger of the two p-values. Causes (depth, time, heading, ...) are
 credited with their blocked-CV gain.
+
+The finding rule (docs/WORKBENCH.md, "What a survey can and cannot tell"): the best candidate is a missing
+effect when its gain is at least FLOOR, its paired p-value passes Bonferroni, it gains more than every
+time-shifted copy of itself (host/workbench/null.py), and it is identifiable: its stand-in predicted from
+position does not keep most of the gain (host/workbench/identify.py). A finding is added to the model and the
+survey diagnosed again, up to `rounds` times.
 """
 
 from __future__ import annotations
 
-import math
 import re
-from dataclasses import dataclass, field
+import time
 
-from forcemap.host.workbench import clock_offset
-from forcemap.host.workbench.catalogue import explain
-from forcemap.host.workbench.cv import DEFAULT_FOLDS, blocked_folds, paired_test, random_folds
+from forcemap.host.workbench import clock_offset, identify
+from forcemap.host.workbench.cv import DEFAULT_FOLDS
+from forcemap.host.workbench.diagnosis import Candidate, Diagnosis, Round, explain_candidate
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
+from forcemap.host.workbench.null import null_gains
 from forcemap.host.workbench.progress import Progress
-from forcemap.host.workbench.spec import build_term, parse_term
-from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
+from forcemap.host.workbench.spec import parse_term
+from forcemap.host.workbench.table import Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
-MIN_GAIN = 0.25
-# a direct cause within this many places of a leading proxy may take its place (see _prefer_direct_cause)
+__all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
+
+# a gain below this is negligible whatever the null says (docs/WORKBENCH.md justifies it)
+FLOOR = 0.05
+# the identifiability and null tests run for at most this many candidates that pass the floor and the p-value
+SCREEN = 4
+DEFAULT_ROUNDS = 3
+# a proxy gives way to a direct cause that leaves it less than this to add (see _prefer_direct_cause)
+PROXY_LEFTOVER = 0.25
+# a direct cause within this many places of a leading proxy may take its place
 PROXY_WINDOW = 10
-# the comparison between candidates needs no finer spatial basis than this; `fit` goes further
-DIAGNOSE_MAX_BASIS = 600
 ALPHA = 0.05
 SKIP = {"t", "lat", "lon", "x", "y"}
 PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab"}
-
-
-@dataclass
-class Candidate:
-    covariate: str
-    term: str
-    cv_rmse: float
-    improvement: float
-    p_value: float
-    blocked_gain: float
-    random_gain: float | None
-    consequence: bool
-    explanation: str = ""
-    significant: bool = False
-    note: str = ""
-
-
-@dataclass
-class Diagnosis:
-    target: str
-    terms: list[str]
-    cv_rmse: float
-    candidates: list[Candidate]
-    missing_effect_found: bool
-    skipped: dict[str, str] = field(default_factory=dict)
-
-    def to_json(self) -> dict:
-        """The stable machine-readable contract."""
-        return {
-            "target": self.target,
-            "baseline": {"terms": self.terms, "cv_rmse": self.cv_rmse},
-            "missing_effect_found": self.missing_effect_found,
-            "candidates": [
-                {
-                    "covariate": c.covariate,
-                    "cv_rmse": c.cv_rmse,
-                    "improvement": c.improvement,
-                    "explanation": c.explanation,
-                }
-                for c in self.candidates
-            ],
-        }
-
-    def details(self) -> dict:
-        out = self.to_json()
-        out["candidate_details"] = [c.__dict__ for c in self.candidates]
-        out["skipped"] = self.skipped
-        return out
-
-    def summary(self) -> str:
-        lines = [
-            f"target {self.target}: current model {' + '.join(self.terms)}, blocked-CV RMSE {self.cv_rmse:.4g}"
-        ]
-        if self.missing_effect_found:
-            best = self.candidates[0]
-            lines.append(f"missing effect found: {best.covariate}")
-            lines.append(f"  {best.explanation}")
-        else:
-            lines.append(
-                "no missing effect found: no covariate improves the blocked-CV error significantly"
-            )
-        lines.append("")
-        lines.append(f"{'rank':>4}  {'covariate':<22} {'cv_rmse':>9} {'gain':>7} {'p':>8}  note")
-        for i, c in enumerate(self.candidates, 1):
-            note = "consequence: credited with its random-fold gain" if c.consequence else ""
-            mark = "*" if c.significant else " "
-            lines.append(
-                f"{i:>4}{mark} {c.covariate:<22} {c.cv_rmse:>9.4g} {c.improvement:>+7.1%} {c.p_value:>8.1e}  {note}"
-            )
-        return "\n".join(lines)
-
-
-def consequences_of(target: str) -> set[str]:
-    """Kinematic covariates that respond to a wind or current target (see the module docstring)."""
-    return set(KINEMATIC) if family(target) in ("wind", "current") else set()
 
 
 def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
@@ -155,88 +94,132 @@ def diagnose(
     terms: list[str] | None = None,
     folds: int = DEFAULT_FOLDS,
     seed: int = 0,
-    min_gain: float = MIN_GAIN,
+    rounds: int = DEFAULT_ROUNDS,
     alpha: float = ALPHA,
     progress: bool = True,
 ) -> Diagnosis:
-    sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
-    fold_id, blocks = blocked_folds(survey.xy, folds, seed)
-    rfold = random_folds(survey.n, folds, seed)
-    sec_b = sec_r = None
-    if sm.secondary is not None:
-        sec_b = sm.secondary.cv_predict(fold_id)
-        sec_r = sm.secondary.cv_predict(rfold)
-    base_b = sm.cv(fold_id, secondary_cv=sec_b)
-    consequences = consequences_of(target)
-    names = candidate_covariates(survey, sm)
-    bar = Progress(f"diagnose {target}", len(names), progress)
-    state = {"base_r": None}
+    """Diagnose, add what is found, and diagnose again, until nothing more is found or `rounds` are done."""
+    if rounds < 1:
+        raise WorkbenchError(f"--rounds must be at least 1, not {rounds}")
+    terms = list(terms or ["const", "gp(position, matern32)"])
+    done: list[Round] = []
+    for i in range(rounds):
+        label = f"diagnose {target}" + (f" (round {i + 1})" if i else "")
+        r = diagnose_round(survey, target, terms, folds, seed, alpha, progress, label)
+        done.append(r)
+        if r.added is None:
+            break
+        terms = terms + [r.added.term]
+    return Diagnosis(target, done)
 
-    def evaluate(name: str) -> Candidate:
-        # every hyperparameter is refitted: with the spatial GP's fixed, a covariate that should take over
-        # from it is missed (depth for a Manning current: -10 % against +58 %)
-        spec = parse_term(name, is_circular)
-        X = dict(sm.X)
-        X.update(survey_inputs(survey, {name}))
-        model = sm.primary.extended(build_term(spec, is_circular), X, sm.y_primary)
-        cv_b = sm.cv(fold_id, primary=model, secondary_cv=sec_b)
-        gain_b, p_b = paired_test(base_b.error**2, cv_b.error**2, blocks)
-        gain, p, gain_r = gain_b, p_b, None
-        is_consequence = name in consequences
-        if is_consequence:
-            if state["base_r"] is None:
-                state["base_r"] = sm.cv(rfold, secondary_cv=sec_r)
-            cv_r = sm.cv(rfold, primary=model, secondary_cv=sec_r)
-            gain_r, p_r = paired_test(state["base_r"].error ** 2, cv_r.error**2, blocks)
-            gain, p = min(gain_b, gain_r), max(p_b, p_r)
-        return Candidate(name, str(spec), cv_b.rmse, gain, p, gain_b, gain_r, is_consequence)
 
-    def evaluate_clock() -> Candidate:
-        # the offset acts in turns wherever they are, not at places: the paired unit is a stretch of track
-        # about one turn long, not a spatial block
-        corrected, tau = clock_offset.corrected_for(sm.survey, sm.vector, math.nan)
-        model = SurveyModel(corrected, target, sm.terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
-        cv_b = model.cv(fold_id)
-        stretches = (survey.trel // clock_offset.PAIRED_STRETCH_S).astype(int)
-        gain, p = paired_test(base_b.error**2, cv_b.error**2, stretches)
-        return Candidate(
-            clock_offset.NAME, clock_offset.describe(tau), cv_b.rmse, gain, p, gain, None, False
-        )
-
-    def evaluate_pair(first: str, then: str) -> float:
-        """Blocked-CV gain of adding `then` to the model that already has `first`."""
-        X = dict(sm.X)
-        X.update(survey_inputs(survey, {first, then}))
-        a = sm.primary.extended(
-            build_term(parse_term(first, is_circular), is_circular), X, sm.y_primary
-        )
-        ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, sm.y_primary)
-        cv_a = sm.cv(fold_id, primary=a, secondary_cv=sec_b)
-        cv_ab = sm.cv(fold_id, primary=ab, secondary_cv=sec_b)
-        return paired_test(cv_a.error**2, cv_ab.error**2, blocks)[0]
-
+def diagnose_round(
+    survey: Survey,
+    target: str,
+    terms: list[str],
+    folds: int,
+    seed: int,
+    alpha: float,
+    progress: bool,
+    label: str,
+) -> Round:
+    """One diagnosis of the model with `terms`: every candidate's gain, ranked, judged."""
+    clock = time.perf_counter()
+    ev = Evaluator(survey, target, terms, folds, seed)
+    names = candidate_covariates(survey, ev.sm)
+    proxies = identify.time_proxies(survey, [n for n in names if n != "t"])
+    names = [n for n in names if n not in proxies]
+    bar = Progress(label, len(names), progress)
     results: list[Candidate] = []
     skipped: dict[str, str] = {}
     for name in names:
         bar.step(name)
         try:
-            if name == clock_offset.NAME:
-                results.append(evaluate_clock())
-                continue
-            if name != "t":
-                derived_column(survey, name)
-            results.append(evaluate(name))
+            results.append(_evaluate(ev, name))
         except WorkbenchError as exc:
             skipped[name] = str(exc)
     results.sort(key=lambda c: -c.improvement)
-    results = _prefer_direct_cause(results, evaluate_pair, min_gain)
+    results = _prefer_direct_cause(results, ev.pair_gain)
     bar.close()
-    threshold = alpha / max(len(results), 1)
+    seconds = {"candidates": time.perf_counter() - clock}
     for c in results:
-        c.significant = c.improvement >= min_gain and c.p_value <= threshold
-        c.explanation = _explain(c, sm)
+        if c.covariate == "t":
+            c.time_proxies = proxies
+    threshold = alpha / max(len(results), 1)
+    _judge(ev, results, threshold, seconds)
+    others = [c.covariate for c in results if c.identifiable is False]
+    what = _component(ev.sm)
+    fam = ev.sm.vector.family if ev.sm.vector else "field"
+    for c in results:
+        rest = [o for o in others if o != c.covariate]
+        w = "" if c.covariate == clock_offset.NAME else what
+        c.explanation = explain_candidate(c, w, fam, FLOOR, rest)
     found = bool(results) and results[0].significant
-    return Diagnosis(target, sm.terms, base_b.rmse, results, found, skipped)
+    advice = None
+    if results and results[0].identifiable is False:
+        advice = identify.advice(results[0].covariate, proxies)
+    return Round(
+        target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds
+    )
+
+
+def _evaluate(ev: Evaluator, name: str) -> Candidate:
+    if name == clock_offset.NAME:
+        term, rmse, gain, p = ev.clock()
+        return Candidate(name, term, rmse, gain, p, gain, None, False)
+    if name != "t":
+        derived_column(ev.survey, name)
+    model = ev.extended(name)
+    cv, gain_b, p_b = ev.blocked(model)
+    gain, p, gain_r = gain_b, p_b, None
+    is_consequence = name in ev.consequences
+    if is_consequence:
+        gain_r, p_r = ev.random(model)
+        gain, p = min(gain_b, gain_r), max(p_b, p_r)
+    spec = str(parse_term(name, is_circular))
+    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence)
+    c.hypers = model.theta_
+    return c
+
+
+def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: dict) -> None:
+    """Mark each candidate significant or not: floor, p-value, null, identifiability (the last two only for
+    the few that pass the first two, best first)."""
+    t_null = t_ident = 0.0
+    screened = 0
+    for c in results:
+        c.significant = False
+        if c.improvement < FLOOR or c.p_value > threshold or screened >= SCREEN:
+            continue
+        screened += 1
+        if c.covariate == clock_offset.NAME:
+            # a correction of the target, not a covariate: nothing to shift, nothing position could predict
+            c.identifiable, c.significant = True, True
+            continue
+        values = survey_inputs(ev.survey, {c.covariate})[c.covariate]
+        t0 = time.perf_counter()
+        stand_in, c.predictability = identify.predict_from_model_inputs(ev, c.covariate, values)
+        c.replaced_gain = float(ev.blocked(ev.extended(c.covariate, stand_in))[1])
+        t1 = time.perf_counter()
+        c.null_gains = null_gains(ev, c.covariate, values, c.hypers)
+        t2 = time.perf_counter()
+        t_ident, t_null = t_ident + t1 - t0, t_null + t2 - t1
+        c.identifiable = c.replaced_gain < identify.REPLACED_SHARE * c.blocked_gain
+        if not c.identifiable:
+            c.confounded_with = identify.confounders(ev)
+        c.significant = c.identifiable and beats_null(c.improvement, c.null_gains)
+    seconds.update(identifiability=t_ident, null=t_null)
+
+
+def beats_null(gain: float, nulls: list[float]) -> bool:
+    """The candidate's error must be at least FLOOR below the best null's: beating chance by a hair is chance."""
+    return (1.0 - gain) <= (1.0 - FLOOR) * (1.0 - max(nulls, default=0.0))
+
+
+def _component(sm: SurveyModel) -> str:
+    if sm.primary_is_along:
+        return "along the flow (speed)"
+    return "across the flow (direction)" if sm.vector and sm.circular else ""
 
 
 def is_proxy(name: str) -> bool:
@@ -246,52 +229,21 @@ def is_proxy(name: str) -> bool:
     return name in PROXIES or re.fullmatch(r"wheel\d+_speed", name) is not None
 
 
-def _prefer_direct_cause(
-    results: list[Candidate], evaluate_pair, min_gain: float
-) -> list[Candidate]:
-    """If a proxy leads, but a direct covariate close behind leaves the proxy nothing to add once it is in the
+def _prefer_direct_cause(results: list[Candidate], pair_gain) -> list[Candidate]:
+    """If a proxy leads, but a direct covariate close behind leaves the proxy little to add once it is in the
     model, the direct covariate is the explanation and goes first."""
     if not results or not is_proxy(results[0].covariate) or results[0].improvement <= 0:
         return results
     lead = results[0]
     for i, c in enumerate(results[1:PROXY_WINDOW], start=1):
-        if is_proxy(c.covariate):
+        if is_proxy(c.covariate) or c.consequence:
+            continue  # a consequence of the field is no direct cause (sog reads the current it explains)
+        if c.improvement < 0.5 * lead.improvement or c.improvement < PROXY_LEFTOVER:
             continue
-        if c.improvement < 0.5 * lead.improvement or c.improvement < min_gain:
-            continue
-        if evaluate_pair(c.covariate, lead.covariate) < min_gain:
+        if pair_gain(c.covariate, lead.covariate) < PROXY_LEFTOVER:
             c.note = (
                 f"ranked above {lead.covariate}: once {c.covariate} is in the model, a term in "
-                f"{lead.covariate} adds less than {min_gain:.0%}"
+                f"{lead.covariate} adds less than {PROXY_LEFTOVER:.0%}"
             )
             return [c] + [r for j, r in enumerate(results) if j != i]
     return results
-
-
-def _explain(c: Candidate, sm: SurveyModel) -> str:
-    cause, term = explain(c.covariate)
-    what = (
-        ""
-        if c.covariate == clock_offset.NAME
-        else "along the flow (speed)"
-        if sm.primary_is_along
-        else ("across the flow (direction)" if sm.vector and sm.circular else "")
-    )
-    head = (
-        f"adding {c.term}{' ' + what if what else ''} cuts the blocked-CV RMSE by {c.blocked_gain:.0%}"
-        if c.blocked_gain >= 0
-        else f"adding {c.term} does not help (blocked-CV RMSE {-c.blocked_gain:.0%} worse)"
-    )
-    if c.consequence:
-        rg = c.random_gain if c.random_gain is not None else math.nan
-        head += (
-            f"; it is a consequence of the {sm.vector.family if sm.vector else 'field'} being mapped, so it is "
-            f"credited only with the gain left when the field is known (random folds: {rg:.0%})"
-        )
-    verdict = (
-        "significant"
-        if c.significant
-        else f"not significant (needs a gain >= {MIN_GAIN:.0%} and a small p-value)"
-    )
-    extra = f" ({c.note})" if c.note else ""
-    return f"{head}; p = {c.p_value:.1e}, {verdict}{extra}. Likely cause: {cause}. Suggested term: {term}."

@@ -14,6 +14,7 @@ from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
 from forcemap.host.workbench.progress import note
+from forcemap.host.workbench.report_diagnose import rounds_section
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import Survey
 from forcemap.host.workbench.targets import SurveyModel
@@ -183,6 +184,7 @@ def build_report(table: Path, survey: Survey, progress: bool = True) -> str:
                 f"<td>{c['improvement']:+.1%}</td><td class=small>{html.escape(c['explanation'])}</td></tr>"
             )
         parts.append("</table>")
+    parts += rounds_section(diagnoses)
 
     parts.append("<h2>Error history</h2>")
     if history:

@@ -4,7 +4,9 @@
 `forcemap.sim_devices.offline.make_survey` and writes a samples table (CSV, the columns of docs/CONVENTIONS.md) with a
 `truth/effects.json` beside it. The boat is kinematic: it holds 3.5 m/s through the water, crabs to keep a
 lawnmower track parallel to the flow, and turns at a limited rate, so sog, cog and the crab angle respond to the
-current exactly as on the water.
+current exactly as on the water. With `held_throttle` the throttle is set once per leg (a different setting on
+each leg) and held: the speed through the water follows it, the ground speed follows the current too, and the
+`throttle` column records the setting.
 """
 
 from __future__ import annotations
@@ -86,7 +88,9 @@ def _waypoints(spacing: float = 15.0) -> list[tuple[float, float]]:
     return pts
 
 
-def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str, np.ndarray]:
+def simulate(
+    effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ, held_throttle=False
+) -> dict[str, np.ndarray]:
     """Run the lawnmower mission and return the samples-table columns."""
     rng = np.random.default_rng(seed)
     effects = set(effects)
@@ -102,7 +106,10 @@ def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str
     p = np.array(wps[0], float)
     h = 90.0 if wps[1][0] > wps[0][0] else 270.0
     k = 1
+    # throttle per leg (fraction of the nominal setting) when it is held, else the nominal one
+    leg_throttle = rng.uniform(0.75, 1.25, 64) if held_throttle else np.ones(1)
     P, H, VB, C = np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty((n, 2))
+    THR = np.empty(n)
     for i in range(n):
         t = i * dt
         ce, cn = current_field(p[0], p[1], t, effects, duration_s)
@@ -115,14 +122,16 @@ def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str
             to = target - p
         d = to / max(np.hypot(*to), 1e-9)
         perp = np.array([d[1], -d[0]])
-        s = np.clip(-(c @ perp) / BOAT_SPEED, -0.9, 0.9)
+        stw = BOAT_SPEED * leg_throttle[k % len(leg_throttle)]
+        s = np.clip(-(c @ perp) / stw, -0.9, 0.9)
         course = math.degrees(math.atan2(d[0], d[1]))
         desired = course + math.degrees(math.asin(s))
         err = (desired - h + 180.0) % 360.0 - 180.0
         h = (h + float(np.clip(err, -MAX_TURN_RATE * dt, MAX_TURN_RATE * dt))) % 360.0
         hv = np.array([math.sin(math.radians(h)), math.cos(math.radians(h))])
-        vb = BOAT_SPEED * hv + c
+        vb = stw * hv + c
         P[i], H[i], VB[i], C[i] = p, h, vb, c
+        THR[i] = 55.0 * leg_throttle[k % len(leg_throttle)]
         p = p + vb * dt
     t = np.arange(n) * dt
     x, y = P[:, 0], P[:, 1]
@@ -199,16 +208,27 @@ def simulate(effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ) -> dict[str
         "current_east": C_meas[:, 0],
         "current_north": C_meas[:, 1],
         **wheels,
-        "throttle": 55.0 + 2.0 * rng.standard_normal(n),
+        "throttle": THR + 2.0 * rng.standard_normal(n),
     }
     return cols
 
 
-def make_survey(scenario: str, effects: list[str], seed: int, duration_s: float, out_dir) -> Path:
-    """Write `survey.csv` and `truth/effects.json` into `out_dir`; return the CSV's path."""
+def make_survey(
+    scenario: str,
+    effects: list[str],
+    seed: int,
+    duration_s: float,
+    out_dir,
+    held_throttle: bool = False,
+    extra: dict | None = None,
+) -> Path:
+    """Write `survey.csv` and `truth/effects.json` into `out_dir`; return the CSV's path. `extra` maps more
+    column names to functions of the columns (e.g. an instrument's ensemble counter)."""
     out = Path(out_dir)
     (out / "truth").mkdir(parents=True, exist_ok=True)
-    cols = simulate(effects, seed, duration_s)
+    cols = simulate(effects, seed, duration_s, held_throttle=held_throttle)
+    for name, make in (extra or {}).items():
+        cols[name] = np.asarray(make(cols), float)
     path = out / "survey.csv"
     names = list(cols)
     with path.open("w", newline="") as f:
@@ -220,6 +240,7 @@ def make_survey(scenario: str, effects: list[str], seed: int, duration_s: float,
         "scenario": scenario,
         "seed": seed,
         "effects": list(effects),
+        "held_throttle": held_throttle,
         "lat0": LAT0,
         "lon0": LON0,
         "t0": T0,

@@ -1,0 +1,111 @@
+"""Measure what one more term buys: the current model of a target plus a term in a covariate, cross-validated.
+
+`Evaluator` holds one survey's current model, its folds and its held-out errors, and answers for any
+covariate (its own values, or stand-in values for the null and the identifiability tests) the blocked-CV
+gain, the paired p-value and, for a consequence of the field being mapped, the random-fold gain.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench.cv import CVResult, blocked_folds, paired_test, random_folds
+from forcemap.host.workbench.model import Model, term_inputs
+from forcemap.host.workbench.spec import build_term, parse_term
+from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
+from forcemap.host.workbench.targets import SurveyModel, survey_inputs
+
+# the comparison between candidates needs no finer spatial basis than this; `fit` goes further
+DIAGNOSE_MAX_BASIS = 600
+
+
+def consequences_of(target: str) -> set[str]:
+    """Kinematic covariates that respond to a wind or current target (see diagnose's docstring)."""
+    return set(KINEMATIC) if family(target) in ("wind", "current") else set()
+
+
+class Evaluator:
+    """The current model of `target` on `survey`, its blocked and random folds, and its held-out errors."""
+
+    def __init__(
+        self, survey: Survey, target: str, terms: list[str], folds: int, seed: int
+    ) -> None:
+        self.survey, self.target = survey, target
+        self.sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
+        self.fold_id, self.blocks = blocked_folds(survey.xy, folds, seed)
+        self.rfold = random_folds(survey.n, folds, seed)
+        self.sec_b = self.sec_r = None
+        if self.sm.secondary is not None:
+            self.sec_b = self.sm.secondary.cv_predict(self.fold_id)
+            self.sec_r = self.sm.secondary.cv_predict(self.rfold)
+        self.base_b = self.sm.cv(self.fold_id, secondary_cv=self.sec_b)
+        self._base_r: CVResult | None = None
+        self.consequences = consequences_of(target)
+
+    @property
+    def base_r(self) -> CVResult:
+        if self._base_r is None:
+            self._base_r = self.sm.cv(self.rfold, secondary_cv=self.sec_r)
+        return self._base_r
+
+    def inputs(self, name: str, values: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """The current model's inputs plus the covariate `name` (its own values unless `values` is given)."""
+        X = dict(self.sm.X)
+        X.update(survey_inputs(self.survey, {name}) if values is None else {name: values})
+        return X
+
+    def extended(self, name: str, values: np.ndarray | None = None) -> Model:
+        """The current model plus the covariate's default term, every hyperparameter refitted: with the spatial
+        GP's fixed, a covariate that should take over from it is missed (depth for a Manning current: -10 %
+        against +58 %)."""
+        term = build_term(parse_term(name, is_circular), is_circular)
+        return self.sm.primary.extended(term, self.inputs(name, values), self.sm.y_primary)
+
+    def with_fixed_hypers(self, name: str, values: np.ndarray, theta: np.ndarray) -> Model:
+        """The current model plus a term in `values` with the hyperparameters `theta` of an extended model:
+        only the new features' cross products and the weights are computed (the null's cheap refit)."""
+        term = build_term(parse_term(name, is_circular), is_circular)
+        X = self.inputs(name, values)
+        Z = term_inputs(term, X)
+        term.setup(Z)
+        p = self.sm.primary
+        design = p.design.augment(term.features(Z))
+        model = Model(p.feat_terms + [term] + p.mean_terms, hyper_rows=p.hyper_rows)
+        return model.fit(X, self.sm.y_primary, init=theta, optimize=False, design=design)
+
+    def blocked(self, model: Model) -> tuple[CVResult, float, float]:
+        """Held-out predictions with `model` as the primary, its blocked-CV gain and p-value."""
+        cv = self.sm.cv(self.fold_id, primary=model, secondary_cv=self.sec_b)
+        gain, p = paired_test(self.base_b.error**2, cv.error**2, self.blocks)
+        return cv, gain, p
+
+    def random(self, model: Model) -> tuple[float, float]:
+        """Gain and p-value of `model` on random folds, where the field around every held-out sample is known."""
+        cv = self.sm.cv(self.rfold, primary=model, secondary_cv=self.sec_r)
+        return paired_test(self.base_r.error**2, cv.error**2, self.blocks)
+
+    def clock(self) -> tuple[str, float, float, float]:
+        """(term, cv_rmse, gain, p) of correcting a clock offset between the autopilot and the bridge.
+
+        The offset acts in turns wherever they are, not at places: the paired unit is a stretch of track
+        about one turn long, not a spatial block."""
+        sm = self.sm
+        corrected, tau = clock_offset.corrected_for(sm.survey, sm.vector, math.nan)
+        model = SurveyModel(corrected, self.target, sm.terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
+        cv = model.cv(self.fold_id)
+        stretches = (self.survey.trel // clock_offset.PAIRED_STRETCH_S).astype(int)
+        gain, p = paired_test(self.base_b.error**2, cv.error**2, stretches)
+        return clock_offset.describe(tau), cv.rmse, gain, p
+
+    def pair_gain(self, first: str, then: str) -> float:
+        """Blocked-CV gain of adding `then` to the model that already has `first`."""
+        X = dict(self.sm.X)
+        X.update(survey_inputs(self.survey, {first, then}))
+        y = self.sm.y_primary
+        a = self.sm.primary.extended(build_term(parse_term(first, is_circular), is_circular), X, y)
+        ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, y)
+        cv_a = self.sm.cv(self.fold_id, primary=a, secondary_cv=self.sec_b)
+        cv_ab = self.sm.cv(self.fold_id, primary=ab, secondary_cv=self.sec_b)
+        return paired_test(cv_a.error**2, cv_ab.error**2, self.blocks)[0]

@@ -1,0 +1,111 @@
+"""What a survey can tell apart: identifiability of a candidate against position and the model's terms, clocks
+and counters as stand-ins for time, and the survey that would separate a confounded candidate.
+
+A term in a covariate can only be told from the map if the covariate varies in a way position (and the
+terms already in the model) cannot predict: on one pass over one line, time, any counter, the distance along
+the line and often the heading are the same variable. The test: predict the candidate at each held-out block
+from the other blocks' positions (and the model's terms), then put that prediction in the candidate's
+place. If the stand-in, which knows nothing position elsewhere does not imply, keeps most of the gain, the
+gain is position's, and the candidate is confounded with it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from forcemap.host.workbench.model import Model
+from forcemap.host.workbench.table import Survey, is_circular
+from forcemap.host.workbench.terms import LinearTerm
+
+# a candidate is confounded when its stand-in from position keeps at least this share of its gain
+REPLACED_SHARE = 0.5
+# a column is a clock or a counter when it steps back against time at most this often (wraps, resets)
+MAX_BACKSTEPS = 0.005
+# ... and changes at least at this share of the samples (a 1-s clock at 10 Hz still does)
+MIN_MOVING = 0.05
+
+SPEED_LIKE = ("sog", "stw", "throttle", "app_wind_speed")
+HEADING_LIKE = ("heading", "cog", "crab", "app_wind_angle")
+
+
+def time_proxies(survey: Survey, names: list[str]) -> list[str]:
+    """Columns that only count time: monotone in time up to a rare wrap or reset (at most one step back in
+    200), e.g. an instrument's ensemble number, a sequence counter that wraps, a second clock. They carry the
+    information `t` carries. A measured quantity steps back and forth with its noise."""
+    out = []
+    for name in names:
+        v = survey.columns.get(name)
+        if v is None or is_circular(name) or len(v) < 3 or not np.all(np.isfinite(v)):
+            continue
+        d = np.diff(v)
+        moving = d[d != 0]
+        if len(moving) < MIN_MOVING * len(d):
+            continue
+        sign = np.sign(np.median(moving))
+        if np.sum(np.sign(moving) != sign) <= MAX_BACKSTEPS * len(d):
+            out.append(name)
+    return out
+
+
+def predict_from_model_inputs(ev, name: str, values: np.ndarray) -> tuple[np.ndarray, float]:
+    """Blocked-CV prediction of a candidate from the current model's inputs (its terms: position and the
+    covariates already in the model) plus a linear trend over position, and the share of the candidate's
+    variance it explains (R^2; an angle's through its unit vector).
+
+    Each block is predicted from the others, the way the diagnosis holds blocks out: what the candidate
+    knows at a held-out place beyond what position elsewhere implies. The trend matters on one line, where
+    time is a linear function of the distance along it and a GP alone would relax to its mean inside a
+    held-out block. The features are the current model's own plus the trend's two columns, so this costs a
+    hyperparameter search and the fold solves."""
+    p = ev.sm.primary
+    trend = LinearTerm(("position",))
+    trend.setup(ev.survey.xy)
+    design = p.design.augment(trend.features(ev.survey.xy))
+    parts = (
+        [np.sin(np.radians(values)), np.cos(np.radians(values))]
+        if is_circular(name)
+        else [np.asarray(values, float)]
+    )
+    preds = []
+    for y in parts:
+        if np.ptp(y) < 1e-12:
+            preds.append(y.copy())
+            continue
+        m = Model([*p.feat_terms, trend], hyper_rows=p.hyper_rows)
+        m.fit(ev.sm.X, y, design=design)
+        preds.append(m.cv_predict(ev.fold_id)[0])
+    resid = sum(np.mean((y - q) ** 2) for y, q in zip(parts, preds, strict=True))
+    total = sum(np.var(y) for y in parts) or 1.0
+    r2 = float(1.0 - resid / total)
+    if is_circular(name):
+        return np.degrees(np.arctan2(preds[0], preds[1])) % 360.0, r2
+    return preds[0], r2
+
+
+def confounders(ev) -> list[str]:
+    """What a confounded candidate is confounded with: position and the covariates of the model's terms."""
+    inputs = [i for s in ev.sm.term_specs for i in s.inputs]
+    return list(dict.fromkeys(["position", *[i for i in inputs if i != "position"]]))
+
+
+def advice(covariate: str, proxies_of_time: list[str] | None = None) -> str:
+    """The survey that would separate a confounded candidate from position."""
+    if covariate == "t" or covariate in (proxies_of_time or []):
+        return (
+            "repeat a leg (or the whole line) later, over the same ground: a change in time then shows as a "
+            "difference at the same place, which no map can explain"
+        )
+    if covariate in HEADING_LIKE or covariate.startswith("heading_rel_"):
+        return (
+            "cross the lines, or run each leg in both directions: the same place is then seen at different "
+            f"headings, which separates a {covariate}-dependent error from the map"
+        )
+    if covariate in SPEED_LIKE or covariate.startswith("wheel"):
+        return (
+            "run legs at two boat speeds over the same ground: the same place is then seen at different "
+            f"speeds, which separates a {covariate}-dependent error from the map"
+        )
+    return (
+        f"on this survey {covariate} follows the position at the scale the map resolves; to tell a "
+        f"{covariate} effect from the map, cover places close together where {covariate} differs (closer "
+        "lines, or lines across the first ones)"
+    )
