@@ -23,6 +23,7 @@ from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.progress import Progress
 from forcemap.host.workbench.spec import build_term, parse_term
 from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
+from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
 MIN_GAIN = 0.25
@@ -31,7 +32,6 @@ PROXY_WINDOW = 10
 # the comparison between candidates needs no finer spatial basis than this; `fit` goes further
 DIAGNOSE_MAX_BASIS = 600
 ALPHA = 0.05
-SKIP = {"t", "lat", "lon", "x", "y"}
 PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab"}
 
 

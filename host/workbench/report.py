@@ -172,7 +172,7 @@ def _target_residuals(ctx: ReportContext, target: str) -> list[str]:
     parts.append(
         img(plots.scatter_map(survey, cv.error, title, "residual", "RdBu_r", True), "residual map")
     )
-    extra = [i for s in sm.term_specs for i in s.inputs if i != "position"]
+    extra = {k: v for k, v in sm.X.items() if k != "position"}
     title = f"{target}: residual against covariates"
     parts.append(
         img(plots.residual_panels(survey, cv.error, extra, title, target), "residual panels")
