@@ -18,6 +18,7 @@ from forcemap.host.workbench import clock_offset, plots
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
+from forcemap.host.workbench.fitting import refit_or_restore
 from forcemap.host.workbench.progress import note
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import Survey
@@ -53,10 +54,13 @@ class ReportContext:
     models: dict[tuple[str, tuple[str, ...]], SurveyModel] = field(default_factory=dict)
 
     def model(self, target: str, terms: list[str]) -> SurveyModel:
-        """The fitted model of `target` with `terms` (fitted once per report)."""
+        """The fitted model of `target` with `terms`: rebuilt from the workspace's saved fit when there is
+        one, else fitted; once per report."""
         key = (target, tuple(terms))
         if key not in self.models:
-            self.models[key] = SurveyModel(self.survey, target, terms).fit()
+            self.models[key] = refit_or_restore(
+                self.ws, self.history, self.survey, target, terms, self.progress
+            )
         return self.models[key]
 
 

@@ -10,6 +10,7 @@ Speed and direction, and their uncertainty, are derived from the two Gaussian co
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping
 
 import numpy as np
 from forcemap.host.workbench import clock_offset
@@ -24,6 +25,7 @@ from forcemap.host.workbench.table import (
     is_circular,
     prepare_column,
 )
+from forcemap.host.workbench.terms import HilbertGPTerm
 
 N_DRAWS = 128
 # hyperparameters come from samples this far apart in time (see hyper_rows), but never fewer than MIN_HYPER_ROWS
@@ -340,20 +342,33 @@ class SurveyModel:
             (along, across) if self.primary_is_along else (across, along)
         )
 
-    def new_primary(self, terms: list | None = None) -> Model:
-        return Model(
-            [build_term(t, is_circular) for t in (terms or self.term_specs)],
-            max_basis=self.max_basis,
-            hyper_rows=hyper_rows(self.survey),
-        )
+    def new_primary(
+        self, terms: list | None = None, n_basis: Mapping[str, int] | None = None
+    ) -> Model:
+        """An unfitted model of the primary component; `n_basis` sets GP terms' bases by term name."""
+        built = [build_term(t, is_circular) for t in (terms or self.term_specs)]
+        for t in built:
+            if isinstance(t, HilbertGPTerm) and n_basis and t.describe() in n_basis:
+                t.n_basis = int(n_basis[t.describe()])
+                t.max_basis = max(t.max_basis, t.n_basis)
+        return Model(built, max_basis=self.max_basis, hyper_rows=hyper_rows(self.survey))
 
-    def fit(self) -> SurveyModel:
+    def fit(
+        self, theta: np.ndarray | None = None, n_basis: Mapping[str, int] | None = None
+    ) -> SurveyModel:
         """Gather the inputs and the target (in the flow frame for a speed or direction), and fit the primary
-        model; the secondary component's model is shared by every model of the survey."""
+        model; the secondary component's model is shared by every model of the survey.
+
+        With `theta` and `n_basis` from an earlier fit of these terms on this survey (`Model.theta_`,
+        `Model.n_basis_`), the primary model is rebuilt from them without the optimiser: the same map."""
         names = {i for s in self.term_specs for i in s.inputs}
         self.X = survey_inputs(self.survey, names)
         self._prepare_y()
-        self.primary = self.new_primary().fit(self.X, self.y_primary)
+        primary = self.new_primary(n_basis=n_basis)
+        if theta is None:
+            self.primary = primary.fit(self.X, self.y_primary)
+        else:
+            self.primary = primary.fit(self.X, self.y_primary, init=theta, optimize=False)
         if self.vector and self.vector.aspect in ("speed", "dir"):
             fits = survey_fits(self.survey)
             self.secondary = fits.secondary(self.vector, self.primary_is_along, self.y_secondary)
