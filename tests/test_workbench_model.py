@@ -115,8 +115,9 @@ def test_user_term_loaded_by_module_function(tmp_path, monkeypatch):
 
 
 def test_unknown_user_function_is_a_clear_error():
+    depth = np.linspace(1.0, 5.0, 50)
     with pytest.raises(WorkbenchError, match="cannot import"):
-        Model(["user(depth, no_such_module_xyz:f)"])
+        Model(["user(depth, no_such_module_xyz:f)"]).fit({"depth": depth}, depth)
 
 
 def test_fold_predictions_equal_a_refit_on_the_training_rows(field):
@@ -125,8 +126,7 @@ def test_fold_predictions_equal_a_refit_on_the_training_rows(field):
     folds = np.arange(len(y)) % 4
     mu, sd = m.cv_predict(folds)
     test = folds == 2
-    refit = Model(["const", "gp(position, matern32)"])
-    refit.terms = m.terms  # same basis (domain fixed on all data) and hyperparameters
+    refit = Model(m.terms_)  # same basis (domain fixed on all data) and hyperparameters
     refit.fit({"position": xy[~test]}, y[~test], init=m.theta_, optimize=False, design=None)
     # the refit re-ran setup() on the training rows only, so compare with a tolerance
     mu2 = refit.predict({"position": xy[test]})

@@ -30,6 +30,7 @@ from forcemap.host.workbench.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
 from forcemap.host.workbench.null import null_gains
 from forcemap.host.workbench.progress import Progress
 from forcemap.host.workbench.spec import parse_term
+from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.table import Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
 
@@ -45,7 +46,6 @@ PROXY_LEFTOVER = 0.25
 # a direct cause within this many places of a leading proxy may take its place
 PROXY_WINDOW = 10
 ALPHA = 0.05
-SKIP = {"t", "lat", "lon", "x", "y"}
 PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab"}
 
 

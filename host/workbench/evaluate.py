@@ -71,8 +71,10 @@ class Evaluator:
         Z = term_inputs(term, X)
         term.setup(Z)
         p = self.sm.primary
-        design = p.design.augment(term.features(Z))
-        model = Model(p.feat_terms + [term] + p.mean_terms, hyper_rows=p.hyper_rows)
+        design = p.design_.augment(term.features(Z))
+        feat = [t for t in p.terms_ if not t.is_mean]
+        mean = [t for t in p.terms_ if t.is_mean]
+        model = Model(feat + [term] + mean, hyper_rows=p.hyper_rows)
         return model.fit(X, self.sm.y_primary, init=theta, optimize=False, design=design)
 
     def blocked(self, model: Model) -> tuple[CVResult, float, float]:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from forcemap.host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, random_folds
+from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
 from forcemap.host.workbench.progress import note
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
@@ -98,11 +100,46 @@ def record(table: Path, result: FitResult) -> dict:
     model = {
         "params": m.primary.params_,
         "theta": [float(v) for v in m.primary.theta_],
+        "n_basis": m.primary.n_basis_,
         "log_marginal_likelihood": m.primary.log_marginal_likelihood_,
         "n": m.survey.n,
     }
     entry = {**result.to_json(), "folds": result.folds, "n": m.survey.n}
     return record_fit(ws, entry, model)
+
+
+def saved_model(ws: Path, entry: dict, survey: Survey) -> dict | None:
+    """The saved model of a history entry (what `record` wrote), if it can rebuild the fit on `survey`:
+    the file is there and readable, it has the basis sizes, and the survey has as many samples."""
+    try:
+        model = json.loads((ws / entry["model_file"]).read_text())
+    except (KeyError, OSError, json.JSONDecodeError):
+        return None
+    keys = ("theta", "n_basis", "n", "terms")
+    if not all(k in model for k in keys) or model["n"] != survey.n:
+        return None
+    return model
+
+
+def refit_or_restore(
+    ws: Path, history: list[dict], survey: Survey, target: str, terms: list[str], progress: bool
+) -> SurveyModel:
+    """The latest fit of `target` with `terms`, rebuilt from its saved hyperparameters when the workspace has
+    them (no optimiser), else fitted anew."""
+    for entry in reversed(history):
+        if entry.get("target") != target or list(entry.get("terms", ())) != list(terms):
+            continue
+        model = saved_model(ws, entry, survey)
+        if model is None:
+            break
+        note(f"  from fit {entry['fit']}'s saved hyperparameters", progress)
+        try:
+            return SurveyModel(survey, target, model["terms"]).fit(
+                theta=np.asarray(model["theta"], float), n_basis=model["n_basis"]
+            )
+        except WorkbenchError:
+            break
+    return SurveyModel(survey, target, terms).fit()
 
 
 def save_residual_plots(table: Path, result: FitResult, fit_no: int) -> list[Path]:
@@ -111,7 +148,7 @@ def save_residual_plots(table: Path, result: FitResult, fit_no: int) -> list[Pat
     ws = workspace_dir(table)
     m = result.model
     stem = f"fit-{fit_no:03d}-{m.target}"
-    extra = [i for s in m.term_specs for i in s.inputs if i not in ("position",)]
+    extra = {k: v for k, v in m.X.items() if k != "position"}
     p1 = plots.save(
         plots.scatter_map(
             m.survey, result.cv.error, f"{m.target}: held-out residuals", "residual", "RdBu_r", True

@@ -59,7 +59,8 @@ def predict_from_model_inputs(ev, name: str, values: np.ndarray) -> tuple[np.nda
     p = ev.sm.primary
     trend = LinearTerm(("position",))
     trend.setup(ev.survey.xy)
-    design = p.design.augment(trend.features(ev.survey.xy))
+    design = p.design_.augment(trend.features(ev.survey.xy))
+    feat = [t for t in p.terms_ if not t.is_mean]
     parts = (
         [np.sin(np.radians(values)), np.cos(np.radians(values))]
         if is_circular(name)
@@ -70,7 +71,7 @@ def predict_from_model_inputs(ev, name: str, values: np.ndarray) -> tuple[np.nda
         if np.ptp(y) < 1e-12:
             preds.append(y.copy())
             continue
-        m = Model([*p.feat_terms, trend], hyper_rows=p.hyper_rows)
+        m = Model([*feat, trend], hyper_rows=p.hyper_rows)
         m.fit(ev.sm.X, y, design=design)
         preds.append(m.cv_predict(ev.fold_id)[0])
     resid = sum(np.mean((y - q) ** 2) for y, q in zip(parts, preds, strict=True))

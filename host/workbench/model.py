@@ -1,48 +1,43 @@
 """The estimator: a sum of terms fitted as Bayesian linear regression in their features, hyperparameters by
-type-II maximum likelihood (L-BFGS on log-parameters with analytic gradients from sufficient statistics).
+type-II maximum likelihood (L-BFGS on log-parameters; the gradient by the feature terms' hyperparameters and the
+noise is analytic from sufficient statistics, by a mean term's parameters a finite difference).
 
-`Model(terms).fit(X, y)` / `.predict(X, return_std=True)` / `.params_`, scikit-learn style. `X` maps input
-names to arrays: "position" -> (n, 2) metres, any covariate -> (n,).
+`Model(terms).fit(X, y)` / `.predict(X, return_std=True)` / `.params_`, scikit-learn style: `__init__` stores its
+arguments, `fit` works on copies of the terms, fitted state ends in `_`. `X` maps input names to arrays:
+"position" -> (n, 2) metres, any covariate -> (n,).
 """
 
 from __future__ import annotations
 
-import contextlib
-import functools
-import hashlib
+import copy
+import inspect
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.terms import HilbertGPTerm, Term, TermSpec
+from forcemap.host.workbench.evidence import Design, blas_threads, evidence, small_blas
+from forcemap.host.workbench.spec import BASELINE, build_term, parse_term
+from forcemap.host.workbench.table import is_circular
+from forcemap.host.workbench.terms import ConstTerm, HilbertGPTerm, Term, TermSpec
 from scipy import linalg
 from scipy.optimize import minimize
 
-LOG_2PI = math.log(2 * math.pi)
 NOISE_BOUNDS = (math.log(1e-8), math.log(10.0))
 CHUNK = 8192
+# where callers have always found them
+__all__ = [
+    "Design",
+    "Model",
+    "NotFittedError",
+    "blas_threads",
+    "evidence",
+    "small_blas",
+    "term_inputs",
+]
 # L-BFGS stops when an iteration gains less than this fraction of |log evidence| (scipy's default: 2.2e-9).
 # On a survey's ~10^4 nats that is ~10^-3 nats, far below what moves a map; it halves the iterations
 FTOL = 1e-7
-
-
-@contextlib.contextmanager
-def blas_threads(n: int | None) -> Iterator[None]:
-    """Limit BLAS threads (None: no limit). Without threadpoolctl this is a no-op."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        yield
-        return
-    with threadpool_limits(limits=n, user_api="blas"):
-        yield
-
-
-def small_blas():
-    """One BLAS thread for the many small (M x M) factorizations: threads only add overhead there, and a lot
-    of it on a busy 2-core machine."""
-    return blas_threads(1)
 
 
 def term_inputs(term: Term, X: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -60,183 +55,114 @@ def term_inputs(term: Term, X: Mapping[str, np.ndarray]) -> np.ndarray:
     return np.hstack(cols)
 
 
-class Design:
-    """Feature blocks of the training data with their Gram matrix, and cached per-fold Gram matrices."""
-
-    def __init__(self, blocks: list[np.ndarray]) -> None:
-        self.blocks = blocks
-        self.sizes = [b.shape[1] for b in blocks]
-        with blas_threads(None):
-            self.G = (
-                np.vstack([np.hstack([a.T @ b for b in blocks]) for a in blocks])
-                if blocks
-                else np.zeros((0, 0))
-            )
-        self._folds: dict[str, list[np.ndarray]] = {}
-        self._fold_ids: dict[str, np.ndarray] = {}
-
-    @property
-    def n(self) -> int:
-        return self.blocks[0].shape[0]
-
-    @property
-    def M(self) -> int:
-        return sum(self.sizes)
-
-    def rmatvec(self, r: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
-        return np.concatenate([b[rows].T @ r for b in self.blocks])
-
-    def matvec(self, w: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
-        out, i = 0.0, 0
-        for b, m in zip(self.blocks, self.sizes, strict=True):
-            out = out + b[rows] @ w[i : i + m]
-            i += m
-        return out
-
-    def rows(self, rows: np.ndarray) -> np.ndarray:
-        return np.hstack([b[rows] for b in self.blocks])
-
-    def augment(self, new: np.ndarray) -> Design:
-        """The design with one more feature block; reuses this Gram matrix and its fold Grams."""
-        d = Design.__new__(Design)
-        d.blocks, d.sizes = self.blocks + [new], self.sizes + [new.shape[1]]
-        cross = np.vstack([b.T @ new for b in self.blocks])
-        d.G = np.block([[self.G, cross], [cross.T, new.T @ new]])
-        d._folds = {}
-        for key, grams in self._folds.items():
-            folds = self._fold_ids[key]
-            d._folds[key] = []
-            for f, Gf in zip(np.unique(folds), grams, strict=True):
-                idx = folds == f
-                nf = new[idx]
-                cf = np.vstack([b[idx].T @ nf for b in self.blocks])
-                d._folds[key].append(np.block([[Gf, cf], [cf.T, nf.T @ nf]]))
-        d._fold_ids = dict(self._fold_ids)
-        return d
-
-    def fold_grams(self, folds: np.ndarray) -> list[np.ndarray]:
-        key = hashlib.sha1(np.ascontiguousarray(folds).tobytes()).hexdigest()
-        if key not in self._folds:
-            grams = []
-            for f in np.unique(folds):
-                X = self.rows(folds == f)
-                grams.append(X.T @ X)
-            self._folds[key] = grams
-            self._fold_ids[key] = folds
-        return self._folds[key]
-
-
-@functools.lru_cache(maxsize=4)
-def _upper_mask(m: int) -> np.ndarray:
-    return np.triu(np.ones((m, m), bool), 1)
-
-
-def evidence(G, b, rr, n, loglam, logsn2, grad=True):
-    """Log marginal likelihood of y = Phi w + e, w ~ N(0, diag(lam)), e ~ N(0, sn2 I) from the statistics
-    G = Phi'Phi, b = Phi'y, rr = y'y; with its gradient by log(lam) and log(sn2), and the posterior."""
-    lam = np.exp(loglam)
-    s = np.sqrt(lam)
-    sn2 = math.exp(logsn2)
-    B = (s[:, None] * G * s[None, :]) / sn2
-    B[np.diag_indices_from(B)] += 1.0
-    L, _ = linalg.cho_factor(B, lower=True, check_finite=False)
-    c = s * b
-    alpha = linalg.cho_solve((L, True), c, check_finite=False)
-    quad = (rr - c @ alpha / sn2) / sn2
-    logdet = n * logsn2 + 2.0 * np.log(np.diag(L)).sum()
-    logp = -0.5 * (quad + logdet + n * LOG_2PI)
-    mu = s * alpha / sn2
-    post = {"L": L, "s": s, "mu": mu, "sn2": sn2}
-    if not grad:
-        return logp, None, None, post
-    # diag(B^-1) = column sums of squares of L^-1: one triangular inverse, half the work of dpotri
-    Linv, info = linalg.lapack.dtrtri(L, lower=1)
-    if info != 0:
-        raise np.linalg.LinAlgError("dtrtri failed")
-    Linv[_upper_mask(len(Linv))] = 0.0
-    dBinv = np.einsum("ij,ij->j", Linv, Linv)
-    g_lam = 0.5 * (mu**2 / lam + dBinv - 1.0)
-    resid2 = rr - 2.0 * mu @ b + mu @ G @ mu
-    g_sn2 = 0.5 * (-n + resid2 / sn2 + len(mu) - dBinv.sum())
-    return logp, g_lam, g_sn2, post
+class NotFittedError(ValueError, AttributeError):
+    """The model is used before `fit` (the same bases as scikit-learn's NotFittedError)."""
 
 
 class Model:
     """A sum of terms. Feature terms (GPs, linear, cosine) are Bayesian linear regression in fixed features;
-    mean terms (power law, user functions) are subtracted with parameters fitted by marginal likelihood."""
+    mean terms (power law, user functions) are subtracted with parameters fitted by marginal likelihood.
+
+    `terms`: term strings, `TermSpec`s or `Term` objects (copied by `fit`, never changed). `max_basis` caps the
+    basis of a spatial GP term; `hyper_rows` are the rows whose marginal likelihood sets the hyperparameters
+    (None: all); the posterior always uses every row."""
 
     def __init__(
         self,
-        terms: Sequence[Term | TermSpec | str],
+        terms: Sequence[Term | TermSpec | str] = tuple(BASELINE),
         max_iter: int = 300,
         max_basis: int | None = None,
         hyper_rows: np.ndarray | None = None,
     ) -> None:
-        from forcemap.host.workbench.spec import build_term, parse_term
-        from forcemap.host.workbench.table import is_circular
+        self.terms = terms
+        self.max_iter = max_iter
+        self.max_basis = max_basis
+        self.hyper_rows = hyper_rows
 
+    # ---- scikit-learn's parameter protocol
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        return [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
+
+    def get_params(self, deep: bool = True) -> dict:
+        """The constructor's arguments, by name."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self, **params) -> Model:
+        """Change constructor arguments (takes effect at the next `fit`)."""
+        valid = self._param_names()
+        for name, value in params.items():
+            if name not in valid:
+                raise ValueError(f"invalid parameter {name!r} for Model; valid: {', '.join(valid)}")
+            setattr(self, name, value)
+        return self
+
+    def __repr__(self) -> str:
+        return f"Model(terms={[str(t) if isinstance(t, (str, TermSpec)) else t.describe() for t in self.terms]!r})"
+
+    def _build_terms(self) -> list[Term]:
+        """Fresh Term objects for a fit: built from strings and specs, copies of Term objects."""
         built: list[Term] = []
-        for t in terms:
+        for t in self.terms:
             if isinstance(t, str):
                 t = parse_term(t, is_circular)
-            if isinstance(t, TermSpec):
-                t = build_term(t, is_circular)
-            built.append(t)
+            built.append(
+                build_term(t, is_circular) if isinstance(t, TermSpec) else copy.deepcopy(t)
+            )
         if not built:
             raise WorkbenchError("a model needs at least one term")
         if all(t.is_mean for t in built):
-            from forcemap.host.workbench.terms import ConstTerm
-
             # the weights need at least one feature; a level is the natural one
             built.insert(0, ConstTerm())
-        if max_basis is not None:
+        if self.max_basis is not None:
             for t in built:
                 if isinstance(t, HilbertGPTerm) and t.dims >= 2:
-                    t.max_basis = min(t.max_basis, max(max_basis, t.n_basis))
-        self.terms = built
-        self.max_iter = max_iter
-        # rows whose marginal likelihood sets the hyperparameters (None: all); the posterior uses every row
-        self.hyper_rows = hyper_rows
+                    t.max_basis = min(t.max_basis, max(self.max_basis, t.n_basis))
+        return built
 
     # ---- layout of the parameter vector: [log noise] + feature-term log-hypers + mean-term thetas
     def _layout(self) -> None:
-        self.feat_terms = [t for t in self.terms if not t.is_mean]
-        self.mean_terms = [t for t in self.terms if t.is_mean]
-        self.h_slices, i = [], 1
-        for t in self.feat_terms:
+        self._feat_terms = [t for t in self.terms_ if not t.is_mean]
+        self._mean_terms = [t for t in self.terms_ if t.is_mean]
+        self.h_slices_, i = [], 1
+        for t in self._feat_terms:
             k = len(t.hypers())
-            self.h_slices.append(slice(i, i + k))
+            self.h_slices_.append(slice(i, i + k))
             i += k
-        self.m_slices = []
-        for t in self.mean_terms:
+        self._m_slices = []
+        for t in self._mean_terms:
             k = len(t.theta_init())
-            self.m_slices.append(slice(i, i + k))
+            self._m_slices.append(slice(i, i + k))
             i += k
-        self.n_params = i
+        self._n_params = i
 
     def _bounds(self) -> list[tuple[float, float]]:
         b = [NOISE_BOUNDS]
-        for t in self.feat_terms:
+        for t in self._feat_terms:
             b += [(h.lo, h.hi) for h in t.hypers()]
-        for t in self.mean_terms:
+        for t in self._mean_terms:
             b += t.theta_bounds()
         return b
 
+    def _clip(self, theta: np.ndarray) -> np.ndarray:
+        bounds = self._bounds()
+        return np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds])
+
     def _init(self, y: np.ndarray) -> np.ndarray:
         theta = [math.log(0.1)]
-        for t in self.feat_terms:
+        for t in self._feat_terms:
             hs = t.hypers()
             vals = [h.init for h in hs]
             if t.describe() == "const":
-                vals[0] = math.log((np.mean(y) / self.y_scale) ** 2 + 1.0)
+                vals[0] = math.log((np.mean(y) / self.y_scale_) ** 2 + 1.0)
             theta += vals
-        for t in self.mean_terms:
+        for t in self._mean_terms:
             theta += list(t.theta_init())
         return np.array(theta, float)
 
     def _loglam(self, theta: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         logs, ders = [], []
-        for t, sl in zip(self.feat_terms, self.h_slices, strict=True):
+        for t, sl in zip(self._feat_terms, self.h_slices_, strict=True):
             lv, d = t.log_prior_var(theta[sl])
             logs.append(lv)
             ders.append(d)
@@ -244,16 +170,16 @@ class Model:
 
     def _mean(self, Zs: list[np.ndarray], theta: np.ndarray) -> np.ndarray:
         out = np.zeros(len(Zs[0]) if Zs else 0)
-        for t, sl, Z in zip(self.mean_terms, self.m_slices, Zs, strict=True):
+        for t, sl, Z in zip(self._mean_terms, self._m_slices, Zs, strict=True):
             out = out + t.mean(Z, theta[sl])
         return out
 
     def _objective(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
         """Negative log marginal likelihood of the hyperparameter rows, and its gradient."""
         loglam, ders = self._loglam(theta)
-        hd = self.hdesign
-        if self.mean_terms:
-            r = (self._hy - self._mean(self._hZmean, theta)) / self.y_scale
+        hd = self._hdesign
+        if self._mean_terms:
+            r = (self._hy - self._mean(self._hZmean, theta)) / self.y_scale_
             b, rr = hd.rmatvec(r), float(r @ r)
         else:
             r, b, rr = None, self._hb, self._hrr
@@ -264,56 +190,61 @@ class Model:
         grad = np.zeros_like(theta)
         grad[0] = g_sn2
         i = 0
-        for sl, d in zip(self.h_slices, ders, strict=True):
+        for sl, d in zip(self.h_slices_, ders, strict=True):
             m = d.shape[0]
             grad[sl] = g_lam[i : i + m] @ d
             i += m
-        if self.mean_terms:
-            sinv_r = (r - hd.matvec(post["mu"])) / post["sn2"]
-            for t, sl, Z in zip(self.mean_terms, self.m_slices, self._hZmean, strict=True):
-                th = theta[sl]
-                base = t.mean(Z, th)
-                for k in range(len(th)):
-                    step = 1e-6 * max(1.0, abs(th[k]))
-                    th2 = th.copy()
-                    th2[k] += step
-                    dm = (t.mean(Z, th2) - base) / step / self.y_scale
-                    grad[sl.start + k] = sinv_r @ dm
+        if self._mean_terms:
+            self._mean_gradient(theta, r, hd.matvec(post["mu"]), post["sn2"], grad)
         if not np.isfinite(logp) or not np.all(np.isfinite(grad)):
             return 1e25, np.zeros_like(theta)
         return -logp, -grad
+
+    def _mean_gradient(self, theta, r, fitted, sn2, grad) -> None:
+        """The log evidence's gradient by the mean terms' parameters (into `grad`): the mean function's
+        derivative by forward finite differences, times the posterior residual."""
+        sinv_r = (r - fitted) / sn2
+        for t, sl, Z in zip(self._mean_terms, self._m_slices, self._hZmean, strict=True):
+            th = theta[sl]
+            base = t.mean(Z, th)
+            for k in range(len(th)):
+                step = 1e-6 * max(1.0, abs(th[k]))
+                th2 = th.copy()
+                th2[k] += step
+                dm = (t.mean(Z, th2) - base) / step / self.y_scale_
+                grad[sl.start + k] = sinv_r @ dm
 
     def _prepare(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design | None) -> None:
         y = np.asarray(y, float)
         if not np.all(np.isfinite(y)):
             raise WorkbenchError("the target has missing or non-finite values")
-        self.y_scale = float(np.std(y)) or 1.0
+        self.y_scale_ = float(np.std(y)) or 1.0
         self._y = y
         if design is None:
             blocks = []
-            for t in self.terms:
+            for t in self.terms_:
                 Z = term_inputs(t, X)
                 t.setup(Z)
                 if not t.is_mean:
                     blocks.append(t.features(Z))
             design = Design(blocks)
         self._layout()
-        self._Zmean = [term_inputs(t, X) for t in self.mean_terms]
-        self.design = design
-        r = y / self.y_scale
+        self._Zmean = [term_inputs(t, X) for t in self._mean_terms]
+        self.design_ = design
+        r = y / self.y_scale_
         self._b, self._rr = design.rmatvec(r), float(r @ r)
         rows = self.hyper_rows
         if rows is None or len(rows) >= len(y):
-            self.hdesign, self._hb, self._hrr = design, self._b, self._rr
+            self._hdesign, self._hb, self._hrr = design, self._b, self._rr
             self._hy, self._hZmean = y, self._Zmean
         else:
-            self.hdesign = Design([b[rows] for b in design.blocks])
+            self._hdesign = Design([b[rows] for b in design.blocks])
             self._hy, self._hZmean = y[rows], [Z[rows] for Z in self._Zmean]
-            self._hb, self._hrr = self.hdesign.rmatvec(r[rows]), float(r[rows] @ r[rows])
+            self._hb, self._hrr = self._hdesign.rmatvec(r[rows]), float(r[rows] @ r[rows])
 
     def _search_lengthscale(self, theta: np.ndarray) -> np.ndarray:
         """Start L-BFGS from the best of a few lengthscales for the first GP term (avoids poor local optima)."""
-        for t, sl in zip(self.feat_terms, self.h_slices, strict=True):
+        for t, sl in zip(self._feat_terms, self.h_slices_, strict=True):
             if isinstance(t, HilbertGPTerm):
                 lo, hi = math.log(t.l_min * 1.1), math.log(2.0 * float(t.half.max()))
                 best, best_val = theta, self._objective(theta)[0]
@@ -349,38 +280,42 @@ class Model:
         optimize: bool = True,
         design: Design | None = None,
     ) -> Model:
-        """Fit hyperparameters by marginal likelihood (from `init` if given) and the posterior over weights."""
+        """Fit hyperparameters by marginal likelihood (from `init` if given; kept as given if not `optimize`)
+        and the posterior over weights. With `design`, the terms must already be set up for it (`extended`)."""
+        self.terms_ = self._build_terms()
         self._prepare(X, y, design)
         theta = self._init(y) if init is None else np.asarray(init, float).copy()
-        if len(theta) != self.n_params:
+        if len(theta) != self._n_params:
             raise WorkbenchError("initial hyperparameters do not match the model's terms")
-        bounds = self._bounds()
-        theta = np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds])
+        theta = self._clip(theta)
         if optimize:
             theta = self._optimize(theta, search=init is None)
-            # the basis resolves lengthscales down to l_min: if the optimum sits there, double the highest frequency
-            # (2^D times the functions) and refit
-            for _ in range(3):
-                grow = [
-                    t
-                    for t, sl in zip(self.feat_terms, self.h_slices, strict=True)
-                    if isinstance(t, HilbertGPTerm)
-                    and theta[sl.start + 1] < math.log(1.25 * t.l_min)
-                    and t.n_basis < min(t.max_basis, len(y))
-                    and design is None
-                ]
-                if not grow:
-                    break
-                for t in grow:
-                    # never more basis functions than samples: there an exact GP would be cheaper
-                    t.n_basis = min(2**t.dims * t.n_basis, t.max_basis, max(len(y), t.n_basis))
-                self._prepare(X, y, None)
-                bounds = self._bounds()
-                theta = self._optimize(
-                    np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds]), search=False
-                )
+            if design is None:
+                theta = self._grow_basis(X, y, theta)
         self._set_posterior(theta)
         return self
+
+    def _grow_basis(
+        self, X: Mapping[str, np.ndarray], y: np.ndarray, theta: np.ndarray
+    ) -> np.ndarray:
+        """The basis resolves lengthscales down to l_min: while the optimum sits there, double the highest
+        frequency (2^D times the functions) and resume the fit."""
+        for _ in range(3):
+            grow = [
+                t
+                for t, sl in zip(self._feat_terms, self.h_slices_, strict=True)
+                if isinstance(t, HilbertGPTerm)
+                and theta[sl.start + 1] < math.log(1.25 * t.l_min)
+                and t.n_basis < min(t.max_basis, len(y))
+            ]
+            if not grow:
+                break
+            for t in grow:
+                # never more basis functions than samples: there an exact GP would be cheaper
+                t.n_basis = min(2**t.dims * t.n_basis, t.max_basis, max(len(y), t.n_basis))
+            self._prepare(X, y, None)
+            theta = self._optimize(self._clip(theta), search=False)
+        return theta
 
     def _set_posterior(self, theta: np.ndarray) -> None:
         with small_blas():
@@ -389,57 +324,70 @@ class Model:
     def _set_posterior_inner(self, theta: np.ndarray) -> None:
         self.theta_ = theta
         loglam, _ = self._loglam(theta)
-        if self.mean_terms:
-            r = (self._y - self._mean(self._Zmean, theta)) / self.y_scale
+        if self._mean_terms:
+            r = (self._y - self._mean(self._Zmean, theta)) / self.y_scale_
             self._r = r
-            self._b, self._rr = self.design.rmatvec(r), float(r @ r)
+            self._b, self._rr = self.design_.rmatvec(r), float(r @ r)
         else:
-            self._r = self._y / self.y_scale
+            self._r = self._y / self.y_scale_
         logp, _, _, post = evidence(
-            self.design.G, self._b, self._rr, self.design.n, loglam, theta[0], grad=False
+            self.design_.G, self._b, self._rr, self.design_.n, loglam, theta[0], grad=False
         )
         self.log_marginal_likelihood_ = float(logp)
         self._post = post
         self._loglam_ = loglam
 
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "theta_"):
+            raise NotFittedError("this Model is not fitted yet: call fit(X, y) first")
+
     @property
     def noise_std_(self) -> float:
-        return math.sqrt(math.exp(self.theta_[0])) * self.y_scale
+        self._check_fitted()
+        return math.sqrt(math.exp(self.theta_[0])) * self.y_scale_
 
     @property
     def params_(self) -> dict[str, dict[str, float]]:
         """Fitted parameters of every term, plus the noise standard deviation, in the target's units."""
         out: dict[str, dict[str, float]] = {"noise": {"std": self.noise_std_}}
         i = 0
-        for t, sl, m in zip(self.feat_terms, self.h_slices, self.design.sizes, strict=True):
-            w = self._post["mu"][i : i + m] * self.y_scale
+        for t, sl, m in zip(self._feat_terms, self.h_slices_, self.design_.sizes, strict=True):
+            w = self._post["mu"][i : i + m] * self.y_scale_
             p = t.params(self.theta_[sl], w)
             if "variance" in p:
-                p["std"] = math.sqrt(p.pop("variance")) * self.y_scale
+                p["std"] = math.sqrt(p.pop("variance")) * self.y_scale_
             out[t.describe()] = p
             i += m
-        for t, sl in zip(self.mean_terms, self.m_slices, strict=True):
+        for t, sl in zip(self._mean_terms, self._m_slices, strict=True):
             out[t.describe()] = t.params(self.theta_[sl], np.zeros(0))
         return out
 
+    @property
+    def n_basis_(self) -> dict[str, int]:
+        """Basis functions of every reduced-rank GP term, as the fit left them (it may have grown them)."""
+        self._check_fitted()
+        return {t.describe(): t.n_basis for t in self.terms_ if isinstance(t, HilbertGPTerm)}
+
     def features(self, X: Mapping[str, np.ndarray]) -> list[np.ndarray]:
-        return [t.features(term_inputs(t, X)) for t in self.feat_terms]
+        self._check_fitted()
+        return [t.features(term_inputs(t, X)) for t in self._feat_terms]
 
     def _predict_rows(
         self, blocks: list[np.ndarray], mean_part: np.ndarray, post: dict, return_std: bool
     ):
         Phi = np.hstack(blocks)
-        mu = Phi @ post["mu"] * self.y_scale + mean_part
+        mu = Phi @ post["mu"] * self.y_scale_ + mean_part
         if not return_std:
             return mu, None
         V = linalg.solve_triangular(post["L"], (Phi * post["s"]).T, lower=True, check_finite=False)
-        var = (V**2).sum(axis=0) * self.y_scale**2
+        var = (V**2).sum(axis=0) * self.y_scale_**2
         return mu, np.sqrt(np.maximum(var, 0.0))
 
     def predict(
         self, X: Mapping[str, np.ndarray], return_std: bool = False, include_noise: bool = False
     ):
         """Posterior mean (and standard deviation of the latent field, or of a new observation)."""
+        self._check_fitted()
         with small_blas():
             return self._predict(X, return_std, include_noise)
 
@@ -449,8 +397,8 @@ class Model:
         for a in range(0, n, CHUNK):
             Xc = {k: np.asarray(v)[a : a + CHUNK] for k, v in X.items()}
             mean_part = (
-                self._mean([term_inputs(t, Xc) for t in self.mean_terms], self.theta_)
-                if self.mean_terms
+                self._mean([term_inputs(t, Xc) for t in self._mean_terms], self.theta_)
+                if self._mean_terms
                 else 0.0
             )
             mu, sd = self._predict_rows(self.features(Xc), mean_part, self._post, return_std)
@@ -466,11 +414,12 @@ class Model:
     def cv_predict(self, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Held-out mean and latent std (add `noise_std_` for a new observation) for every sample, refitting the weights per fold
         with the hyperparameters fixed: each fold costs O(M^3) via Gram downdates, not a new pass over the data."""
-        grams = self.design.fold_grams(folds)
+        self._check_fitted()
+        grams = self.design_.fold_grams(folds)
         sn2 = math.exp(self.theta_[0])
         loglam = self._loglam_
-        mean_part = self._y - self._r * self.y_scale
-        mu_out, sd_out = np.empty(self.design.n), np.empty(self.design.n)
+        mean_part = self._y - self._r * self.y_scale_
+        mu_out, sd_out = np.empty(self.design_.n), np.empty(self.design_.n)
         with small_blas():
             self._cv_loop(folds, grams, loglam, sn2, mean_part, mu_out, sd_out)
         return mu_out, sd_out
@@ -478,31 +427,35 @@ class Model:
     def _cv_loop(self, folds, grams, loglam, sn2, mean_part, mu_out, sd_out) -> None:
         for f, Gf in zip(np.unique(folds), grams, strict=True):
             test = folds == f
-            b_tr = self._b - self.design.rmatvec(self._r[test], test)
-            G_tr = self.design.G - Gf
+            b_tr = self._b - self.design_.rmatvec(self._r[test], test)
+            G_tr = self.design_.G - Gf
             rr = float(self._r[~test] @ self._r[~test])
             _, _, _, post = evidence(
                 G_tr, b_tr, rr, int((~test).sum()), loglam, self.theta_[0], grad=False
             )
-            blocks = [b[test] for b in self.design.blocks]
+            blocks = [b[test] for b in self.design_.blocks]
             mu, sd = self._predict_rows(blocks, mean_part[test], post, True)
             mu_out[test] = mu
             sd_out[test] = sd
 
     def extended(self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray) -> Model:
-        """A new model with one more feature term, sharing this model's design (only cross products are
-        new); every hyperparameter is refitted, starting from this model's values."""
+        """A new, fitted model with one more feature term, sharing this model's design (only cross products
+        are new); every hyperparameter is refitted, starting from this model's values. Neither this model's
+        terms nor `term` are changed or shared: the new model works on copies."""
+        self._check_fitted()
         if term.is_mean:
             raise WorkbenchError("extended() takes a feature term")
+        term = copy.deepcopy(term)
         Z = term_inputs(term, X)
         term.setup(Z)
         new = Model(
-            self.feat_terms + [term] + self.mean_terms,
+            copy.deepcopy(self._feat_terms + [term] + self._mean_terms),
             max_iter=self.max_iter,
+            max_basis=self.max_basis,
             hyper_rows=self.hyper_rows,
         )
-        design = self.design.augment(term.features(Z))
-        cut = self.h_slices[-1].stop
+        design = self.design_.augment(term.features(Z))
+        cut = self.h_slices_[-1].stop
         init = np.concatenate(
             [self.theta_[:cut], [h.init for h in term.hypers()], self.theta_[cut:]]
         )

@@ -1,17 +1,20 @@
-"""Figures (matplotlib, Agg backend): residual maps and panels, model maps with arrows and contours, error history."""
+"""Figures: residual maps and panels, model maps with arrows and contours, error history.
+
+Each figure is a matplotlib `Figure` on its own Agg canvas: nothing here touches pyplot's global state or
+the process's backend.
+"""
 
 from __future__ import annotations
 
 import io
+from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from forcemap.host.workbench.table import Survey, family, is_circular  # noqa: E402
-from scipy.spatial import cKDTree  # noqa: E402
+import numpy as np
+from forcemap.host.workbench.table import NOT_COVARIATES, Survey, family, is_circular
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from scipy.spatial import cKDTree
 
 PANEL_COVARIATES = (
     "t",
@@ -28,10 +31,16 @@ PANEL_COVARIATES = (
 )
 
 
-def png_bytes(fig) -> bytes:
+def new_figure(figsize: tuple[float, float]) -> Figure:
+    """A figure drawn by its own Agg canvas."""
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def png_bytes(fig: Figure) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
     return buf.getvalue()
 
 
@@ -68,7 +77,8 @@ def scatter_map(
     cmap: str = "viridis",
     symmetric=False,
 ):
-    fig, ax = plt.subplots(figsize=(8, 3.6))
+    fig = new_figure((8, 3.6))
+    ax = fig.subplots()
     xy = survey.xy
     kw = {}
     if symmetric:
@@ -83,12 +93,14 @@ def scatter_map(
 def residual_panels(
     survey: Survey,
     resid: np.ndarray,
-    extra: list[str] | None = None,
+    extra: Mapping[str, np.ndarray] | None = None,
     title: str = "",
     target: str = "",
 ):
-    """Residual against time, heading, boat speed, depth and every other covariate, with binned medians
-    (never against the target's own family: a residual always correlates with the reading it came from)."""
+    """Residual against time, heading, boat speed, depth, the model's covariates `extra` (name -> values at
+    the samples, derived ones included) and every other column, with binned medians (never against the
+    target's own family: a residual always correlates with the reading it came from)."""
+    extra = dict(extra or {})
     own = family(target)
     names = [
         n
@@ -96,15 +108,19 @@ def residual_panels(
         if (n == "t" or n in survey.columns) and (own is None or family(n) != own)
     ]
     others = [n for n in survey.numeric_columns() if own is None or family(n) != own]
-    for n in list(extra or []) + others:
-        if n not in names and n in survey.columns and n not in ("x", "y", "lat", "lon"):
+    for n in list(extra) + others:
+        if n not in names and (n in extra or n in survey.columns) and n not in NOT_COVARIATES:
             names.append(n)
     names = names[:21]
     cols = 3
     rows = int(np.ceil(len(names) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(11, 2.6 * rows), squeeze=False)
+    fig = new_figure((11, 2.6 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False)
     for ax, name in zip(axes.ravel(), names, strict=False):
-        x = survey.trel / 60.0 if name == "t" else survey.columns[name]
+        if name == "t":
+            x = survey.trel / 60.0
+        else:
+            x = survey.columns[name] if name in survey.columns else extra[name]
         ok = np.isfinite(x)
         ax.scatter(x[ok], resid[ok], s=1, alpha=0.3, color="tab:blue")
         edges = (
@@ -133,7 +149,8 @@ def field_map(
     X, Y, mask, pred: dict, title: str, label: str, arrows: bool, contours: bool, survey: Survey
 ):
     """Model mean (colour; arrows for a vector field, contours for a scalar) and its uncertainty, side by side."""
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 7.5))
+    fig = new_figure((9, 7.5))
+    a1, a2 = fig.subplots(2, 1)
     shape = X.shape
     key = "speed" if arrows and "speed" in pred else "mean"
     mean = np.where(mask, pred[key].reshape(shape), np.nan)
@@ -169,7 +186,8 @@ def field_map(
 
 def history_figure(history: list[dict]):
     """CV RMSE of every fit, one line per target, labelled with the terms added."""
-    fig, ax = plt.subplots(figsize=(9, 3.8))
+    fig = new_figure((9, 3.8))
+    ax = fig.subplots()
     targets = list(dict.fromkeys(h["target"] for h in history))
     for target in targets:
         rows = [h for h in history if h["target"] == target]

@@ -1,7 +1,8 @@
-"""A small synthetic river survey with known hidden effects, for tests and the benchmark until the simulator lands.
+"""A small synthetic river survey with known hidden effects in closed form: the GP benchmark's data and the CLI tests'
+table, made in a second where the simulator (`forcemap.sim_devices.offline.make_survey`, which the effect tests
+and the diagnosis benchmark use) runs the instruments and the daemon's pipeline.
 
-`make_survey(scenario, effects, seed, duration_s, out_dir)` has the signature of
-`forcemap.sim_devices.offline.make_survey` and writes a samples table (CSV, the columns of docs/CONVENTIONS.md) with a
+`make_survey(scenario, effects, seed, duration_s, out_dir)` has the simulator's signature and writes a samples table (CSV, the columns of docs/CONVENTIONS.md) with a
 `truth/effects.json` beside it. The boat is kinematic: it holds 3.5 m/s through the water, crabs to keep a
 lawnmower track parallel to the flow, and turns at a limited rate, so sog, cog and the crab angle respond to the
 current exactly as on the water. With `held_throttle` the throttle is set once per leg (a different setting on
@@ -88,16 +89,9 @@ def _waypoints(spacing: float = 15.0) -> list[tuple[float, float]]:
     return pts
 
 
-def simulate(
-    effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ, held_throttle=False
-) -> dict[str, np.ndarray]:
-    """Run the lawnmower mission and return the samples-table columns."""
-    rng = np.random.default_rng(seed)
-    effects = set(effects)
-    unknown = effects - set(EFFECTS)
-    if unknown:
-        raise ValueError(f"unknown effect(s): {sorted(unknown)}")
-    phase = rng.uniform(0, 2 * np.pi, 3)
+def _track(rng, effects: set[str], duration_s: float, rate_hz: float, held_throttle: bool):
+    """Fly the lawnmower from a random start: true positions, headings, ground velocities, currents and
+    throttle settings."""
     dt = 1.0 / rate_hz
     n = int(duration_s * rate_hz)
     wps = _waypoints()
@@ -111,8 +105,7 @@ def simulate(
     P, H, VB, C = np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty((n, 2))
     THR = np.empty(n)
     for i in range(n):
-        t = i * dt
-        ce, cn = current_field(p[0], p[1], t, effects, duration_s)
+        ce, cn = current_field(p[0], p[1], i * dt, effects, duration_s)
         c = np.array([float(ce), float(cn)])
         target = np.array(wps[k % len(wps)])
         to = target - p
@@ -120,78 +113,102 @@ def simulate(
             k += 1
             target = np.array(wps[k % len(wps)])
             to = target - p
-        d = to / max(np.hypot(*to), 1e-9)
-        perp = np.array([d[1], -d[0]])
-        stw = BOAT_SPEED * leg_throttle[k % len(leg_throttle)]
-        s = np.clip(-(c @ perp) / stw, -0.9, 0.9)
-        course = math.degrees(math.atan2(d[0], d[1]))
-        desired = course + math.degrees(math.asin(s))
-        err = (desired - h + 180.0) % 360.0 - 180.0
-        h = (h + float(np.clip(err, -MAX_TURN_RATE * dt, MAX_TURN_RATE * dt))) % 360.0
+        throttle = leg_throttle[k % len(leg_throttle)]
+        stw = BOAT_SPEED * throttle
+        h = _steer(h, to, c, dt, stw)
         hv = np.array([math.sin(math.radians(h)), math.cos(math.radians(h))])
         vb = stw * hv + c
-        P[i], H[i], VB[i], C[i] = p, h, vb, c
-        THR[i] = 55.0 * leg_throttle[k % len(leg_throttle)]
+        P[i], H[i], VB[i], C[i], THR[i] = p, h, vb, c, 55.0 * throttle
         p = p + vb * dt
-    t = np.arange(n) * dt
-    x, y = P[:, 0], P[:, 1]
-    yaw = np.gradient(np.unwrap(np.radians(H))) / dt
-    yaw_rate = np.degrees(yaw)
-    # measured heading, with compass deviation if on
-    h_meas = H.copy()
-    if "compass_deviation" in effects:
-        h_meas = (H + 7.0 * np.sin(np.radians(H + 40.0))) % 360.0
-    dh = np.radians(h_meas - H)
+    return P, H, VB, C, THR
 
-    def rot(v, a):
-        return np.column_stack(
-            [v[:, 0] * np.cos(a) + v[:, 1] * np.sin(a), -v[:, 0] * np.sin(a) + v[:, 1] * np.cos(a)]
-        )
 
-    # paddle wheels: water velocity relative to the hull, measured in the boat frame, rotated with the measured heading
-    F = C - VB
-    F_meas = rot(F, dh) + 0.06 * rng.standard_normal((n, 2))
+def _steer(h: float, to: np.ndarray, c: np.ndarray, dt: float, stw: float) -> float:
+    """The new heading: crab into the cross-track current to hold the line, at a limited turn rate."""
+    d = to / max(np.hypot(*to), 1e-9)
+    perp = np.array([d[1], -d[0]])
+    s = np.clip(-(c @ perp) / stw, -0.9, 0.9)
+    course = math.degrees(math.atan2(d[0], d[1]))
+    desired = course + math.degrees(math.asin(s))
+    err = (desired - h + 180.0) % 360.0 - 180.0
+    return (h + float(np.clip(err, -MAX_TURN_RATE * dt, MAX_TURN_RATE * dt))) % 360.0
+
+
+def _rotate(v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Rotate (east, north) rows clockwise by `a` radians (into a frame turned by a compass error)."""
+    return np.column_stack(
+        [v[:, 0] * np.cos(a) + v[:, 1] * np.sin(a), -v[:, 0] * np.sin(a) + v[:, 1] * np.cos(a)]
+    )
+
+
+def _water_and_ground(rng, effects, H, VB, C, dh, rate_hz):
+    """Measured water relative to the hull (paddle wheels), ground velocity, and the current from them."""
+    n = len(H)
+    F_meas = _rotate(C - VB, dh) + 0.06 * rng.standard_normal((n, 2))
     if "wheel_misalignment" in effects:
         starboard = np.column_stack([np.cos(np.radians(H)), -np.sin(np.radians(H))])
         F_meas = F_meas + 0.42 * starboard  # a wheel ~7 deg off: 0.42 m/s across the bow at 3.5 m/s
-    sog_true = np.hypot(VB[:, 0], VB[:, 1])
     vb_meas = VB + 0.03 * rng.standard_normal((n, 2))
     vb_used = vb_meas
     if "clock_offset" in effects:
         shift = int(round(1.0 * rate_hz)) or 1
         vb_used = np.vstack([vb_meas[:1].repeat(shift, axis=0), vb_meas[:-shift]])
-    C_meas = F_meas + vb_used
-    # anemometer: the air's velocity relative to the boat
+    return F_meas, vb_meas, F_meas + vb_used
+
+
+def _air(rng, effects, x, y, t, VB, dh, phase, duration_s):
+    """Measured air relative to the boat (the anemometer)."""
     W = np.column_stack(wind_field(x, y, t, effects, duration_s, phase))
-    R = W - VB
-    R_meas = rot(R, dh) + 0.25 * rng.standard_normal((n, 2))
+    R_meas = _rotate(W - VB, dh) + 0.25 * rng.standard_normal((len(t), 2))
     if "anemometer_upwash" in effects:
-        R_meas = R_meas * (1.0 + 0.09 * sog_true)[:, None]
-    W_meas = R_meas + vb_meas
-    depth_true = depth_field(x, y)
-    depth = depth_true + 0.05 * rng.standard_normal(n)
-    sog = np.hypot(vb_meas[:, 0], vb_meas[:, 1])
-    cog = np.degrees(np.arctan2(vb_meas[:, 0], vb_meas[:, 1])) % 360.0
-    app_from = np.degrees(np.arctan2(-R_meas[:, 0], -R_meas[:, 1]))
-    app_angle = (app_from - h_meas + 180.0) % 360.0 - 180.0
-    F_boat = rot(
-        F_meas, np.radians(h_meas)
-    )  # (starboard, forward) components of the relative water
+        R_meas = R_meas * (1.0 + 0.09 * np.hypot(VB[:, 0], VB[:, 1]))[:, None]
+    return R_meas
+
+
+def _wheels(F_meas: np.ndarray, h_meas: np.ndarray) -> dict[str, np.ndarray]:
+    """Speeds of the four wheels at 45, 135, 225 and 315 deg, from the water relative to the hull."""
+    F_boat = _rotate(F_meas, np.radians(h_meas))  # (starboard, forward) components
     axes = np.radians([45.0, 135.0, 225.0, 315.0])
-    wheels = {
+    return {
         f"wheel{i + 1}_speed": np.abs(F_boat[:, 0] * np.sin(a) + F_boat[:, 1] * np.cos(a))
         for i, a in enumerate(axes)
     }
+
+
+def simulate(
+    effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ, held_throttle=False
+) -> dict[str, np.ndarray]:
+    """Run the lawnmower mission and return the samples-table columns."""
+    rng = np.random.default_rng(seed)
+    effects = set(effects)
+    unknown = effects - set(EFFECTS)
+    if unknown:
+        raise ValueError(f"unknown effect(s): {sorted(unknown)}")
+    phase = rng.uniform(0, 2 * np.pi, 3)
+    P, H, VB, C, THR = _track(rng, effects, duration_s, rate_hz, held_throttle)
+    n, dt = len(H), 1.0 / rate_hz
+    t = np.arange(n) * dt
+    x, y = P[:, 0], P[:, 1]
+    yaw_rate = np.degrees(np.gradient(np.unwrap(np.radians(H))) / dt)
+    h_meas = H.copy()
+    if "compass_deviation" in effects:
+        h_meas = (H + 7.0 * np.sin(np.radians(H + 40.0))) % 360.0
+    dh = np.radians(h_meas - H)
+    F_meas, vb_meas, C_meas = _water_and_ground(rng, effects, H, VB, C, dh, rate_hz)
+    R_meas = _air(rng, effects, x, y, t, VB, dh, phase, duration_s)
+    W_meas = R_meas + vb_meas
+    depth = depth_field(x, y) + 0.05 * rng.standard_normal(n)
+    app_from = np.degrees(np.arctan2(-R_meas[:, 0], -R_meas[:, 1]))
     lat = LAT0 + np.degrees(y / 6_371_008.8) + 2e-6 * rng.standard_normal(n) * 0.1
     lon = LON0 + np.degrees(x / (6_371_008.8 * math.cos(math.radians(LAT0))))
-    cols = {
+    return {
         "t": T0 + t,
         "lat": lat,
         "lon": lon,
         "heading": h_meas,
         "yaw_rate": yaw_rate + 0.3 * rng.standard_normal(n),
-        "sog": sog,
-        "cog": cog,
+        "sog": np.hypot(vb_meas[:, 0], vb_meas[:, 1]),
+        "cog": np.degrees(np.arctan2(vb_meas[:, 0], vb_meas[:, 1])) % 360.0,
         "depth": depth,
         "water_temp": 18.0
         + 0.4 * np.sin(x / 250.0)
@@ -202,15 +219,14 @@ def simulate(
         "wind_east": W_meas[:, 0],
         "wind_north": W_meas[:, 1],
         "app_wind_speed": np.hypot(R_meas[:, 0], R_meas[:, 1]),
-        "app_wind_angle": app_angle,
+        "app_wind_angle": (app_from - h_meas + 180.0) % 360.0 - 180.0,
         "current_speed": np.hypot(C_meas[:, 0], C_meas[:, 1]),
         "current_dir": np.degrees(np.arctan2(C_meas[:, 0], C_meas[:, 1])) % 360.0,
         "current_east": C_meas[:, 0],
         "current_north": C_meas[:, 1],
-        **wheels,
+        **_wheels(F_meas, h_meas),
         "throttle": THR + 2.0 * rng.standard_normal(n),
     }
-    return cols
 
 
 def make_survey(

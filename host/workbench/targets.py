@@ -17,159 +17,22 @@ from forcemap.host.workbench.cv import CVResult
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
 from forcemap.host.workbench.spec import BASELINE, build_term, parse_terms
-from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
+from forcemap.host.workbench.survey_fits import (
+    derived_column,
+    finite_target,
+    frame_direction,
+    grid_inputs,
+    hyper_rows,
+    survey_fits,
+    survey_inputs,
+    wrap180,
+)
+from forcemap.host.workbench.table import NOT_COVARIATES, Survey, is_circular, prepare_column
+from forcemap.host.workbench.terms import HilbertGPTerm
 
 N_DRAWS = 128
-# hyperparameters come from samples this far apart in time (see hyper_rows), but never fewer than MIN_HYPER_ROWS
-HYPER_SPACING_S = 5.0
-MIN_HYPER_ROWS = 300
-
-
-def wrap180(a: np.ndarray) -> np.ndarray:
-    return (a + 180.0) % 360.0 - 180.0
-
-
-def circular_median(deg: np.ndarray) -> float:
-    r = np.radians(deg)
-    return float(np.degrees(np.arctan2(np.sin(r).mean(), np.cos(r).mean())) % 360.0)
-
-
-# a speed target's frame follows the flow in time too (a veering wind still has a meaningful local
-# direction, and the along-flow component stays close to the speed); a direction target's must not
-FRAME_TERMS = {"speed": [*BASELINE, "gp(t, matern32)"], "dir": list(BASELINE)}
-FRAME_MAX_BASIS = 800  # the frame is a smooth direction field; it needs no fine spatial detail
-
-
-def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
-    """Smooth models of a vector's east and north components (cached on the survey).
-
-    For a speed target they are over position and time, so the frame follows a wind that veers and the
-    along-flow component stays close to the speed. For a direction target they are over position only:
-    the frame is then a reference direction that must not follow anything the diagnosis should find (with
-    time in it, it followed every leg-by-leg change, a compass deviation or a veer, and the direction's
-    residual had nothing left to explain). Their hyperparameters come from `hyper_rows`."""
-    kind = "dir" if vt.aspect == "dir" else "speed"
-    key = ("frame", vt.prefix, kind)
-    if key not in survey.cache:
-        e, n = survey.components(vt)
-        if e is None:
-            raise WorkbenchError(f"the table has no {vt.prefix} components, speed or direction")
-        X = {"position": survey.xy, "t": survey.trel}
-        e = _finite_target(survey, e, f"{vt.prefix} east component")
-        n = _finite_target(survey, n, f"{vt.prefix} north component")
-        rows = hyper_rows(survey)
-        survey.cache[key] = tuple(
-            Model(FRAME_TERMS[kind], max_basis=FRAME_MAX_BASIS, hyper_rows=rows).fit(X, c)
-            for c in (e, n)
-        )
-    return survey.cache[key]
-
-
-def frame_direction(
-    survey: Survey, vt: VectorTarget, xy: np.ndarray, t: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vector of the smooth flow at positions `xy` and times `t` (default: mid-survey)."""
-    me, mn = flow_frame(survey, vt)
-    if t is None:
-        t = np.full(len(xy), float(np.median(survey.trel)))
-    X = {"position": xy, "t": t}
-    e, n = me.predict(X), mn.predict(X)
-    s = np.hypot(e, n)
-    s = np.where(s > 1e-9, s, 1.0)
-    return e / s, n / s
-
-
-def _finite_target(survey: Survey, values: np.ndarray, what: str) -> np.ndarray:
-    bad = ~np.isfinite(values)
-    if bad.mean() > 0.05:
-        raise WorkbenchError(f"{what} has {bad.mean():.0%} missing values")
-    if bad.any():
-        from forcemap.host.workbench.table import _fill_nearest_in_time
-
-        values = _fill_nearest_in_time(values)
-        survey.notes.append(
-            f"filled {bad.sum()} missing value(s) of the {what} with the nearest sample in time"
-        )
-    return values
-
-
-def derived_column(survey: Survey, name: str) -> np.ndarray:
-    """Derived covariates: `heading_rel_current` / `heading_rel_wind`, the bow's angle to the baseline flow, and
-    `stw`, the boat's speed through the water (ground velocity minus the measured current)."""
-    if name not in survey.columns:
-        if name == "stw":
-            need = ("sog", "cog", "current_east", "current_north")
-            missing = [c for c in need if c not in survey.columns]
-            if missing:
-                raise WorkbenchError(f"'stw' needs the columns {', '.join(missing)} in the table")
-            sog = prepare_column(survey, "sog", "covariate")
-            cog = np.radians(prepare_column(survey, "cog", "covariate"))
-            ce = prepare_column(survey, "current_east", "covariate")
-            cn = prepare_column(survey, "current_north", "covariate")
-            survey.columns[name] = np.hypot(sog * np.sin(cog) - ce, sog * np.cos(cog) - cn)
-        elif name in ("heading_rel_current", "heading_rel_wind") and "heading" in survey.columns:
-            vt = survey.vector_target("current_speed" if name.endswith("current") else "wind_speed")
-            if vt is None:
-                raise WorkbenchError(
-                    f"'{name}' needs {name.rsplit('_', 1)[1]} columns in the table"
-                )
-            ue, un = frame_direction(survey, vt, survey.xy, survey.trel)
-            flow = np.degrees(np.arctan2(ue, un))
-            if vt.is_from:
-                flow = flow + 180.0
-            survey.columns[name] = wrap180(prepare_column(survey, "heading", "covariate") - flow)
-        else:
-            survey.column(name)
-    return survey.columns[name]
-
-
-def survey_inputs(survey: Survey, names: set[str]) -> dict[str, np.ndarray]:
-    X: dict[str, np.ndarray] = {"position": survey.xy, "t": survey.trel}
-    for name in names - {"position", "t"}:
-        derived_column(survey, name)
-        X[name] = prepare_column(survey, name, "covariate")
-    return X
-
-
-def grid_inputs(survey: Survey, names: set[str], xy: np.ndarray) -> dict[str, np.ndarray]:
-    """Inputs for maps: depth from a depth map, time at mid-survey, every other covariate at its typical value."""
-    X: dict[str, np.ndarray] = {
-        "position": xy,
-        "t": np.full(len(xy), float(np.median(survey.trel))),
-    }
-    for name in names - {"position", "t"}:
-        values = survey_inputs(survey, {name})[name]
-        if name == "depth":
-            if ("depthmap",) not in survey.cache:
-                survey.cache[("depthmap",)] = Model(BASELINE, hyper_rows=hyper_rows(survey)).fit(
-                    {"position": survey.xy}, values
-                )
-            X[name] = survey.cache[("depthmap",)].predict({"position": xy})
-        elif is_circular(name):
-            X[name] = np.full(len(xy), circular_median(values))
-        else:
-            X[name] = np.full(len(xy), float(np.median(values)))
-    return X
-
-
-def hyper_rows(survey: Survey) -> np.ndarray | None:
-    """Rows for the hyperparameters: the first sample of every HYPER_SPACING_S of the survey (None: all rows).
-
-    Along a survey line the samples are a metre apart and their errors are correlated over seconds
-    (paddle-wheel inertia, gusts, the sounder's 1 Hz updates, turns). Fed every sample, the marginal
-    likelihood reads that as fine spatial structure: it puts the position lengthscale at the basis's
-    limit, far below the line spacing, and the map then extrapolates wildly into any area it has not
-    seen. Samples HYPER_SPACING_S apart are close to independent, so their marginal likelihood sets the
-    hyperparameters; the posterior (the map) uses every sample."""
-    if ("hyper_rows",) not in survey.cache:
-        t = survey.trel
-        _, rows = np.unique(np.floor((t - t.min()) / HYPER_SPACING_S), return_index=True)
-        if len(rows) < MIN_HYPER_ROWS:
-            rows = np.unique(
-                np.linspace(0, survey.n - 1, min(MIN_HYPER_ROWS, survey.n)).astype(int)
-            )
-        survey.cache[("hyper_rows",)] = None if len(rows) >= survey.n else np.sort(rows)
-    return survey.cache[("hyper_rows",)]
+# the names callers have always imported from here
+__all__ = ["SurveyModel", "derived_column", "hyper_rows", "survey_inputs"]
 
 
 class SurveyModel:
@@ -194,7 +57,7 @@ class SurveyModel:
         if self.vector is None:
             if target in survey.non_numeric:
                 raise WorkbenchError(f"target '{target}' is not numeric")
-            if target not in survey.columns or target in ("t", "lat", "lon", "x", "y"):
+            if target not in survey.columns or target in NOT_COVARIATES:
                 raise WorkbenchError(
                     f"unknown target '{target}'; try one of: {', '.join(sorted(survey.numeric_columns()))}"
                 )
@@ -209,9 +72,6 @@ class SurveyModel:
                     raise WorkbenchError(
                         f"term {spec} uses the target's own reading '{name}' as a covariate"
                     )
-        names = {i for s in self.term_specs for i in s.inputs}
-        self.X = survey_inputs(survey, names)
-        self._prepare_y()
 
     def _own_columns(self) -> set[str]:
         """The vector's own readings; a speed may depend on its own direction (shelter), so that one is allowed."""
@@ -245,8 +105,8 @@ class SurveyModel:
             self.y_primary = self.measured
             return
         e, n = s.components(vt)
-        e = _finite_target(s, e, f"{vt.prefix} east component")
-        n = _finite_target(s, n, f"{vt.prefix} north component")
+        e = finite_target(s, e, f"{vt.prefix} east component")
+        n = finite_target(s, n, f"{vt.prefix} north component")
         if vt.aspect in ("east", "north"):
             self.measured = self.y_primary = e if vt.aspect == "east" else n
             if np.ptp(self.measured) < 1e-12:
@@ -268,22 +128,36 @@ class SurveyModel:
             (along, across) if self.primary_is_along else (across, along)
         )
 
-    def new_primary(self, terms: list | None = None) -> Model:
-        return Model(
-            [build_term(t, is_circular) for t in (terms or self.term_specs)],
-            max_basis=self.max_basis,
-            hyper_rows=hyper_rows(self.survey),
-        )
+    def new_primary(
+        self, terms: list | None = None, n_basis: Mapping[str, int] | None = None
+    ) -> Model:
+        """An unfitted model of the primary component; `n_basis` sets GP terms' bases by term name."""
+        built = [build_term(t, is_circular) for t in (terms or self.term_specs)]
+        for t in built:
+            if isinstance(t, HilbertGPTerm) and n_basis and t.describe() in n_basis:
+                t.n_basis = int(n_basis[t.describe()])
+                t.max_basis = max(t.max_basis, t.n_basis)
+        return Model(built, max_basis=self.max_basis, hyper_rows=hyper_rows(self.survey))
 
-    def fit(self) -> SurveyModel:
-        self.primary = self.new_primary().fit(self.X, self.y_primary)
+    def fit(
+        self, theta: np.ndarray | None = None, n_basis: Mapping[str, int] | None = None
+    ) -> SurveyModel:
+        """Gather the inputs and the target (in the flow frame for a speed or direction), and fit the primary
+        model; the secondary component's model is shared by every model of the survey.
+
+        With `theta` and `n_basis` from an earlier fit of these terms on this survey (`Model.theta_`,
+        `Model.n_basis_`), the primary model is rebuilt from them without the optimiser: the same map."""
+        names = {i for s in self.term_specs for i in s.inputs}
+        self.X = survey_inputs(self.survey, names)
+        self._prepare_y()
+        primary = self.new_primary(n_basis=n_basis)
+        if theta is None:
+            self.primary = primary.fit(self.X, self.y_primary)
+        else:
+            self.primary = primary.fit(self.X, self.y_primary, init=theta, optimize=False)
         if self.vector and self.vector.aspect in ("speed", "dir"):
-            key = ("secondary", self.vector.prefix, self.primary_is_along)
-            if key not in self.survey.cache:
-                self.survey.cache[key] = Model(BASELINE, hyper_rows=hyper_rows(self.survey)).fit(
-                    {"position": self.survey.xy}, self.y_secondary
-                )
-            self.secondary = self.survey.cache[key]
+            fits = survey_fits(self.survey)
+            self.secondary = fits.secondary(self.vector, self.primary_is_along, self.y_secondary)
         else:
             self.secondary = None
         return self
@@ -353,24 +227,7 @@ class SurveyModel:
     def _frame_cv(self, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The flow frame at each held-out sample from the frame models refitted without its fold: the
         full-data frame has seen the held-out vectors, and a direction target would be predicted by them."""
-        key = ("frame_cv", self.vector.prefix, self.vector.aspect, hash(folds.tobytes()))
-        if key not in self.survey.cache:
-            me, mn = flow_frame(self.survey, self.vector)
-            e, n = me.cv_predict(folds)[0], mn.cv_predict(folds)[0]
-            sp = np.hypot(e, n)
-            sp = np.where(sp > 1e-9, sp, 1.0)
-            self.survey.cache[key] = (e / sp, n / sp)
-        return self.survey.cache[key]
-
-    def fitted(self) -> np.ndarray:
-        """In-sample posterior mean of the target at the samples."""
-        mu_p, sd_p = self.primary.predict(self.X, return_std=True)
-        if self.secondary is None:
-            return mu_p
-        mu_s, sd_s = self.secondary.predict({"position": self.survey.xy}, return_std=True)
-        return self.combine(
-            mu_p, sd_p, self.primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_
-        )[0]
+        return survey_fits(self.survey).frame_cv(self.vector, folds)
 
     def predict_grid(self, xy: np.ndarray) -> dict[str, np.ndarray]:
         """Mean and std of the target on map positions; for vectors also the east/north components."""
@@ -395,6 +252,3 @@ class SurveyModel:
             "speed": np.hypot(east, north),
             "speed_std": np.sqrt(sa**2 + sc**2),
         }
-
-    def summary_params(self) -> Mapping[str, dict[str, float]]:
-        return self.primary.params_

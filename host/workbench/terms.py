@@ -288,9 +288,6 @@ class PowerTerm(Term):
             )
         self.ref = float(np.median(Z[:, 0]))
 
-    def theta_names(self) -> list[str]:
-        return ["a", "b"]
-
     def theta_init(self) -> np.ndarray:
         return np.array([0.0, 1.0])
 
@@ -326,9 +323,6 @@ class UserTerm(Term):
 
     def describe(self) -> str:
         return f"user({self.inputs[0]}, {self.ref})"
-
-    def theta_names(self):
-        return self.names
 
     def theta_init(self):
         return np.array(self.init, float)

@@ -1,0 +1,232 @@
+"""What every model of one survey shares: the rows that set the hyperparameters, the flow frame of a vector,
+the depth map, derived covariates, and the inputs of models and maps (`SurveyFits`, one per survey)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.model import Model
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
+
+# hyperparameters come from samples this far apart in time (see hyper_rows), but never fewer than MIN_HYPER_ROWS
+HYPER_SPACING_S = 5.0
+MIN_HYPER_ROWS = 300
+
+
+def wrap180(a: np.ndarray) -> np.ndarray:
+    return (a + 180.0) % 360.0 - 180.0
+
+
+def circular_median(deg: np.ndarray) -> float:
+    r = np.radians(deg)
+    return float(np.degrees(np.arctan2(np.sin(r).mean(), np.cos(r).mean())) % 360.0)
+
+
+# a speed target's frame follows the flow in time too (a veering wind still has a meaningful local
+# direction, and the along-flow component stays close to the speed); a direction target's must not
+FRAME_TERMS = {"speed": [*BASELINE, "gp(t, matern32)"], "dir": list(BASELINE)}
+FRAME_MAX_BASIS = 800  # the frame is a smooth direction field; it needs no fine spatial detail
+DERIVED = ("stw", "heading_rel_current", "heading_rel_wind")
+
+
+class SurveyFits:
+    """What every model of one survey shares, each computed once on first use: the rows that set the
+    hyperparameters, the depth map, the flow frames and the secondary (across/along) components of
+    vectors, the frames refitted per CV split, and derived covariates. Get it with `survey_fits(survey)`."""
+
+    def __init__(self, survey: Survey) -> None:
+        self.survey = survey
+        self._frames: dict[tuple[str, str], tuple[Model, Model]] = {}
+        self._secondary: dict[tuple[str, bool], Model] = {}
+        self._frame_cv: dict[tuple[str, str, bytes], tuple[np.ndarray, np.ndarray]] = {}
+        self._derived: dict[str, np.ndarray] = {}
+
+    @functools.cached_property
+    def hyper_rows(self) -> np.ndarray | None:
+        """Rows for the hyperparameters: the first sample of every HYPER_SPACING_S (None: all rows).
+
+        Along a survey line the samples are a metre apart and their errors are correlated over seconds
+        (paddle-wheel inertia, gusts, the sounder's 1 Hz updates, turns). Fed every sample, the marginal
+        likelihood reads that as fine spatial structure: it puts the position lengthscale at the basis's
+        limit, far below the line spacing, and the map then extrapolates wildly into any area it has not
+        seen. Samples HYPER_SPACING_S apart are close to independent, so their marginal likelihood sets the
+        hyperparameters; the posterior (the map) uses every sample."""
+        survey = self.survey
+        t = survey.trel
+        _, rows = np.unique(np.floor((t - t.min()) / HYPER_SPACING_S), return_index=True)
+        if len(rows) < MIN_HYPER_ROWS:
+            rows = np.unique(
+                np.linspace(0, survey.n - 1, min(MIN_HYPER_ROWS, survey.n)).astype(int)
+            )
+        return None if len(rows) >= survey.n else np.sort(rows)
+
+    @functools.cached_property
+    def depth_map(self) -> Model:
+        """The baseline model of depth over position: maps evaluate depth terms on it."""
+        depth = survey_inputs(self.survey, {"depth"})["depth"]
+        model = Model(BASELINE, hyper_rows=self.hyper_rows)
+        return model.fit({"position": self.survey.xy}, depth)
+
+    def frame(self, vt: VectorTarget) -> tuple[Model, Model]:
+        """Smooth models of a vector's east and north components (see `flow_frame`)."""
+        kind = "dir" if vt.aspect == "dir" else "speed"
+        key = (vt.prefix, kind)
+        if key not in self._frames:
+            survey = self.survey
+            e, n = survey.components(vt)
+            if e is None:
+                raise WorkbenchError(f"the table has no {vt.prefix} components, speed or direction")
+            X = {"position": survey.xy, "t": survey.trel}
+            e = finite_target(survey, e, f"{vt.prefix} east component")
+            n = finite_target(survey, n, f"{vt.prefix} north component")
+            terms, rows = FRAME_TERMS[kind], self.hyper_rows
+            self._frames[key] = tuple(
+                Model(terms, max_basis=FRAME_MAX_BASIS, hyper_rows=rows).fit(X, c) for c in (e, n)
+            )
+        return self._frames[key]
+
+    def secondary(self, vt: VectorTarget, primary_is_along: bool, y: np.ndarray) -> Model:
+        """The baseline model of the flow-frame component a target's terms do not act on (`y`)."""
+        key = (vt.prefix, primary_is_along)
+        if key not in self._secondary:
+            model = Model(BASELINE, hyper_rows=self.hyper_rows)
+            self._secondary[key] = model.fit({"position": self.survey.xy}, y)
+        return self._secondary[key]
+
+    def frame_cv(self, vt: VectorTarget, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The flow frame's unit vector at each sample from the frame models refitted without its fold."""
+        key = (vt.prefix, vt.aspect, np.ascontiguousarray(folds).tobytes())
+        if key not in self._frame_cv:
+            me, mn = self.frame(vt)
+            e, n = me.cv_predict(folds)[0], mn.cv_predict(folds)[0]
+            sp = np.hypot(e, n)
+            sp = np.where(sp > 1e-9, sp, 1.0)
+            self._frame_cv[key] = (e / sp, n / sp)
+        return self._frame_cv[key]
+
+    def derived(self, name: str) -> np.ndarray:
+        """A derived covariate (see `derived_column`)."""
+        if name not in self._derived:
+            self._derived[name] = _derive(self.survey, name)
+        return self._derived[name]
+
+
+def survey_fits(survey: Survey) -> SurveyFits:
+    """The survey's shared fits, kept with it under one key."""
+    fits = survey.cache.get(SurveyFits)
+    if fits is None:
+        fits = survey.cache[SurveyFits] = SurveyFits(survey)
+    return fits
+
+
+def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
+    """Smooth models of a vector's east and north components (fitted once per survey).
+
+    For a speed target they are over position and time, so the frame follows a wind that veers and the
+    along-flow component stays close to the speed. For a direction target they are over position only:
+    the frame is then a reference direction that must not follow anything the diagnosis should find (with
+    time in it, it followed every leg-by-leg change, a compass deviation or a veer, and the direction's
+    residual had nothing left to explain). Their hyperparameters come from `hyper_rows`."""
+    return survey_fits(survey).frame(vt)
+
+
+def frame_direction(
+    survey: Survey, vt: VectorTarget, xy: np.ndarray, t: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vector of the smooth flow at positions `xy` and times `t` (default: mid-survey)."""
+    me, mn = flow_frame(survey, vt)
+    if t is None:
+        t = np.full(len(xy), float(np.median(survey.trel)))
+    X = {"position": xy, "t": t}
+    e, n = me.predict(X), mn.predict(X)
+    s = np.hypot(e, n)
+    s = np.where(s > 1e-9, s, 1.0)
+    return e / s, n / s
+
+
+def finite_target(survey: Survey, values: np.ndarray, what: str) -> np.ndarray:
+    bad = ~np.isfinite(values)
+    if bad.mean() > 0.05:
+        raise WorkbenchError(f"{what} has {bad.mean():.0%} missing values")
+    if bad.any():
+        from forcemap.host.workbench.table import _fill_nearest_in_time
+
+        values = _fill_nearest_in_time(values)
+        note = f"filled {bad.sum()} missing value(s) of the {what} with the nearest sample in time"
+        if note not in survey.notes:
+            survey.notes.append(note)
+    return values
+
+
+def derived_column(survey: Survey, name: str) -> np.ndarray:
+    """A covariate by name: a table column, or a derived one (computed once per survey, never added to its
+    columns): `heading_rel_current` / `heading_rel_wind`, the bow's angle to the baseline flow, and `stw`,
+    the boat's speed through the water (ground velocity minus the measured current)."""
+    if name in survey.columns or name not in DERIVED:
+        return survey.column(name)
+    return survey_fits(survey).derived(name)
+
+
+def _derive(survey: Survey, name: str) -> np.ndarray:
+    if name == "stw":
+        need = ("sog", "cog", "current_east", "current_north")
+        missing = [c for c in need if c not in survey.columns]
+        if missing:
+            raise WorkbenchError(f"'stw' needs the columns {', '.join(missing)} in the table")
+        sog = prepare_column(survey, "sog", "covariate")
+        cog = np.radians(prepare_column(survey, "cog", "covariate"))
+        ce = prepare_column(survey, "current_east", "covariate")
+        cn = prepare_column(survey, "current_north", "covariate")
+        return np.hypot(sog * np.sin(cog) - ce, sog * np.cos(cog) - cn)
+    if "heading" not in survey.columns:
+        raise WorkbenchError(f"'{name}' needs the column heading in the table")
+    vt = survey.vector_target("current_speed" if name.endswith("current") else "wind_speed")
+    if vt is None:
+        raise WorkbenchError(f"'{name}' needs {name.rsplit('_', 1)[1]} columns in the table")
+    ue, un = frame_direction(survey, vt, survey.xy, survey.trel)
+    flow = np.degrees(np.arctan2(ue, un))
+    if vt.is_from:
+        flow = flow + 180.0
+    return wrap180(prepare_column(survey, "heading", "covariate") - flow)
+
+
+def covariate(survey: Survey, name: str) -> np.ndarray:
+    """A covariate ready for modelling: a prepared table column, or a derived one."""
+    if name in survey.columns or name not in DERIVED:
+        return prepare_column(survey, name, "covariate")
+    values = derived_column(survey, name)
+    if np.ptp(values) <= 1e-12 * max(1.0, float(np.abs(values).max())):
+        raise WorkbenchError(f"covariate '{name}' is constant; there is nothing to model")
+    return values
+
+
+def survey_inputs(survey: Survey, names: set[str]) -> dict[str, np.ndarray]:
+    X: dict[str, np.ndarray] = {"position": survey.xy, "t": survey.trel}
+    for name in names - {"position", "t"}:
+        X[name] = covariate(survey, name)
+    return X
+
+
+def grid_inputs(survey: Survey, names: set[str], xy: np.ndarray) -> dict[str, np.ndarray]:
+    """Inputs for maps: depth from a depth map, time at mid-survey, every other covariate at its typical value."""
+    X: dict[str, np.ndarray] = {
+        "position": xy,
+        "t": np.full(len(xy), float(np.median(survey.trel))),
+    }
+    for name in names - {"position", "t"}:
+        values = survey_inputs(survey, {name})[name]
+        if name == "depth":
+            X[name] = survey_fits(survey).depth_map.predict({"position": xy})
+        elif is_circular(name):
+            X[name] = np.full(len(xy), circular_median(values))
+        else:
+            X[name] = np.full(len(xy), float(np.median(values)))
+    return X
+
+
+def hyper_rows(survey: Survey) -> np.ndarray | None:
+    """Rows whose marginal likelihood sets the hyperparameters (see `SurveyFits.hyper_rows`)."""
+    return survey_fits(survey).hyper_rows
