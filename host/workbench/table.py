@@ -280,6 +280,8 @@ def _numeric_columns(path: Path, raw: dict[str, list]) -> tuple[dict, set[str], 
 
 def _placed_rows(path: Path, columns: dict[str, np.ndarray], notes: list[str]) -> np.ndarray:
     """Data rows (0-based, in time order) that have a time and a position a boat could be at."""
+    if len(columns["t"]) == 0:
+        raise WorkbenchError(f"{path}: the table has a header but no rows")
     keep = np.ones(len(columns["t"]), bool)
     for c in REQUIRED:
         bad = ~np.isfinite(columns[c])
@@ -294,6 +296,8 @@ def _placed_rows(path: Path, columns: dict[str, np.ndarray], notes: list[str]) -
         keep &= ~bad
     rows = np.flatnonzero(keep)
     rows = rows[np.argsort(columns["t"][rows], kind="stable")]
+    if len(rows) == 0:
+        return rows
     ok, more = check_positions(
         path,
         columns["t"][rows],
