@@ -102,7 +102,9 @@ def print_list() -> None:
 def check_arguments(args: argparse.Namespace) -> None:
     """Refuse what cannot work, before any pty appears: a clock that never advances, ports in a file."""
     if not math.isfinite(args.speed) or args.speed <= 0:
-        raise CliError(f"--speed must be a finite number above 0 (1 is real time), not {args.speed:g}")
+        raise CliError(
+            f"--speed must be a finite number above 0 (1 is real time), not {args.speed:g}"
+        )
     if not args.ports:
         raise CliError("--ports DIR is required (or --list)")
     for flag, folder in (("--ports", args.ports), ("--truth", args.truth)):
