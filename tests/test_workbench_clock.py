@@ -164,7 +164,7 @@ def test_diagnose_then_fit_from_the_command_line(late, tmp_path, capsys):
     args = ["fit", str(late), "--target", "wind_dir", "--quiet", "--json", str(out)]
     assert main(args) == 0
     base = json.loads(out.read_text())
-    assert main(args + ["--effects", "clock_offset"]) == 0
+    assert main(args + ["--effects", "clock_offset", "--force"]) == 0  # replaces fit.json
     fixed = json.loads(out.read_text())
     assert fixed["terms"][-1].startswith("clock_offset(+1.")
     assert fixed["cv_rmse"] < 0.5 * base["cv_rmse"]

@@ -40,9 +40,15 @@ def teach(parser: argparse.ArgumentParser, epilog: str) -> None:
     parser.epilog = epilog
 
 
-def prepare_workspace(args: argparse.Namespace, create: bool = True) -> Path:
-    """Check the table and the workspace before any heavy work; apply --reset-history."""
-    from forcemap.host.workbench.workspace import load_history, reset_history, workspace_dir
+def prepare_workspace(args: argparse.Namespace, create: bool = False) -> Path:
+    """Check the table and the workspace before any heavy work (creating it only with `create`:
+    a command that fails leaves no empty folder behind); apply --reset-history."""
+    from forcemap.host.workbench.workspace import (
+        check_workspace,
+        load_history,
+        reset_history,
+        workspace_dir,
+    )
 
     table = Path(args.table)
     if not table.exists():
@@ -50,6 +56,7 @@ def prepare_workspace(args: argparse.Namespace, create: bool = True) -> Path:
     if table.is_dir():
         raise CliError(f"{table} is a folder; give a samples table (.csv, .parquet or .mcap)")
     ws = workspace_dir(table, create=create)
+    check_workspace(ws)
     if getattr(args, "reset_history", False):
         backup = reset_history(ws)
         if backup is not None:

@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.workbench.errors import WorkbenchError
     from forcemap.host.workbench.workspace import load_history
 
-    ws = prepare_workspace(args, create=False)
+    ws = prepare_workspace(args)
     history = load_history(ws)
     if not history:
         raise WorkbenchError(

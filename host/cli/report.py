@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.workbench.table import load_survey
     from forcemap.host.workbench.workspace import load_diagnoses
 
-    ws = prepare_workspace(args)
+    ws = prepare_workspace(args, create=args.output is None)  # the default report goes there
     load_diagnoses(ws)  # a corrupt diagnosis stops the report before the fits
     if args.output is not None:
         out = check_output(args.output, [args.table], force=args.force)

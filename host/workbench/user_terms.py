@@ -126,7 +126,8 @@ def load_function(ref: str) -> Callable:
             module = importlib.import_module(mod_name)
         except ImportError as exc:
             raise WorkbenchError(
-                f"user term '{ref}': no file {as_file} here and no installed module '{mod_name}' ({exc})"
+                f"user term '{ref}': cannot import '{mod_name}': no file {as_file} here and no "
+                f"installed module of that name ({exc})"
             ) from None
         except Exception as exc:  # the user's code
             raise WorkbenchError(

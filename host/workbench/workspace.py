@@ -22,10 +22,11 @@ _FIT_FILE = re.compile(r"fit-(\d+)-")
 
 
 def workspace_dir(table: str | Path, create: bool = True) -> Path:
-    """`TABLE.forcemap/` beside the table; with `create`, made (with models/) and checked writable."""
+    """`TABLE.forcemap/` beside the table; with `create`, made (with models/) if it is not there."""
     table = Path(table)
     ws = table.with_name(table.name + ".forcemap")
     if create:
+        check_workspace(ws)
         try:
             (ws / "models").mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -33,12 +34,21 @@ def workspace_dir(table: str | Path, create: bool = True) -> Path:
                 f"cannot create the workspace {ws} ({exc.strerror or exc}); copy the table to a "
                 "folder you can write to"
             ) from None
-        for d in (ws, ws / "models"):
-            if not os.access(d, os.W_OK | os.X_OK):
-                raise WorkbenchError(
-                    f"the workspace {d} is not writable; copy the table to a folder you can write to"
-                )
     return ws
+
+
+def check_workspace(ws: Path) -> None:
+    """The workspace is a writable folder, or can be made: checked before any work, creating nothing."""
+    if ws.exists() and not ws.is_dir():
+        raise WorkbenchError(
+            f"{ws} is a file, where forcemap keeps the table's workspace folder; move it away"
+        )
+    for d in (ws, ws / "models") if ws.exists() else (ws.parent,):
+        if d.exists() and not os.access(d, os.W_OK | os.X_OK):
+            raise WorkbenchError(
+                f"cannot create the workspace {ws}: {d} is not writable; copy the table to a "
+                "folder you can write to"
+            )
 
 
 def _read_json(path: Path, what: str, way_out: str):
@@ -106,6 +116,7 @@ def record_fit(ws: Path, entry: dict, model: dict) -> dict:
             "(a term gave NaN or inf: check user functions and the table's values)"
         )
     history = load_history(ws)
+    (ws / "models").mkdir(parents=True, exist_ok=True)
     entry = dict(entry)
     entry["fit"] = _next_fit_number(ws, history)
     entry["time"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
@@ -129,6 +140,7 @@ def current_terms(ws: Path, target: str) -> list[str] | None:
 
 
 def save_diagnosis(ws: Path, target: str, details: dict) -> Path:
+    (ws / "models").mkdir(parents=True, exist_ok=True)
     path = ws / f"diagnosis-{target}.json"
     with atomic_write(path) as f:
         f.write(json.dumps(details, indent=2, default=float))
