@@ -141,9 +141,10 @@ def split_effects(text: str | None) -> list[str]:
 
 def check_terms(texts: list[str]) -> None:
     """Parse every term and import every user function: the checks that need no data, made up front."""
+    from forcemap.host.workbench.clock_offset import split_terms
     from forcemap.host.workbench.table import is_circular
 
-    for spec in parse_terms(texts, is_circular):
+    for spec in parse_terms(split_terms(texts)[0], is_circular):
         if spec.kind == "user":
             load_function(spec.function)
 
