@@ -434,3 +434,18 @@ def test_user_function_is_loaded_from_the_current_folder_without_sys_path(
         ["fit", "no-such-table.csv", "--target", "depth", "--effects", "user(depth, nolaws:f)"],
     )
     _one_line(code, err, "cannot import 'nolaws': no file nolaws.py here and no installed module")
+
+
+# --- the demo writes only where it may ------------------------------------------------------------
+
+
+def test_demo_refuses_a_folder_holding_other_data(tmp_path, capsys):
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "run-2026-05-01.mcap").write_bytes(b"a field log")
+    code, _, err = _run(capsys, ["demo", "--out", tmp_path])
+    _one_line(code, err, "holds files that no demo wrote")
+    assert (tmp_path / "logs" / "run-2026-05-01.mcap").read_bytes() == b"a field log"
+    for speed in ("0", "nan"):
+        code, _, err = _run(capsys, ["demo", "--out", tmp_path / "new", f"--speed={speed}"])
+        _one_line(code, err, "--speed must be a finite number above 0")
+    assert not (tmp_path / "new").exists()
