@@ -7,7 +7,7 @@ import queue
 import threading
 import time
 import traceback
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import Any, Protocol
 
 from forcemap.host.arrival_clock import Clock, SystemClock
@@ -96,6 +96,49 @@ class RawOnly:
         pass
 
 
+class NmeaLines:
+    """Several NMEA 0183 instruments into the pipeline's one NMEA input, whole lines at a time.
+
+    Each source's bytes are split into lines on their own, so two instruments whose bytes arrive
+    interleaved never make one line of two halves; complete lines go to the pipeline as source
+    ``NMEA_INPUT``. A gap on one source drops only that source's partial line.
+    """
+
+    NMEA_INPUT = "depth"
+
+    def __init__(self, pipeline: PipelineLike, sources: Collection[str]):
+        # imported here, like the pipeline: if it cannot be, the daemon still logs raw bytes
+        from forcemap.host.nmea import LineSplitter
+
+        self.pipeline = pipeline
+        self._splitter = LineSplitter
+        self.splitters = {name: LineSplitter() for name in sources}
+
+    def feed(self, source: str, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
+        splitter = self.splitters.get(source)
+        if splitter is None:
+            self.pipeline.feed(source, t_mono_ns, t_wall_ns, data)
+            return
+        lines = splitter.feed(data)
+        if lines:
+            text = b"".join(line + b"\r\n" for line in lines)
+            self.pipeline.feed(self.NMEA_INPUT, t_mono_ns, t_wall_ns, text)
+
+    def gap(self, source: str, t_wall_ns: int, reason: str) -> None:
+        if source in self.splitters:
+            self.splitters[source] = self._splitter()
+        self.pipeline.gap(source, t_wall_ns, reason)
+
+    def counters(self) -> dict:
+        return self.pipeline.counters()
+
+    def flush(self) -> None:
+        self.pipeline.flush()
+
+    def close(self) -> None:
+        self.pipeline.close()
+
+
 class Daemon:
     """Runs readers for the given sources and feeds their bytes to the pipeline until stopped."""
 
@@ -110,7 +153,9 @@ class Daemon:
         absent: list[str] | None = None,
         status_interval_s: float = STATUS_INTERVAL_S,
         record_raw: bool = False,
+        nmea: Collection[str] = (),
     ):
+        """``nmea``: the sources that are NMEA 0183 instruments (see ``NmeaLines``)."""
         self.clock = clock or SystemClock()
         self.record_raw = record_raw
         self.log = log
@@ -124,7 +169,8 @@ class Daemon:
         self.status = Status({n: r.stats for n, r in self.readers.items()}, absent)
         self.sink = ObservedSink(log, self.status, self.reporter)
         try:
-            self.pipeline = make_pipeline(self.sink)
+            pipeline = make_pipeline(self.sink)
+            self.pipeline = NmeaLines(pipeline, nmea) if nmea else pipeline
         except ValueError:
             raise  # an invalid calibration: the caller reports it
         except Exception as exc:

@@ -11,7 +11,9 @@ from collections.abc import Iterable, Sequence
 from typing import Any, TextIO
 from xml.sax.saxutils import escape
 
-from forcemap.host.mcap_log import read_messages
+from forcemap.host.errors import CliError
+from forcemap.host.mcap_log import MCAP_MAGIC, read_messages
+from forcemap.host.outputs import atomic_path, atomic_write
 from forcemap.host.schemas import SAMPLE_COLUMNS
 
 # docs/CONVENTIONS.md, "The samples table": these first, in this order; other numeric fields follow.
@@ -45,6 +47,25 @@ class Table:
         return len(self.rows)
 
 
+def check_logs(paths: Sequence[str | os.PathLike[str]]) -> None:
+    """Refuse, in one line, any path that is not an MCAP file (a table given by mistake, a folder)."""
+    for path in paths:
+        try:
+            with open(path, "rb") as f:
+                head = f.read(len(MCAP_MAGIC))
+        except IsADirectoryError:
+            raise CliError(
+                f"{path} is a folder; give MCAP logs, or a folder that holds some"
+            ) from None
+        except OSError as exc:
+            raise CliError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+        if head != MCAP_MAGIC:
+            raise CliError(
+                f"{path} is not an MCAP log; give the logs that `forcemap run` or "
+                "`forcemap import` wrote"
+            )
+
+
 def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
     """Every ``/samples`` row of the given files, ordered by ``t``, duplicates (same ``t``) dropped.
 
@@ -56,6 +77,8 @@ def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
     known = set(COLUMNS)
     for m in read_messages(paths, "/samples"):
         row = m.message
+        if not isinstance(row, dict):
+            continue
         if "t" not in row or _number(row.get("t")) is None:
             row = {**row, "t": m.log_time_ns / 1e9}
         records.append(row)
@@ -193,20 +216,34 @@ def kml(points: list[tuple[float, float, float]], name: str = "forcemap track") 
 
 
 def export(paths: Iterable[str | os.PathLike[str]], fmt: str, out: str) -> str:
-    """Write ``fmt`` to ``out`` ("-" is stdout for text formats). Returns a one-line summary."""
+    """Write ``fmt`` to ``out`` ("-" is stdout for text formats). Returns a one-line summary.
+
+    The file appears whole or not at all; a log with nothing to write writes nothing (CliError).
+    """
     paths = list(paths)
     if fmt not in FORMATS:
-        raise ValueError(f"unknown format {fmt!r}: expected one of {', '.join(FORMATS)}")
+        raise CliError(f"unknown format {fmt!r}: expected one of {', '.join(FORMATS)}")
+    if fmt == "parquet" and out == "-":
+        raise CliError("parquet needs an output file (-o FILE)")
+    names = ", ".join(str(p) for p in paths)
     if fmt in ("csv", "parquet"):
         table = samples_table(paths)
+        if not len(table):
+            raise CliError(
+                f"no samples in {names}: the log has no /samples rows; "
+                "`forcemap log info FILE` shows what it holds"
+            )
         if fmt == "parquet":
-            if out == "-":
-                raise ValueError("parquet needs an output file (-o)")
-            write_parquet(table, out)
+            with atomic_path(out) as tmp:
+                write_parquet(table, tmp)
         else:
             _write_text(out, lambda f: write_csv(table, f))
         return f"{len(table)} samples, {len(table.columns)} columns -> {out}"
     points = track(paths)
+    if not points:
+        raise CliError(
+            f"no position in {names}: neither /fix nor /samples has a latitude and longitude"
+        )
     if fmt == "geojson":
         doc = geojson(points, samples_table(paths))
         _write_text(out, lambda f: json.dump(doc, f))
@@ -223,7 +260,5 @@ def _write_text(out: str, write) -> None:
         write(sys.stdout)
         sys.stdout.flush()
         return
-    tmp = f"{out}.tmp"
-    with open(tmp, "w", encoding="utf-8", newline="") as f:
+    with atomic_write(out) as f:
         write(f)
-    os.replace(tmp, out)

@@ -22,6 +22,10 @@ from forcemap.host.pipeline import Pipeline, Sink
 FORMATS = ("nmea", "tlog")
 DATAFLASH_MAGIC = b"\xa3\x95"
 DAY = 86400.0
+MAX_TLOG_US = (1 << 63) // 1000  # the latest time an MCAP log can hold (year 2262)
+# a DataFlash log starts with its FMT records: the magic, then message type 128 (FMT), 89 bytes each
+DATAFLASH_FMT = DATAFLASH_MAGIC + b"\x80"
+DATAFLASH_FMT_LEN = 89
 IMPORT_DIAG_PERIOD_S = 10.0  # /diagnostics every 10 s of log time (the daemon: every second)
 
 
@@ -40,6 +44,14 @@ class ImportResult:
     notes: list[str] = field(default_factory=list)
 
 
+def is_dataflash(head: bytes) -> bool:
+    """True when ``head`` (the first bytes of a file) is the start of a DataFlash log: FMT records."""
+    if not head.startswith(DATAFLASH_FMT):
+        return False
+    nxt = head[DATAFLASH_FMT_LEN : DATAFLASH_FMT_LEN + len(DATAFLASH_MAGIC)]
+    return len(head) < DATAFLASH_FMT_LEN + 2 or nxt == DATAFLASH_MAGIC
+
+
 def detect_format(path: str | Path) -> str:
     """``nmea`` or ``tlog`` from the name and the first bytes; ImportFailed for anything else."""
     p = Path(path)
@@ -48,7 +60,7 @@ def detect_format(path: str | Path) -> str:
             head = f.read(4096)
     except OSError as e:
         raise ImportFailed(f"{p}: cannot read: {e.strerror or e}") from None
-    if head.startswith(DATAFLASH_MAGIC) or p.suffix.lower() == ".bin":
+    if is_dataflash(head):
         raise ImportFailed(
             f"{p.name}: an ArduPilot DataFlash (.BIN) log, not a MAVLink stream; import the telemetry .tlog instead"
         )
@@ -60,7 +72,8 @@ def detect_format(path: str | Path) -> str:
     if sum(ln[:1] in (b"$", b"!") for ln in lines) >= max(1, len(lines) // 10):
         return "nmea"
     raise ImportFailed(
-        f"{p.name}: neither NMEA 0183 text nor a MAVLink tlog; give --format nmea|tlog"
+        f"{p.name}: not a format forcemap recognises (NMEA 0183 text or a MAVLink tlog); "
+        "if it is one of them, give --format nmea|tlog"
     )
 
 
@@ -72,10 +85,10 @@ def check_importable(path: str | Path, fmt: str | None = None) -> str:
         raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
     try:
         with open(path, "rb") as f:
-            magic = f.read(2)
+            head = f.read(DATAFLASH_FMT_LEN + 2)
     except OSError as e:
         raise ImportFailed(f"{path}: cannot read: {e.strerror or e}") from None
-    if magic == DATAFLASH_MAGIC:
+    if is_dataflash(head):
         detect_format(path)  # raises the DataFlash error
     return fmt
 
@@ -170,6 +183,9 @@ def tlog_records(data: bytes) -> Iterator[tuple[int, bytes]]:
             i += 1
             continue
         (us,) = struct.unpack_from(">Q", data, i)
+        if us > MAX_TLOG_US:  # not a time: these bytes do not frame a record
+            i += 1
+            continue
         yield us, data[i + 8 : i + 8 + size]
         i += 8 + size
 

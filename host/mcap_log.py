@@ -8,7 +8,7 @@ import math
 import os
 import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any, BinaryIO, NamedTuple
 
@@ -101,6 +101,7 @@ class McapLog:
     time); each finished file has its summary and repeats every metadata record. Chunks are small
     and flushed to the OS every ``flush_interval_s`` (on write, or from ``tick()``), and fsynced
     every ``fsync_interval_s``, so a killed process loses at most the last flush interval.
+    ``clock`` (seconds, monotonic) times flushes and rotation; tests pass a virtual one.
     """
 
     def __init__(
@@ -114,7 +115,9 @@ class McapLog:
         flush_interval_s: float = FLUSH_INTERVAL_S,
         fsync_interval_s: float = FSYNC_INTERVAL_S,
         compression: CompressionType = CompressionType.ZSTD,
+        clock: Callable[[], float] = time.monotonic,
     ):
+        self._clock = clock
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.rotate_bytes = rotate_bytes
@@ -171,13 +174,13 @@ class McapLog:
         for name, data in self._metadata.items():
             self._writer.add_metadata(name, data)
         self.paths.append(path)
-        self._opened_at = time.monotonic()
+        self._opened_at = self._clock()
         self._flush(fsync=True)
 
     def _flush(self, fsync: bool) -> None:
         assert self._writer is not None and self._file is not None
         self._writer.flush()
-        now = time.monotonic()
+        now = self._clock()
         self._flushed_at = now
         if fsync:
             os.fsync(self._file.fileno())
@@ -233,7 +236,7 @@ class McapLog:
                 self._maintain()
 
     def _maintain(self) -> None:
-        now = time.monotonic()
+        now = self._clock()
         if now - self._flushed_at < self.flush_interval_s:
             return
         self._flush(fsync=now - self._synced_at >= self.fsync_interval_s)

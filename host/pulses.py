@@ -104,7 +104,6 @@ class BootState:
     def __init__(self, boot_id: int):
         self.boot_id = boot_id
         self.hello: dict | None = None
-        self.first_t_us: int | None = None
         self.last_seq: int | None = None
         self.last_counts: list[int] | None = None
         self.totals = [0] * N_CHANNELS
@@ -112,7 +111,6 @@ class BootState:
         self.frames = 0
         self.lost_frames = 0
         self.stale_frames = 0
-        self.dropped_flags = 0
         # (t_us, totals, last_edge_us list) of recent samples, for windowed rates
         self.history: deque = deque()
 
@@ -156,8 +154,6 @@ class PulseTracker:
             boot.lost_frames += gap - 1
         boot.last_seq = frame.seq
         boot.frames += 1
-        if frame.flags & wire.FLAG_DROPPED_BEFORE:
-            boot.dropped_flags += 1
         if frame.msg_type == wire.HELLO:
             boot.hello = frame.fields
             return []
@@ -174,8 +170,6 @@ class PulseTracker:
             for i in range(N_CHANNELS):
                 deltas[i] = wire.count_delta(boot.last_counts[i], counts[i])
                 boot.totals[i] += deltas[i]
-        else:
-            boot.first_t_us = frame.t_us
         boot.last_counts = counts
         boot.samples += 1
         t = frame.t_us

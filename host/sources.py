@@ -170,9 +170,59 @@ class SerialOpener:
         return self.path is None or os.path.exists(self.path)
 
 
+def split_baud(port: str, default: int) -> tuple[str, int]:
+    """``"PATH,BAUD"`` to (PATH, BAUD); a port without ``,BAUD`` gets ``default``."""
+    path, comma, baud = port.rpartition(",")
+    if comma and baud.isdigit():
+        return path, int(baud)
+    return port, default
+
+
+def parse_udp(spec: str) -> tuple[str, int]:
+    """``udp:[HOST:]PORT`` or ``udpin:[HOST:]PORT`` to the (host, port) to listen on.
+
+    A missing host listens on every interface, as instrument multiplexers broadcast (NMEA on 10110).
+    """
+    scheme, _, rest = spec.partition(":")
+    host, _, port = rest.rpartition(":")
+    if scheme not in ("udp", "udpin") or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(
+            f"bad UDP source {spec!r}: expected udp:PORT or udp:HOST:PORT with a port from 1 to 65535"
+        )
+    return host or "0.0.0.0", int(port)
+
+
+class UdpOpener:
+    """Opens a UdpTransport listening on (host, port)."""
+
+    def __init__(self, host: str, port: int):
+        self.host = host
+        self.port = port
+
+    def __call__(self) -> Transport:
+        return UdpTransport(self.host, self.port)
+
+
 def port_opener(port: str, baudrate: int = 115200) -> Callable[[], Transport]:
     """Opener for a PORT: anything pyserial opens (a path or a URL)."""
     return SerialOpener(port, baudrate)
+
+
+def _network_opener(conn: str) -> Callable[[], Transport] | None:
+    """``udp:``/``udpin:`` (listen) or ``tcp:HOST:PORT`` (connect); None for anything else."""
+    scheme, _, rest = conn.partition(":")
+    if scheme in ("udp", "udpin"):
+        return UdpOpener(*parse_udp(conn))
+    if scheme == "tcp" and rest:
+        return SerialOpener(f"socket://{rest}")
+    return None
+
+
+def nmea_opener(port: str, baudrate: int = 4800) -> Callable[[], Transport]:
+    """Opener for an NMEA 0183 instrument: a serial PORT[,BAUD], a pyserial URL (``socket://`` for
+    a TCP multiplexer), ``udp:[HOST:]PORT`` (a UDP broadcast, usually port 10110) or ``tcp:HOST:PORT``.
+    """
+    return _network_opener(port) or SerialOpener(*split_baud(port, baudrate))
 
 
 def mavlink_opener(conn: str) -> Callable[[], Transport]:
@@ -181,21 +231,16 @@ def mavlink_opener(conn: str) -> Callable[[], Transport]:
     ``/dev/ttyACM0,57600`` (serial with baud), ``udp:HOST:PORT`` or ``udpin:HOST:PORT`` (listen),
     ``tcp:HOST:PORT`` (connect), or anything pyserial opens.
     """
+    opener = _network_opener(conn)
+    if opener is not None:
+        return opener
     scheme, _, rest = conn.partition(":")
-    if scheme in ("udp", "udpin") and rest:
-        host, _, port = rest.rpartition(":")
-        return lambda: UdpTransport(host or "0.0.0.0", int(port))
-    if scheme == "tcp" and rest:
-        return SerialOpener(f"socket://{rest}")
     if scheme and rest and "://" not in conn and "/" not in scheme:
         raise ValueError(
             f"unsupported MAVLink connection {conn!r}: use a serial path with baud "
             "(/dev/ttyACM0,57600), udp:HOST:PORT, udpin:HOST:PORT or tcp:HOST:PORT"
         )
-    path, comma, baud = conn.rpartition(",")
-    if comma and baud.isdigit():
-        return SerialOpener(path, int(baud))
-    return SerialOpener(conn, 115200)
+    return SerialOpener(*split_baud(conn, 115200))
 
 
 @dataclass

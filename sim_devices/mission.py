@@ -75,7 +75,7 @@ def lawnmower(
 
 
 def builtin_names() -> list[str]:
-    root = resources.files("sim_devices") / MISSION_DIR
+    root = resources.files("forcemap.sim_devices") / MISSION_DIR
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
 
 
@@ -83,7 +83,7 @@ def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists():
         return tomllib.loads(p.read_text()), p.stem
-    res = resources.files("sim_devices") / MISSION_DIR / f"{name_or_path}.toml"
+    res = resources.files("forcemap.sim_devices") / MISSION_DIR / f"{name_or_path}.toml"
     if not res.is_file():
         raise ValueError(
             f"unknown mission {name_or_path!r}; built in: {', '.join(builtin_names())}"

@@ -1,4 +1,8 @@
-"""The daemon in-process: live status view, structured event lines, an absent source, a bad pipeline."""
+"""The daemon in-process: live status view, structured event lines, an absent source, a bad pipeline.
+
+Independent of machine speed: every transient state (a source connected, a live frame drawn while
+one source reads and another waits) is waited for with a generous deadline, never slept for.
+"""
 
 from __future__ import annotations
 
@@ -34,6 +38,15 @@ def _wait(pred, timeout=10.0):
         time.sleep(0.02)
 
 
+CLEAR = "\x1b[H\x1b[J"  # the live view redraws from the top of a cleared screen
+
+
+def running(frame: str) -> bool:
+    """A live frame drawn while depth was read and bridge was waited for."""
+    rows = {line.split()[0]: line for line in frame.splitlines() if line.split()}
+    return "reading" in rows.get("depth", "") and "WAITING" in rows.get("bridge", "")
+
+
 def test_live_view_shows_rates_errors_fix_and_file(tmp_path):
     port = PtyPort(tmp_path / "depth")
     screen = io.StringIO()
@@ -53,16 +66,17 @@ def test_live_view_shows_rates_errors_fix_and_file(tmp_path):
             port.write(depth_sentence(i))
         port.write(b"$SDDPT,garbage*00\r\n")
         _wait(lambda: daemon.status.topic_counts.get("/depth", 0) >= 30)
-        time.sleep(0.3)
+        # a frame drawn while one source reads and another waits: waited for, not slept for
+        _wait(lambda: any(running(f) for f in screen.getvalue().split(CLEAR)[:-1]))
 
     try:
         _run(daemon, work)
     finally:
         port.close()
     text = screen.getvalue()
-    frames = text.split("\x1b[H\x1b[J")
+    frames = text.split(CLEAR)
     last = frames[-1]
-    assert any("reading" in f and "WAITING" in f for f in frames[:-1])  # while it ran
+    assert any(running(f) for f in frames[:-1])  # while it ran
     assert "depth" in last and "stopped" in last
     assert "bridge" in last and "port_missing" in last
     assert "mavlink" in last and "not given" in last

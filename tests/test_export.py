@@ -147,7 +147,7 @@ def test_kml_track_falls_back_to_samples_without_fix(tmp_path):
 
 
 def test_missing_file_is_an_error_not_a_traceback(tmp_path, capsys):
-    assert main(["export", str(tmp_path / "nope.mcap")]) == 1
+    assert main(["export", str(tmp_path / "nope.mcap")]) == 2  # bad input, not a bug
     assert "nope.mcap" in capsys.readouterr().err
 
 
@@ -156,4 +156,4 @@ def test_a_directory_means_its_mcap_files(tmp_path, capsys):
     out = tmp_path / "s.csv"
     assert main(["export", str(path.parent), "-o", str(out)]) == 0
     assert len(out.read_text().splitlines()) == 11
-    assert main(["export", str(tmp_path / "empty_dir_that_is_missing")]) == 1
+    assert main(["export", str(tmp_path / "empty_dir_that_is_missing")]) == 2

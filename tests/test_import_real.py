@@ -129,7 +129,8 @@ class CountingLog:
     def __init__(self, out, **kw):
         self.counts: Counter[str] = Counter()
         self.meta: dict[str, dict] = {}
-        self.paths = [Path(out) / "in-memory"]
+        self.paths = [Path(out) / "in-memory.mcap"]
+        self.path = self.paths[0]
 
     def write(self, topic, log_time_ns, message):
         self.counts[topic] += 1
@@ -138,7 +139,7 @@ class CountingLog:
         self.meta[name] = data
 
     def close(self):
-        pass
+        self.path.write_bytes(b"")  # the command renames the finished log into place
 
 
 @pytest.fixture
@@ -256,7 +257,8 @@ def test_tlog_to_mcap_round_trip(tmp_path, capsys):
         int(x) for x in re.search(r"MAVLink: (\d+) messages, (\d+) bad CRC", text).groups()
     )
     assert good + bad == 3000
-    files = list((tmp_path / "out").glob("part-*.mcap"))
+    files = list((tmp_path / "out").glob("*.mcap"))
+    assert files == [tmp_path / "out" / "part.mcap"]  # the old --out DIR form still works
     assert len(files) == 1
     msgs = list(read_messages(files[0]))
     counts = Counter(m.topic for m in msgs)

@@ -1,10 +1,13 @@
-"""McapLog and read_messages: JSON channels, rotation, flushing, and truncated files."""
+"""McapLog and read_messages: JSON channels, rotation, flushing, and truncated files.
+
+Rotation and flushing by time run on a virtual clock handed to McapLog, so how fast the machine
+runs the test cannot change the number of files or what is flushed.
+"""
 
 from __future__ import annotations
 
 import json
 import math
-import time
 
 import pytest
 from forcemap.host.mcap_log import FileScan, McapLog, has_footer, read_messages
@@ -56,22 +59,38 @@ def test_rotation_by_size_repeats_metadata_and_finishes_every_file(tmp_path):
     assert seqs == list(range(3000))
 
 
+class VirtualClock:
+    """A monotonic clock that moves only when the test says so."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
 def test_rotation_by_time(tmp_path):
-    log = McapLog(tmp_path, rotate_seconds=0.05, flush_interval_s=0.0)
+    clock = VirtualClock()
+    log = McapLog(tmp_path, rotate_seconds=0.05, flush_interval_s=0.0, clock=clock)
     log.write("/a", 1, {})
-    time.sleep(0.06)
-    log.write("/a", 2, {})  # past the limit: this file is finished and a new one started
-    log.write("/a", 3, {})
+    clock.now += 0.049
+    log.write("/a", 2, {})  # not yet at the limit
+    assert len(log.paths) == 1
+    clock.now += 0.002
+    log.write("/a", 3, {})  # past the limit: this file is finished and a new one started
+    log.write("/a", 4, {})
     log.close()
     assert len(log.paths) == 2
     assert all(has_footer(p) for p in log.paths)
-    assert [m.log_time_ns for m in read_messages(log.paths)] == [1, 2, 3]
+    assert [[m.log_time_ns for m in read_messages(p)] for p in log.paths] == [[1, 2, 3], [4]]
 
 
 def test_flushed_data_is_readable_while_the_file_is_open(tmp_path):
-    log = McapLog(tmp_path, flush_interval_s=0.05)
+    clock = VirtualClock()
+    log = McapLog(tmp_path, flush_interval_s=0.05, clock=clock)
     log.write("/a", 1, {"i": 1})
-    time.sleep(0.06)
+    assert list(read_messages(log.path)) == []  # buffered: the flush interval has not passed
+    clock.now += 0.051
     log.tick()  # nothing new written, but the timer flushes what is buffered
     scan = FileScan(log.path)
     assert [m.message for m in read_messages(log.path, scan=scan)] == [{"i": 1}]

@@ -3,40 +3,70 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import platform
 import signal
 import sys
+import textwrap
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from forcemap.host.arrival_clock import parse_clock
+from forcemap.host.arrival_clock import Clock, SimClock, parse_clock
 from forcemap.host.daemon import Daemon
+from forcemap.host.errors import CliError
 from forcemap.host.mcap_log import McapLog
-from forcemap.host.sources import Transport, mavlink_opener, port_opener
+from forcemap.host.sources import Transport, mavlink_opener, nmea_opener, port_opener, split_baud
 from forcemap.host.status import Reporter
 
-EXIT_CONFIG = 2
-DEFAULT_BAUD = {"bridge": 115200, "depth": 4800}
+BRIDGE_BAUD = 115200
+NMEA_BAUD = 4800
+# how long `--clock sim:PATH` waits for the simulator to write its clock file (it takes about 2 s
+# to start on a busy Pi; the daemon is usually started first)
+CLOCK_WAIT_S = 10.0
+
+EPILOG = """\
+examples:
+  forcemap run --bridge /dev/ttyACM0 --nmea /dev/ttyUSB0 --mavlink /dev/ttyAMA0,57600
+  forcemap run --nmea /dev/ttyUSB0,4800 --nmea /dev/ttyUSB1,38400   # NMEA only: GPS, wind
+  forcemap run --nmea udp:10110                  # a WiFi multiplexer's UDP broadcast
+  forcemap run --nmea socket://192.168.4.1:10110 # a multiplexer's TCP server
+  forcemap run --mavlink udp:0.0.0.0:14550       # an autopilot (with an echo sounder) only
+  forcemap run --bridge /tmp/ports/bridge --clock sim:/tmp/ports/clock   # with `forcemap sim`
+
+Every source is optional, but at least one is needed. See docs/DAEMON.md.
+"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.description = (
-        "Read the bridge, the depth sounder and the autopilot, align and compensate, and log to MCAP. "
-        "Any source may be left out. Ports that are missing or unplugged are retried until they come "
-        "back. SIGTERM or Ctrl-C closes the log cleanly."
+    parser.description = textwrap.fill(
+        "Read the bridge, NMEA 0183 instruments and the autopilot, align and compensate, and log "
+        "to MCAP. Any source may be left out. Ports that are missing or unplugged are retried "
+        "until they come back. SIGTERM or Ctrl-C closes the log cleanly.",
+        88,
     )
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = EPILOG
     parser.add_argument(
         "--bridge",
         metavar="PORT",
         help="the MicroPython bridge: a device path or a pyserial URL (socket://, loop://); "
-        "PATH,BAUD sets the baud rate (default 115200)",
+        f"PATH,BAUD sets the baud rate (default {BRIDGE_BAUD})",
     )
     parser.add_argument(
-        "--depth",
+        "--nmea",
         metavar="PORT",
-        help="the NMEA 0183 depth sounder, as for --bridge (default 4800 baud)",
+        action="append",
+        default=[],
+        help="an NMEA 0183 instrument (give it once per instrument): a device path (PATH,BAUD; "
+        f"default {NMEA_BAUD} baud), a pyserial URL (socket://HOST:PORT), udp:[HOST:]PORT (a UDP "
+        "broadcast, usually udp:10110) or tcp:HOST:PORT; the sources are named nmea, nmea2, ... "
+        "in the order given",
+    )
+    parser.add_argument(
+        "--depth", metavar="PORT", help="one more NMEA instrument, named depth (as in older logs)"
     )
     parser.add_argument(
         "--mavlink",
@@ -55,6 +85,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="system",
         metavar="system|sim:PATH",
         help="time source for arrival stamps: the host's clocks, or the simulator's clock file",
+    )
+    parser.add_argument(
+        "--clock-wait",
+        type=float,
+        default=CLOCK_WAIT_S,
+        metavar="S",
+        help=f"how long to wait for the simulator's clock file (default {CLOCK_WAIT_S:g} s)",
     )
     parser.add_argument(
         "--quiet",
@@ -86,18 +123,58 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _split_baud(port: str, default: int) -> tuple[str, int]:
-    path, comma, baud = port.rpartition(",")
-    if comma and baud.isdigit():
-        return path, int(baud)
-    return port, default
+def _positive(name: str, value: float) -> float:
+    if not math.isfinite(value) or value <= 0:
+        raise CliError(f"{name} must be a number above 0, not {value:g}")
+    return value
 
 
-def _load_calibration(path: str | None) -> Any:
-    from forcemap.host import calibration
+def nmea_sources(nmea: list[str], depth: str | None = None) -> dict[str, str]:
+    """Source name -> port: ``--depth PORT`` is ``depth``, each ``--nmea PORT`` ``nmea``, ``nmea2``, ..."""
+    out = {"depth": depth} if depth else {}
+    for n, port in enumerate(nmea, 1):
+        out["nmea" if n == 1 else f"nmea{n}"] = port
+    return out
 
-    loader = getattr(calibration, "load_calibration", None) or calibration.load
-    return loader(path)
+
+def _openers(args: argparse.Namespace) -> tuple[dict[str, Callable[[], Transport]], list[str]]:
+    """An opener for every source given; the NMEA sources' names."""
+    openers: dict[str, Callable[[], Transport]] = {}
+    try:
+        if args.bridge:
+            openers["bridge"] = port_opener(*split_baud(args.bridge, BRIDGE_BAUD))
+        nmea = nmea_sources(args.nmea, args.depth)
+        for name, port in nmea.items():
+            openers[name] = nmea_opener(port, NMEA_BAUD)
+        if args.mavlink:
+            openers["mavlink"] = mavlink_opener(args.mavlink)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    if not openers:
+        raise CliError("give at least one of --bridge, --nmea (or --depth), --mavlink")
+    return openers, list(nmea)
+
+
+def start_clock(spec: str, wait_s: float) -> Clock:
+    """The arrival clock; a simulator's clock file that does not appear within ``wait_s`` is an error."""
+    try:
+        clock = parse_clock(spec)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    if isinstance(clock, SimClock):
+        deadline = time.monotonic() + wait_s
+        while not os.path.exists(clock.path):
+            if time.monotonic() > deadline:
+                raise CliError(
+                    f"the simulator's clock file {clock.path} did not appear within {wait_s:g} s; "
+                    "start `forcemap sim --ports DIR` (it writes DIR/clock), or use --clock system"
+                )
+            time.sleep(0.05)
+        try:
+            clock.wall_ns()  # reads the anchor now, so a broken file is reported before the run
+        except FileNotFoundError as exc:
+            raise CliError(str(exc)) from None
+    return clock
 
 
 def _pipeline_factory(cal: Any, sync: str, speed: float) -> Callable[[Any], Any]:
@@ -114,81 +191,29 @@ def _pipeline_factory(cal: Any, sync: str, speed: float) -> Callable[[Any], Any]
     return make
 
 
-def run(args: argparse.Namespace) -> int:
-    reporter = Reporter(sys.stderr, live=False if args.quiet else None)
-    try:
-        cal = _load_calibration(args.config)
-        clock = parse_clock(args.clock)
-        clock.wall_ns()  # a simulator clock waits here for its file
-    except (ValueError, FileNotFoundError) as exc:  # calibration.ConfigError is a ValueError
-        print(f"forcemap run: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
-    sync = args.sync or getattr(cal, "sync", "interpolate")
-    openers: dict[str, Callable[[], Transport]] = {}
-    absent = []
-    for name in ("bridge", "depth"):
-        port = getattr(args, name)
-        if port:
-            path, baud = _split_baud(port, DEFAULT_BAUD[name])
-            openers[name] = port_opener(path, baud)
-        else:
-            absent.append(name)
-    if args.mavlink:
-        try:
-            openers["mavlink"] = mavlink_opener(args.mavlink)
-        except ValueError as exc:
-            print(f"forcemap run: {exc}", file=sys.stderr)
-            return EXIT_CONFIG
-    else:
-        absent.append("mavlink")
-    if not openers:
-        print("forcemap run: give at least one of --bridge, --depth, --mavlink", file=sys.stderr)
-        return EXIT_CONFIG
+def _record_setup(log: McapLog, args: argparse.Namespace, nmea: list[str], sync: str) -> None:
+    """The command line and the boat file as written, in the log's metadata."""
+    log.metadata(
+        "forcemap",
+        {
+            "argv": " ".join(sys.argv),
+            "bridge": args.bridge or "",
+            "depth": args.depth or "",
+            "nmea": " ".join(args.nmea),
+            "nmea_sources": " ".join(nmea),
+            "mavlink": args.mavlink or "",
+            "clock": args.clock,
+            "sync": sync,
+            "host": platform.node(),
+            "pid": str(os.getpid()),
+        },
+    )
+    # the pipeline records "calibration" and "config" (as parsed); this is the file as written
+    config_text = Path(args.config).read_text(encoding="utf-8") if args.config else ""
+    log.metadata("boat_toml", {"path": args.config or "", "text": config_text})
 
-    try:
-        log = McapLog(
-            args.out,
-            rotate_bytes=int(args.rotate_mb * 1024 * 1024),
-            rotate_seconds=args.rotate_min * 60.0,
-            prefix=args.prefix,
-        )
-    except OSError as exc:
-        print(f"forcemap run: cannot write the log in {args.out}: {exc}", file=sys.stderr)
-        return 1
-    try:
-        log.metadata(
-            "forcemap",
-            {
-                "argv": " ".join(sys.argv),
-                "bridge": args.bridge or "",
-                "depth": args.depth or "",
-                "mavlink": args.mavlink or "",
-                "clock": args.clock,
-                "sync": sync,
-                "host": platform.node(),
-                "pid": str(os.getpid()),
-            },
-        )
-        # the pipeline records "calibration" and "config" (as parsed); this is the file as written
-        config_text = Path(args.config).read_text(encoding="utf-8") if args.config else ""
-        log.metadata("boat_toml", {"path": args.config or "", "text": config_text})
-        daemon = Daemon(
-            openers,
-            _pipeline_factory(cal, sync, clock.speed),
-            log,
-            clock=clock,
-            reporter=reporter,
-            absent=absent,
-            record_raw=args.raw,
-        )
-    except ValueError as exc:  # the pipeline rejects the calibration (e.g. degenerate wheels)
-        log.close()
-        print(f"forcemap run: {exc}", file=sys.stderr)
-        return EXIT_CONFIG
-    except BaseException:
-        log.close()
-        raise
 
+def _stop_on_signals(daemon: Daemon) -> None:
     def stop(signum: int, _frame: Any) -> None:
         # no I/O here: a handler that writes could re-enter a stream the main loop is writing
         daemon.stop_signal = signal.Signals(signum).name
@@ -198,4 +223,44 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, stop)
     signal.signal(signal.SIGINT, stop)
+
+
+def run(args: argparse.Namespace) -> int:
+    from forcemap.host import calibration
+
+    rotate_bytes = int(_positive("--rotate-mb", args.rotate_mb) * 1024 * 1024)
+    rotate_seconds = _positive("--rotate-min", args.rotate_min) * 60.0
+    _positive("--clock-wait", args.clock_wait)
+    openers, nmea = _openers(args)
+    try:
+        cal = calibration.load(args.config)
+    except (ValueError, FileNotFoundError) as exc:  # calibration.ConfigError is a ValueError
+        raise CliError(str(exc)) from None
+    clock = start_clock(args.clock, args.clock_wait)
+    sync = args.sync or getattr(cal, "sync", "interpolate")
+    absent = [s for s in ("bridge", "mavlink") if s not in openers] + ([] if nmea else ["nmea"])
+    try:
+        log = McapLog(args.out, rotate_bytes=rotate_bytes, rotate_seconds=rotate_seconds,
+                      prefix=args.prefix)  # fmt: skip
+    except OSError as exc:
+        raise CliError(f"cannot write the log in {args.out}: {exc.strerror or exc}") from None
+    try:
+        _record_setup(log, args, nmea, sync)
+        daemon = Daemon(
+            openers,
+            _pipeline_factory(cal, sync, clock.speed),
+            log,
+            clock=clock,
+            reporter=Reporter(sys.stderr, live=False if args.quiet else None),
+            absent=absent,
+            record_raw=args.raw,
+            nmea=nmea,
+        )
+    except ValueError as exc:  # the pipeline rejects the calibration (e.g. degenerate wheels)
+        log.close()
+        raise CliError(str(exc)) from None
+    except BaseException:
+        log.close()
+        raise
+    _stop_on_signals(daemon)
     return daemon.run()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -206,28 +205,21 @@ def _read_parquet(path: Path) -> dict[str, list]:
 
 
 def _read_mcap(path: Path) -> dict[str, list]:
-    from mcap.reader import make_reader
+    """The ``/samples`` rows through `forcemap export`'s reader: truncated logs are read up to their
+    last complete chunk, and rows repeated (same ``t``) are kept once."""
+    from forcemap.host.errors import CliError
+    from forcemap.host.export import check_logs, samples_table
 
-    rows: list[dict] = []
     try:
-        with path.open("rb") as f:
-            for _schema, _channel, message in make_reader(f).iter_messages(topics=["/samples"]):
-                row = json.loads(message.data)
-                if not isinstance(row, dict):
-                    raise ValueError("a /samples message is not a JSON object")
-                rows.append(row)
-    except Exception as exc:
-        raise WorkbenchError(f"{path}: could not read /samples from the MCAP log ({exc})") from None
-    if not rows:
+        check_logs([path])
+    except CliError as exc:
+        raise WorkbenchError(str(exc)) from None
+    table = samples_table([path])
+    if not len(table):
         raise WorkbenchError(
             f"{path}: the MCAP log has no /samples messages; was it written by `forcemap run`?"
         )
-    names: list[str] = []
-    for r in rows:
-        for k in r:
-            if k not in names:
-                names.append(k)
-    return {k: [r.get(k) for r in rows] for k in names}
+    return {c: table.column(c) for c in table.columns}
 
 
 def read_raw(path: str | Path) -> dict[str, list]:
