@@ -65,7 +65,7 @@ BAD = [
         '[[wheels]]\n[[wheels]]\n[[wheels]]\nangle_deg = "abc"\n[[wheels]]\n',
         'wheels[2].angle_deg: expected a number, got "abc"',
     ),
-    ("[anemometer]\nmps_per_hz = -1\n", "anemometer.mps_per_hz: expected a positive number"),
+    ("[anemometer]\nmps_per_hz = -1\n", "anemometer.mps_per_hz: -1 is outside the plausible range"),
     ("[anemometer]\nmps_per_hz = true\n", "anemometer.mps_per_hz: expected a number"),
     ("[vane]\nresistors_ohm = [1, 2, 3]\n", "vane.resistors_ohm: expected a list of 16"),
     ("[vane]\nresistors_ohm = [" + ", ".join(["1000"] * 15) + ', "x"]\n', "vane.resistors_ohm[15]"),
@@ -106,3 +106,54 @@ def test_unreadable_file(tmp_path):
     p.write_bytes(b"\xff\xfe\x00")
     with pytest.raises(ConfigError):
         load(p)
+
+
+WRONG_UNITS = [
+    # km/h per Hz where m/s per Hz is asked
+    ("[anemometer]\nmps_per_hz = 2.4\n", "anemometer.mps_per_hz: 2.4", "0.1 to 2 m/s per Hz"),
+    ("[anemometer]\nmps_per_hz = 0.05\n", "anemometer.mps_per_hz: 0.05", "0.1 to 2 m/s per Hz"),
+    # millivolts where volts are asked
+    ("[vane]\nvref = 3300\n", "vane.vref: 3300", "1 to 5.5 V"),
+    ("[vane]\nadc_ref = 0.5\n", "vane.adc_ref: 0.5", "1 to 5.5 V"),
+    ("[vane]\npullup_ohm = 10\n", "vane.pullup_ohm: 10", "100 to 1e+06 ohm"),
+    (
+        "[[wheels]]\npulses_per_m = 20000\n[[wheels]]\n[[wheels]]\n[[wheels]]\n",
+        "wheels[0].pulses_per_m: 20000",
+        "0.5 to 500",
+    ),
+    # the default axes (45, 135, -135, -45) in radians
+    (
+        "".join(f"[[wheels]]\nangle_deg = {a}\n" for a in (0.785, 2.356, -2.356, -0.785)),
+        "0.785, 2.356, -2.356, -0.785 look like radians",
+        "degrees clockwise from the bow",
+    ),
+]
+
+
+@pytest.mark.parametrize(("text", "key", "hint"), WRONG_UNITS)
+def test_wrong_units_are_refused_with_the_plausible_range(text, key, hint):
+    with pytest.raises(ConfigError) as e:
+        loads(text, source="boat.toml")
+    msg = str(e.value)
+    assert key in msg and hint in msg and "\n" not in msg
+
+
+def test_plausible_edges_are_accepted():
+    cal = loads("[anemometer]\nmps_per_hz = 2.0\n[vane]\nvref = 5.0\nadc_ref = 1.0\n")
+    assert (cal.anemo_mps_per_hz, cal.vane_vref, cal.vane_adc_ref) == (2.0, 5.0, 1.0)
+    # one wheel on the bow axis is fine: radians are recognised only when all four are within 2 pi
+    cal = loads("".join(f"[[wheels]]\nangle_deg = {a}\n" for a in (0, 90, 180, -90)))
+    assert [w.angle_deg for w in cal.wheels] == [0.0, 90.0, 180.0, -90.0]
+
+
+def test_calibration_error_is_one_line_from_the_cli(tmp_path, capsys):
+    from forcemap.host.cli import main
+
+    boat = tmp_path / "boat.toml"
+    boat.write_text("[vane]\nvref = 3300\n")
+    code = main(
+        ["run", "--config", str(boat), "--bridge", str(tmp_path / "none"), "--out", str(tmp_path)]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert "vane.vref: 3300 is outside the plausible range 1 to 5.5 V" in err

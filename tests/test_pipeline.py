@@ -309,11 +309,11 @@ def test_depth_and_water_temp_topics(survey):
 def test_against_the_simulator_truth(tmp_path):
     """The simulator's river survey through the pipeline, against its truth, within the bounds of
     docs/COMPENSATION.md: wind by the vane's 22.5 deg steps and hunting, current by the wheels."""
-    engine = pytest.importorskip("forcemap.sim_devices.engine")
-    np = pytest.importorskip("numpy")
     import csv
 
+    import numpy as np
     from forcemap.host.calibration import Calibration
+    from forcemap.sim_devices import engine
 
     sink = ListSink()
     pipe = Pipeline(Calibration(depth_offset_m=0.2), sink)

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from forcemap.host.cli import main
 from forcemap.host.cli.sim import parse_duration
 from forcemap.sim_devices import effects, faults, mission, scenario
@@ -84,3 +85,22 @@ def test_ctrl_c_stops_cleanly(tmp_path: Path) -> None:
     assert not (ports / "bridge").exists()
     meta = json.loads((truth / "effects.json").read_text())
     assert 0 < meta["duration"] < 3600
+
+
+@pytest.mark.parametrize("speed", ["0", "-5", "nan", "inf"])
+def test_a_speed_that_cannot_run_is_refused(speed, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    # a clock at x0 never advances: the simulator used to hang at t = 0 with no message
+    assert main(["sim", f"--speed={speed}", "--ports", str(tmp_path / "p")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--speed must be a finite number above 0" in err
+    assert not (tmp_path / "p").exists()
+
+
+def test_ports_or_truth_in_a_file_is_refused(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    f = tmp_path / "notes.txt"
+    f.write_text("mine\n")
+    assert main(["sim", "--ports", str(f)]) == 2
+    assert main(["sim", "--ports", str(tmp_path / "p"), "--truth", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.count("is a file; give a folder") == 2
+    assert f.read_text() == "mine\n"

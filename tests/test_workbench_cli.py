@@ -108,9 +108,11 @@ def test_constant_target(survey_csv, tmp_path, capsys):
 
 
 def test_non_numeric_target(survey_csv, tmp_path, capsys):
+    # a column of words is not numeric; one word in a column of numbers is a missing cell (test_bad_input)
     header, rows = _rows(survey_csv)
     i = header.index("depth")
-    rows[5][i] = "deep"
+    for r in rows:
+        r[i] = "deep"
     p = _write(tmp_path / "n.csv", header, rows)
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
     _one_line_error(code, err, "not numeric")
@@ -170,6 +172,7 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
             "depth",
             "--json",
             str(out_json),
+            "--force",
             "--quiet",
         ],
     )
@@ -271,6 +274,7 @@ def test_model_spec_toml_with_user_term_and_random_folds(survey_csv, tmp_path, c
             "random",
             "--json",
             str(out),
+            "--force",
             "--quiet",
             "--no-plots",
         ],

@@ -164,7 +164,7 @@ def test_diagnose_then_fit_from_the_command_line(late, tmp_path, capsys):
     args = ["fit", str(late), "--target", "wind_dir", "--quiet", "--json", str(out)]
     assert main(args) == 0
     base = json.loads(out.read_text())
-    assert main(args + ["--effects", "clock_offset"]) == 0
+    assert main(args + ["--effects", "clock_offset", "--force"]) == 0  # replaces fit.json
     fixed = json.loads(out.read_text())
     assert fixed["terms"][-1].startswith("clock_offset(+1.")
     assert fixed["cv_rmse"] < 0.5 * base["cv_rmse"]
@@ -175,7 +175,7 @@ def test_diagnose_then_fit_from_the_command_line(late, tmp_path, capsys):
         r"wind: const \+ gp\(position, matern32\) \+ clock_offset\(\+1\.", html_out.read_text()
     )
     # diagnose starts from the survey's latest fit, which now undoes the offset: nothing is left
-    assert main(diag) == 0
+    assert main([*diag, "--force"]) == 0
     d = json.loads(dj.read_text())
     assert d["baseline"]["terms"][-1].startswith("clock_offset(+1.")
     assert not d["missing_effect_found"]

@@ -25,6 +25,14 @@ def _missing(what: str) -> None:
     pytest.skip(msg)
 
 
+def real_data() -> Path:
+    """``../shared/data/real``: the real captures the readers are pinned against."""
+    real = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+    if not real.is_dir():
+        _missing(f"the real data set in {real}")
+    return real
+
+
 def micropython() -> str:
     """The unix-port ``micropython`` binary: PATH's, else the one beside this interpreter."""
     exe = shutil.which("micropython") or shutil.which(

@@ -11,12 +11,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from forcemap.host.errors import CliError
 
 EPILOG = """\
 examples:
@@ -24,7 +28,8 @@ examples:
   forcemap demo --effect dam_release --target current_speed
   forcemap demo --effect anemometer_upwash --target wind_speed --out /tmp/demo
 
-Every step prints the command it runs, so you can repeat any of them by hand.
+Every step prints the command it runs, so you can repeat any of them by hand. --out must be a new or
+empty folder, or one an earlier demo wrote (whose outputs the new demo replaces).
 """
 
 
@@ -73,8 +78,6 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     ports, logs, truth = out / "ports", out / "logs", out / "truth"
     for d in (ports, logs):
         d.mkdir(parents=True, exist_ok=True)
-        for f in d.iterdir():
-            f.unlink()
     sim_cmd = _forcemap(
         "sim",
         "--scenario", args.scenario,
@@ -131,9 +134,38 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     return files
 
 
+MARKER = ".forcemap-demo"
+# what a demo writes in its folder, replaced by the next demo in the same folder
+OWN = ("ports", "logs", "truth", "survey.csv", "survey.csv.forcemap", "fit-baseline.json",
+       "fit-refit.json", "diagnosis.json", "report.html", "daemon.log")  # fmt: skip
+
+
+def prepare_output(out: Path) -> None:
+    """A new folder, or one an earlier demo wrote (its files are replaced); never someone's data."""
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out} is a file; give a folder for the demo's outputs")
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).exists():
+        raise CliError(f"--out {out} holds files that no demo wrote; give a new or empty folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / MARKER).write_text("written by `forcemap demo`; a new demo replaces its files\n")
+    except OSError as exc:
+        raise CliError(
+            f"cannot write the demo's outputs to {out} ({exc.strerror or exc})"
+        ) from None
+    for name in OWN:
+        p = out / name
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        elif p.exists() or p.is_symlink():
+            p.unlink()
+
+
 def run(args: argparse.Namespace) -> int:
+    if not math.isfinite(args.speed) or args.speed <= 0:
+        raise CliError(f"--speed must be a finite number above 0, not {args.speed:g}")
     out = Path(args.out).resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    prepare_output(out)
     os.environ.setdefault("MPLBACKEND", "Agg")
     t_start = time.monotonic()
 

@@ -5,7 +5,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from forcemap.host.cli.common import add_table, guarded, print_notes, teach, write_json
+from forcemap.host.cli.common import (
+    add_table,
+    add_workspace_options,
+    check_json_output,
+    prepare_workspace,
+    print_notes,
+    teach,
+    write_json,
+)
+from forcemap.host.errors import CliError
 
 EPILOG = """\
 diagnose fits the current model of the target (the latest `forcemap fit` of it, or the paper's baseline),
@@ -52,41 +61,38 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="add each finding and diagnose again, at most N times (default 3)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_workspace_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    def body() -> int:
-        from forcemap.host.workbench.diagnose import diagnose
-        from forcemap.host.workbench.errors import WorkbenchError
-        from forcemap.host.workbench.fitting import resolve_terms
-        from forcemap.host.workbench.model import small_blas
-        from forcemap.host.workbench.spec import BASELINE
-        from forcemap.host.workbench.table import load_survey
-        from forcemap.host.workbench.workspace import current_terms, save_diagnosis, workspace_dir
+    from forcemap.host.workbench.diagnose import diagnose
+    from forcemap.host.workbench.fitting import resolve_terms
+    from forcemap.host.workbench.model import small_blas
+    from forcemap.host.workbench.spec import BASELINE, check_terms
+    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.workspace import current_terms, save_diagnosis
 
-        if args.rounds < 1:
-            raise WorkbenchError(f"--rounds must be at least 1, not {args.rounds}")
-        survey = load_survey(args.table)
-        ws = workspace_dir(args.table)
-        if args.model or args.effects:
-            terms, _ = resolve_terms(args.model, args.effects, args.target)
-        elif args.baseline:
-            terms = list(BASELINE)
-        else:
-            terms = current_terms(ws, args.target) or list(BASELINE)
-        with small_blas():
-            result = diagnose(
-                survey, args.target, terms, rounds=args.rounds, progress=not args.quiet
-            )
-        print_notes(survey)
-        save_diagnosis(ws, args.target, result.details())
-        if args.json and str(args.json) != "-":
-            write_json(args.json, result.to_json())
-        print(result.summary())
-        for name, why in result.skipped.items():
-            print(f"skipped {name}: {why}")
-        if args.json and str(args.json) == "-":
-            write_json(args.json, result.to_json())
-        return 0
-
-    return guarded("diagnose", body)
+    if args.rounds < 1:
+        raise CliError(f"--rounds must be at least 1, not {args.rounds}")
+    check_json_output(args)
+    ws = prepare_workspace(args)
+    if args.model or args.effects:
+        terms, _ = resolve_terms(args.model, args.effects, args.target)
+    elif args.baseline:
+        terms = list(BASELINE)
+    else:
+        terms = current_terms(ws, args.target) or list(BASELINE)
+    check_terms(terms)
+    survey = load_survey(args.table)
+    with small_blas():
+        result = diagnose(survey, args.target, terms, rounds=args.rounds, progress=not args.quiet)
+    print_notes(survey)
+    save_diagnosis(ws, args.target, result.details())
+    if args.json and str(args.json) != "-":
+        write_json(args.json, result.to_json())
+    print(result.summary())
+    for name, why in result.skipped.items():
+        print(f"skipped {name}: {why}")
+    if args.json and str(args.json) == "-":
+        write_json(args.json, result.to_json())
+    return 0

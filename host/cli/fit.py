@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from forcemap.host.cli.common import add_table, guarded, print_notes, teach, write_json
+from forcemap.host.cli.common import (
+    add_table,
+    add_workspace_options,
+    check_json_output,
+    prepare_workspace,
+    print_notes,
+    teach,
+    write_json,
+)
 
 EPILOG = """\
 The model is a sum of terms. Without --model it is the paper's baseline, a GP over position with a
@@ -29,7 +37,9 @@ wind_* and current_* speed and direction are modelled through their east/north c
 act along the flow for a speed and across it for a direction.
 The CV folds are spatially blocked (whole areas held out). --folds random holds out scattered samples whose
 along-track neighbours stay in training: that flatters every model. The fit is saved in TABLE.forcemap/
-with residual plots; `forcemap history TABLE` lists every fit.
+with residual plots; `forcemap history TABLE` lists every fit. A fit whose CV error is not a number
+(a user function gave NaN) is refused, never saved. An existing --json file is replaced only with
+--force; a corrupt history.json stops the fit until it is fixed or --reset-history moves it aside.
 """
 
 
@@ -52,38 +62,40 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--no-plots", action="store_true", help="do not write residual plots")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_workspace_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    def body() -> int:
-        from forcemap.host.workbench.errors import WorkbenchError
-        from forcemap.host.workbench.fitting import (
-            fit_target,
-            record,
-            resolve_terms,
-            save_residual_plots,
-        )
-        from forcemap.host.workbench.model import small_blas
-        from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.errors import WorkbenchError
+    from forcemap.host.workbench.fitting import (
+        fit_target,
+        record,
+        resolve_terms,
+        save_residual_plots,
+    )
+    from forcemap.host.workbench.model import small_blas
+    from forcemap.host.workbench.spec import check_terms
+    from forcemap.host.workbench.table import load_survey
 
-        terms, target = resolve_terms(args.model, args.effects, args.target)
-        if not target:
-            raise WorkbenchError(
-                "no target: give --target COLUMN (or target = ... in the model spec)"
-            )
-        survey = load_survey(args.table)
-        with small_blas():
-            result = fit_target(survey, target, terms, args.folds, progress=not args.quiet)
-        print_notes(survey)
-        entry = record(args.table, result)
-        write_json(args.json, result.to_json()) if args.json and str(args.json) != "-" else None
-        print(result.summary())
-        if not args.no_plots:
-            for p in save_residual_plots(args.table, result, entry["fit"]):
-                print(f"wrote {p}")
-        print(f"saved fit {entry['fit']} in {args.table.with_name(args.table.name + '.forcemap')}")
-        if args.json and str(args.json) == "-":
-            write_json(args.json, result.to_json())
-        return 0
-
-    return guarded("fit", body)
+    # everything that can be checked is checked before the fit, which can take a minute
+    terms, target = resolve_terms(args.model, args.effects, args.target)
+    if not target:
+        raise WorkbenchError("no target: give --target COLUMN (or target = ... in the model spec)")
+    check_terms(terms)
+    check_json_output(args)
+    ws = prepare_workspace(args)
+    survey = load_survey(args.table)
+    with small_blas():
+        result = fit_target(survey, target, terms, args.folds, progress=not args.quiet)
+    print_notes(survey)
+    entry = record(args.table, result)
+    if args.json is not None and str(args.json) != "-":
+        write_json(args.json, result.to_json())
+    print(result.summary())
+    if not args.no_plots:
+        for p in save_residual_plots(args.table, result, entry["fit"]):
+            print(f"wrote {p}")
+    print(f"saved fit {entry['fit']} in {ws}")
+    if args.json is not None and str(args.json) == "-":
+        write_json(args.json, result.to_json())
+    return 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from forcemap.host.cli.common import add_table, guarded, teach
+from forcemap.host.cli.common import add_table, add_workspace_options, prepare_workspace, teach
 
 EPILOG = """\
 Every `forcemap fit` of the table is recorded in TABLE.forcemap/history.json. history prints them and
@@ -24,38 +24,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--plot", type=Path, help="where to write the plot (default TABLE.forcemap/history.png)"
     )
+    add_workspace_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    def body() -> int:
-        from forcemap.host.workbench.diagnosis import round_steps
-        from forcemap.host.workbench.errors import WorkbenchError
-        from forcemap.host.workbench.workspace import load_diagnoses, load_history, workspace_dir
+    from forcemap.host.outputs import atomic_write, check_output
+    from forcemap.host.workbench.diagnosis import round_steps
+    from forcemap.host.workbench.errors import WorkbenchError
+    from forcemap.host.workbench.workspace import load_diagnoses, load_history
 
-        ws = workspace_dir(args.table, create=False)
-        history = load_history(ws)
-        diagnoses = load_diagnoses(ws)
-        if not history and not diagnoses:
-            raise WorkbenchError(
-                f"no fits recorded for {args.table}; run `forcemap fit {args.table} --target ...` first"
-            )
-        if history:
-            print(
-                f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms"
-            )
-        for h in history:
-            print(
-                f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "
-                f"{h['cv_mae']:>9.4g} {h['coverage95']:>6.1%}  {' + '.join(h['terms'])}"
-            )
-        for target, d in diagnoses.items():
-            print(f"diagnose {target}:")
-            print("\n".join(f"  {line}" for line in round_steps(d)))
-        if history:
-            from forcemap.host.workbench import plots
+    ws = prepare_workspace(args)
+    history = load_history(ws)
+    diagnoses = load_diagnoses(ws)
+    if not history and not diagnoses:
+        raise WorkbenchError(
+            f"no fits recorded for {args.table}; run `forcemap fit {args.table} --target ...` first"
+        )
+    if args.plot is not None:
+        plot = check_output(args.plot, [args.table], force=args.force)
+    else:
+        plot = ws / "history.png"  # the workspace's own file, redrawn every time
+        check_output(plot, [args.table], force=True)
+    if history:
+        print(
+            f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms"
+        )
+    for h in history:
+        print(
+            f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "
+            f"{h['cv_mae']:>9.4g} {h['coverage95']:>6.1%}  {' + '.join(h['terms'])}"
+        )
+    for target, d in diagnoses.items():
+        print(f"diagnose {target}:")
+        print("\n".join(f"  {line}" for line in round_steps(d)))
+    if history:
+        from forcemap.host.workbench import plots
 
-            path = plots.save(plots.history_figure(history), args.plot or ws / "history.png")
-            print(f"wrote {path}")
-        return 0
-
-    return guarded("history", body)
+        png = plots.png_bytes(plots.history_figure(history))
+        with atomic_write(plot, "wb") as f:
+            f.write(png)
+        print(f"wrote {plot}")
+    return 0

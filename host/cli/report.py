@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from forcemap.host.cli.common import add_table, guarded, print_notes, teach
+from forcemap.host.cli.common import (
+    add_table,
+    add_workspace_options,
+    prepare_workspace,
+    print_notes,
+    teach,
+)
 
 EPILOG = """\
 The report shows the measurements on the map; the model's mean and uncertainty (wind and current as
@@ -26,22 +32,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "-o", "--output", type=Path, help="HTML file to write (default TABLE.forcemap/report.html)"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_workspace_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    def body() -> int:
-        from forcemap.host.workbench.model import small_blas
-        from forcemap.host.workbench.report import build_report
-        from forcemap.host.workbench.table import load_survey
-        from forcemap.host.workbench.workspace import workspace_dir
+    from forcemap.host.outputs import atomic_write, check_output
+    from forcemap.host.workbench.model import small_blas
+    from forcemap.host.workbench.report import build_report
+    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.workspace import load_diagnoses
 
-        survey = load_survey(args.table)
-        with small_blas():
-            text = build_report(args.table, survey, progress=not args.quiet)
-        print_notes(survey)
-        out = args.output or workspace_dir(args.table) / "report.html"
-        out.write_text(text)
-        print(f"wrote {out.resolve()}")
-        return 0
-
-    return guarded("report", body)
+    ws = prepare_workspace(args, create=args.output is None)  # the default report goes there
+    load_diagnoses(ws)  # a corrupt diagnosis stops the report before the fits
+    if args.output is not None:
+        out = check_output(args.output, [args.table], force=args.force)
+    else:
+        out = check_output(ws / "report.html", [args.table], force=True)  # the workspace's own
+    survey = load_survey(args.table)
+    with small_blas():
+        text = build_report(args.table, survey, progress=not args.quiet)
+    print_notes(survey)
+    with atomic_write(out) as f:
+        f.write(text)
+    print(f"wrote {out.resolve()}")
+    return 0

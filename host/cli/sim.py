@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import signal
-import sys
 import threading
 import time
+from pathlib import Path
 
+from forcemap.host.errors import CliError
 from forcemap.sim_devices import effects as fx
 from forcemap.sim_devices import faults as fl
 from forcemap.sim_devices import mission as ms
@@ -112,10 +114,7 @@ def run_offline(args: argparse.Namespace) -> int:
         effects = fx.parse_list(args.effects) if args.effects is not None else None
         faults = fl.parse(args.faults)
     except (ValueError, OSError) as e:
-        print(f"forcemap sim: {e}", file=sys.stderr)
-        return 2
-    from pathlib import Path
-
+        raise CliError(str(e)) from None
     Path(args.truth).mkdir(parents=True, exist_ok=True)
     t_start = time.monotonic()
     print(f"{scen.name} / {mis.name}, {args.duration:.0f} s offline", flush=True)
@@ -137,18 +136,28 @@ def run_offline(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """Refuse what cannot work, before any pty appears: a clock that never advances, ports in a file."""
+    if not math.isfinite(args.speed) or args.speed <= 0:
+        raise CliError(
+            f"--speed must be a finite number above 0 (1 is real time), not {args.speed:g}"
+        )
+    if not args.ports and not args.truth:
+        raise CliError(
+            "give --ports DIR (live, behind virtual serial ports) or --truth DIR (offline, as "
+            "fast as it goes), or --list"
+        )
+    for flag, folder in (("--ports", args.ports), ("--truth", args.truth)):
+        if folder and Path(folder).exists() and not Path(folder).is_dir():
+            raise CliError(f"{flag} {folder} is a file; give a folder (it is created if missing)")
+
+
 def run(args: argparse.Namespace) -> int:
     if args.list:
         print_list()
         return 0
+    check_arguments(args)
     if not args.ports:
-        if not args.truth:
-            print(
-                "forcemap sim: give --ports DIR (live, behind virtual serial ports) or --truth DIR "
-                "(offline, as fast as it goes), or --list",
-                file=sys.stderr,
-            )
-            return 2
         return run_offline(args)
     from forcemap.sim_devices.engine import Simulation
     from forcemap.sim_devices.ports import SOURCES, PortSet, run_live
@@ -160,8 +169,7 @@ def run(args: argparse.Namespace) -> int:
         effects = fx.parse_list(args.effects) if args.effects is not None else None
         faults = fl.parse(args.faults)
     except (ValueError, OSError) as e:
-        print(f"forcemap sim: {e}", file=sys.stderr)
-        return 2
+        raise CliError(str(e)) from None
     ports = PortSet(args.ports)
     stop = threading.Event()
     # Ctrl-C and SIGTERM end the run between steps: the truth is written and the ports are removed

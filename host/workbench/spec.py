@@ -19,12 +19,17 @@ from forcemap.host.workbench.terms import (
     PowerTerm,
     Term,
     TermSpec,
-    UserTerm,
 )
+from forcemap.host.workbench.user_terms import UserTerm, load_function
 
 BASELINE = ["const", "gp(position, matern32)"]
 KINDS = ("gp", "linear", "power", "cos", "user", "const")
 _CALL = re.compile(r"^\s*(\w+)\s*\((.*)\)\s*$")
+_NAME = re.compile(r"[A-Za-z_]\w*")
+# a last gp argument that reads like a kernel name is one, even when it is misspelt
+_KERNEL_LIKE = re.compile(
+    r"(?i)(matern|rbf|periodic|linear|exp|se$|gauss|laplace|cos|sin|poly|white)"
+)
 
 
 def parse_term(text: str, is_circular: Callable[[str], bool]) -> TermSpec:
@@ -52,6 +57,13 @@ def parse_term(text: str, is_circular: Callable[[str], bool]) -> TermSpec:
         if args[-1].lower() in KERNELS or args[-1].lower() in KERNEL_ALIASES:
             kernel = KERNEL_ALIASES.get(args[-1].lower(), args[-1].lower())
             args = args[:-1]
+        elif len(args) > 1 and _KERNEL_LIKE.match(args[-1]):
+            raise WorkbenchError(
+                f"'{text}': unknown kernel '{args[-1]}'; kernels are {', '.join(KERNELS)}"
+            )
+        for a in args:
+            if not _NAME.fullmatch(a):
+                raise WorkbenchError(f"'{text}': '{a}' is not a column name")
         if not args:
             raise WorkbenchError(f"'{text}': a gp term needs at least one input")
         if len(args) == 1 and is_circular(args[0]) and kernel != "linear":
@@ -127,31 +139,92 @@ def split_effects(text: str | None) -> list[str]:
     return [i.strip() for i in items if i.strip()]
 
 
+def check_terms(texts: list[str]) -> None:
+    """Parse every term and import every user function: the checks that need no data, made up front."""
+    from forcemap.host.workbench.clock_offset import split_terms
+    from forcemap.host.workbench.table import is_circular
+
+    for spec in parse_terms(split_terms(texts)[0], is_circular):
+        if spec.kind == "user":
+            load_function(spec.function)
+
+
+def _read_toml(path: Path) -> dict:
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise WorkbenchError(f"{path}: no such model spec") from None
+    except IsADirectoryError:
+        raise WorkbenchError(f"{path} is a folder; give a TOML model spec file") from None
+    except OSError as exc:
+        raise WorkbenchError(
+            f"{path}: cannot read the model spec ({exc.strerror or exc})"
+        ) from None
+    try:
+        return tomllib.loads(raw.decode("utf-8-sig"))
+    except UnicodeDecodeError:
+        raise WorkbenchError(f"{path}: not a TOML text file (it is not UTF-8 text)") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise WorkbenchError(f"{path}: not valid TOML ({exc})") from None
+
+
+def _term_table_text(path: Path, i: int, table: object) -> str:
+    """One `[[term]]` table as a term string."""
+    where = f"{path}: [[term]] number {i + 1}"
+    if not isinstance(table, dict):
+        raise WorkbenchError(f"{where} is not a table")
+    kind = table.get("kind", "gp")
+    if kind not in KINDS:
+        raise WorkbenchError(f"{where}: kind must be one of {', '.join(KINDS)}, not {kind!r}")
+    inputs = table.get("inputs", table.get("input", []))
+    inputs = [inputs] if isinstance(inputs, str) else inputs
+    if not isinstance(inputs, list) or not all(isinstance(x, str) for x in inputs):
+        raise WorkbenchError(f'{where}: inputs must be a list of column names, e.g. ["depth"]')
+    if kind == "const":
+        return "const"
+    if not inputs:
+        raise WorkbenchError(f'{where}: a {kind} term needs inputs, e.g. inputs = ["depth"]')
+    if kind == "gp":
+        kernel = table.get("kernel", "matern32")
+        if not isinstance(kernel, str):
+            raise WorkbenchError(f"{where}: kernel must be a name, one of {', '.join(KERNELS)}")
+        if kernel.lower() not in KERNELS and kernel.lower() not in KERNEL_ALIASES:
+            raise WorkbenchError(
+                f"{where}: unknown kernel '{kernel}'; kernels are {', '.join(KERNELS)}"
+            )
+        return f"gp({', '.join(inputs + [kernel])})"
+    if kind == "user":
+        function = table.get("function")
+        if not isinstance(function, str):
+            raise WorkbenchError(f'{where}: a user term needs function = "module:function"')
+        return f"user({inputs[0]}, {function})"
+    return f"{kind}({', '.join(inputs)})"
+
+
 def read_spec_file(path: str | Path) -> tuple[list[str], str | None]:
     """A TOML model spec: `terms = ["const", "gp(position, matern32)", ...]` or `[[term]]` tables
     with `kind`, `inputs`, `kernel`, `function`; optional `target`. Returns term strings and the target."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise WorkbenchError(f"{path}: no such model spec") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise WorkbenchError(f"{path}: not valid TOML ({exc})") from None
-    texts: list[str] = [str(t) for t in data.get("terms", [])]
-    for table in data.get("term", []):
-        kind = table.get("kind", "gp")
-        inputs = table.get("inputs", table.get("input", []))
-        inputs = [inputs] if isinstance(inputs, str) else list(inputs)
-        if kind == "gp":
-            texts.append(f"gp({', '.join(inputs + [table.get('kernel', 'matern32')])})")
-        elif kind == "user":
-            texts.append(f"user({inputs[0]}, {table['function']})")
-        elif kind == "const":
-            texts.append("const")
-        else:
-            texts.append(f"{kind}({', '.join(inputs)})")
+    data = _read_toml(path)
+    unknown = set(data) - {"terms", "term", "target"}
+    if unknown:
+        raise WorkbenchError(
+            f"{path}: unknown key(s) {', '.join(sorted(unknown))}; a spec has terms, [[term]] and target"
+        )
+    terms = data.get("terms", [])
+    if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
+        raise WorkbenchError(
+            f'{path}: terms must be a list of strings, e.g. terms = ["const", "gp(position, matern32)"]'
+        )
+    tables = data.get("term", [])
+    if not isinstance(tables, list):
+        raise WorkbenchError(f"{path}: write each term table as [[term]]")
+    texts = list(terms) + [_term_table_text(path, i, t) for i, t in enumerate(tables)]
     if not texts:
         raise WorkbenchError(
             f"{path}: the spec has no terms (write terms = [...] or [[term]] tables)"
         )
-    return texts, data.get("target")
+    target = data.get("target")
+    if target is not None and not isinstance(target, str):
+        raise WorkbenchError(f'{path}: target must be a column name, e.g. target = "depth"')
+    return texts, target

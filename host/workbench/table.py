@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import csv
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.workbench.cleaning import (
+    EARTH_RADIUS_M,  # noqa: F401 - part of this module's interface
+    check_positions,
+    local_frame,
+    to_numeric,
+)
 from forcemap.host.workbench.errors import WorkbenchError
 
-EARTH_RADIUS_M = 6_371_008.8
 MIN_ROWS = 30
 MAX_MISSING_FRACTION = 0.05
 # rows with no time or position (a GPS outage, the autopilot stream lost) cannot be placed on the map
@@ -157,14 +161,26 @@ class Survey:
 
 
 def _read_csv(path: Path) -> dict[str, list[str]]:
-    with path.open(newline="") as f:
-        reader = csv.reader(f)
-        try:
-            header = next(reader)
-        except StopIteration:
-            raise WorkbenchError(f"{path}: the file is empty") from None
-        header = [h.strip() for h in header]
-        rows = list(reader)
+    try:
+        # utf-8-sig: a byte-order mark (spreadsheets write one) is read, not taken for part of `t`
+        with path.open(newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            if header is None:
+                raise WorkbenchError(f"{path}: the file is empty")
+            header = [h.strip() for h in header]
+            rows = list(reader)
+    except UnicodeDecodeError:
+        raise WorkbenchError(
+            f"{path}: not UTF-8 text; is it a CSV? (save it from the spreadsheet as CSV UTF-8)"
+        ) from None
+    except csv.Error as exc:
+        raise WorkbenchError(f"{path}: not a readable CSV ({exc})") from None
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise WorkbenchError(
+            f"{path}: column name(s) {', '.join(repr(d) for d in dup)} appear more than once in the header"
+        )
     cols: dict[str, list[str]] = {h: [] for h in header}
     for i, row in enumerate(rows):
         if len(row) != len(header):
@@ -176,23 +192,6 @@ def _read_csv(path: Path) -> dict[str, list[str]]:
         for h, cell in zip(header, row, strict=True):
             cols[h].append(cell)
     return cols
-
-
-def _to_float(name: str, cells: list) -> np.ndarray | None:
-    """Floats with NaN for empty cells, or None if the column is not numeric."""
-    out = np.empty(len(cells))
-    for i, c in enumerate(cells):
-        if c is None or (isinstance(c, str) and c.strip() in ("", "nan", "NaN", "null", "None")):
-            out[i] = np.nan
-            continue
-        if isinstance(c, bool):
-            out[i] = float(c)
-            continue
-        try:
-            out[i] = float(c)
-        except (TypeError, ValueError):
-            return None
-    return out
 
 
 def _read_parquet(path: Path) -> dict[str, list]:
@@ -228,21 +227,14 @@ def read_raw(path: str | Path) -> dict[str, list]:
     path = Path(path)
     if not path.exists():
         raise WorkbenchError(f"{path}: no such file")
+    if path.is_dir():
+        raise WorkbenchError(f"{path} is a folder; give a samples table (.csv, .parquet or .mcap)")
     suffix = path.suffix.lower()
     if suffix == ".parquet" or suffix == ".pq":
         return _read_parquet(path)
     if suffix == ".mcap":
         return _read_mcap(path)
     return _read_csv(path)
-
-
-def local_frame(
-    lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Metres east and north of (lat0, lon0), equirectangular (exact enough over a few km)."""
-    x = np.radians(lon - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
-    y = np.radians(lat - lat0) * EARTH_RADIUS_M
-    return x, y
 
 
 def _fill_nearest_in_time(values: np.ndarray) -> np.ndarray:
@@ -260,27 +252,28 @@ def _fill_nearest_in_time(values: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(values), values, values[nearest])
 
 
-def load_survey(path: str | Path) -> Survey:
-    """Read and validate a samples table; positions become metres east/north of the survey centre."""
-    path = Path(path)
-    raw = read_raw(path)
-    missing = [c for c in REQUIRED if c not in raw]
-    if missing:
-        raise WorkbenchError(
-            f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
-        )
+def _numeric_columns(path: Path, raw: dict[str, list]) -> tuple[dict, set[str], list[str]]:
+    """Numeric columns (cells that are not numbers, and inf, made missing with a note) and the rest."""
     columns: dict[str, np.ndarray] = {}
     non_numeric: set[str] = set()
+    notes: list[str] = []
     for name, cells in raw.items():
-        values = _to_float(name, cells)
-        if values is None:
+        col = to_numeric(cells)
+        if col is None:
             non_numeric.add(name)
-        else:
-            columns[name] = values
+            continue
+        columns[name] = col.values
+        notes += col.notes(name)
     for c in REQUIRED:
         if c in non_numeric:
             raise WorkbenchError(f"{path}: column '{c}' is not numeric")
-    notes: list[str] = []
+    return columns, non_numeric, notes
+
+
+def _placed_rows(path: Path, columns: dict[str, np.ndarray], notes: list[str]) -> np.ndarray:
+    """Data rows (0-based, in time order) that have a time and a position a boat could be at."""
+    if len(columns["t"]) == 0:
+        raise WorkbenchError(f"{path}: the table has a header but no rows")
     keep = np.ones(len(columns["t"]), bool)
     for c in REQUIRED:
         bad = ~np.isfinite(columns[c])
@@ -293,14 +286,39 @@ def load_survey(path: str | Path) -> Survey:
                 f"dropped {bad.sum()} row(s) with missing '{c}' (no time or position: GPS or autopilot outage)"
             )
         keep &= ~bad
-    columns = {k: v[keep] for k, v in columns.items()}
-    n = int(keep.sum())
+    rows = np.flatnonzero(keep)
+    rows = rows[np.argsort(columns["t"][rows], kind="stable")]
+    if len(rows) == 0:
+        return rows
+    ok, more = check_positions(
+        path,
+        columns["t"][rows],
+        columns["lat"][rows],
+        columns["lon"][rows],
+        rows,
+        MAX_UNPLACED_FRACTION,
+    )
+    notes += more
+    return rows[ok]
+
+
+def load_survey(path: str | Path) -> Survey:
+    """Read and validate a samples table; positions become metres east/north of the survey centre."""
+    path = Path(path)
+    raw = read_raw(path)
+    missing = [c for c in REQUIRED if c not in raw]
+    if missing:
+        raise WorkbenchError(
+            f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
+        )
+    columns, non_numeric, notes = _numeric_columns(path, raw)
+    rows = _placed_rows(path, columns, notes)
+    columns = {k: v[rows] for k, v in columns.items()}
+    n = len(rows)
     if n < MIN_ROWS:
         raise WorkbenchError(
             f"{path}: only {n} usable rows; the workbench needs at least {MIN_ROWS}"
         )
-    order = np.argsort(columns["t"], kind="stable")
-    columns = {k: v[order] for k, v in columns.items()}
     lat, lon = columns["lat"], columns["lon"]
     lat0 = 0.5 * (float(lat.min()) + float(lat.max()))
     lon0 = 0.5 * (float(lon.min()) + float(lon.max()))
@@ -318,7 +336,9 @@ def prepare_column(
     values = survey.column(name)
     bad = ~np.isfinite(values)
     if bad.all():
-        raise WorkbenchError(f"{role} '{name}' has no values")
+        raise WorkbenchError(
+            f"{role} '{name}' has no values (every cell is empty, not a number or inf)"
+        )
     if bad.mean() > MAX_MISSING_FRACTION:
         raise WorkbenchError(
             f"{role} '{name}' has {bad.mean():.0%} missing values (at most {MAX_MISSING_FRACTION:.0%} can be filled)"

@@ -9,10 +9,7 @@ O(M^3) whatever the number of samples.
 
 from __future__ import annotations
 
-import importlib
-import inspect
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -299,66 +296,6 @@ class PowerTerm(Term):
 
     def params(self, h, w):
         return {"a": float(h[0]), "b": float(h[1]), "z_ref": self.ref}
-
-
-class UserTerm(Term):
-    """A user's Python function `f(z, **params)` loaded by `module:function`; its parameters fitted as a mean function."""
-
-    is_mean = True
-
-    def __init__(self, name: str, ref: str) -> None:
-        self.inputs, self.ref = (name,), ref
-        self.func = load_function(ref)
-        sig = inspect.signature(self.func)
-        names = list(sig.parameters)
-        if not names:
-            raise WorkbenchError(
-                f"{ref}: the function must take the covariate as its first argument"
-            )
-        self.names = names[1:]
-        self.init = []
-        for p in self.names:
-            default = sig.parameters[p].default
-            self.init.append(1.0 if default is inspect.Parameter.empty else float(default))
-
-    def describe(self) -> str:
-        return f"user({self.inputs[0]}, {self.ref})"
-
-    def theta_init(self):
-        return np.array(self.init, float)
-
-    def theta_bounds(self):
-        return [(-1e6, 1e6)] * len(self.names)
-
-    def mean(self, Z, theta):
-        out = np.asarray(self.func(Z[:, 0], **dict(zip(self.names, theta, strict=True))), float)
-        return np.broadcast_to(out, (len(Z),)).copy()
-
-    def params(self, h, w):
-        return {k: float(v) for k, v in zip(self.names, h, strict=True)}
-
-
-def load_function(ref: str) -> Callable:
-    """Import `module:function` (the current directory is searched too)."""
-    import sys
-
-    if ":" not in ref:
-        raise WorkbenchError(f"user term '{ref}': write it as module:function")
-    mod_name, func_name = ref.split(":", 1)
-    if "" not in sys.path:
-        sys.path.insert(0, "")
-    try:
-        module = importlib.import_module(mod_name)
-    except ImportError as exc:
-        raise WorkbenchError(
-            f"user term '{ref}': cannot import module '{mod_name}' ({exc})"
-        ) from None
-    func = getattr(module, func_name, None)
-    if not callable(func):
-        raise WorkbenchError(
-            f"user term '{ref}': module '{mod_name}' has no function '{func_name}'"
-        )
-    return func
 
 
 @dataclass
