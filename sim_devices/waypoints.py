@@ -6,15 +6,12 @@ Only NAV_WAYPOINT and DO_CHANGE_SPEED are flown by the simulator; other commands
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-os.environ.setdefault("MAVLINK20", "1")
-from pymavlink import mavutil, mavwp  # noqa: E402
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2  # noqa: E402
+from pymavlink import mavwp
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 NAV_WAYPOINT = mavlink2.MAV_CMD_NAV_WAYPOINT
 DO_CHANGE_SPEED = mavlink2.MAV_CMD_DO_CHANGE_SPEED
@@ -81,9 +78,10 @@ def write_wpl(path: str | Path, home: Item, items: list[Item]) -> None:
     """Write a QGC WPL 110 file: home as item 0, then ``items`` (comments go on lines starting with #)."""
     loader = mavwp.MAVWPLoader()
     for seq, it in enumerate([home, *items]):
-        msg = mavutil.mavlink.MAVLink_mission_item_message(
+        # the MAVLink 1 fields only: the same call works whichever dialect mavutil has loaded
+        msg = mavlink2.MAVLink_mission_item_message(
             0, 0, seq, it.frame if seq else 0, it.command, int(seq == 0), 1,
-            *it.params, it.lat, it.lon, it.alt, 0,
+            *it.params, it.lat, it.lon, it.alt,
         )  # fmt: skip
         loader.add(msg, it.comment or None)
     loader.save(str(path))

@@ -10,15 +10,13 @@ item at any time (a lost item is simply asked for again).
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
-os.environ.setdefault("MAVLINK20", "1")
-from forcemap.host.errors import CliError  # noqa: E402
-from forcemap.sim_devices.waypoints import Item, read_wpl  # noqa: E402
-from pymavlink import mavutil  # noqa: E402
-from pymavlink.dialects.v20 import ardupilotmega as M  # noqa: E402
+from forcemap.host.errors import CliError
+from forcemap.sim_devices.waypoints import Item, read_wpl
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as M
 
 GCS_SYSTEM, GCS_COMPONENT = 255, 190
 
@@ -122,10 +120,14 @@ def connect(port: str, timeout_s: float = 10.0):  # type: ignore[no-untyped-def]
     try:
         conn = mavutil.mavlink_connection(
             device, baud=int(baud or 115200), source_system=GCS_SYSTEM,
-            source_component=GCS_COMPONENT, dialect="ardupilotmega",
+            source_component=GCS_COMPONENT,
         )  # fmt: skip
     except (OSError, ValueError) as e:
         raise CliError(f"cannot open {device}: {e}") from e
+    # MAVLink 2 with ArduPilot's dialect on this connection only: mavutil's `dialect=` and the
+    # MAVLINK20 variable would switch the dialect for the whole process
+    conn.mav = M.MAVLink(conn, srcSystem=GCS_SYSTEM, srcComponent=GCS_COMPONENT)
+    conn.mav.robust_parsing = True
     if conn.wait_heartbeat(timeout=timeout_s) is None:
         conn.close()
         raise CliError(f"no MAVLink heartbeat on {device} within {timeout_s:.0f} s")

@@ -237,6 +237,16 @@ def history_section(ctx: ReportContext) -> list[str]:
     return parts
 
 
+def rounds_and_advice_section(ctx: ReportContext) -> list[str]:
+    """Each diagnosis round with the error falling, and the survey advice (host.workbench.report_diagnose)."""
+    return rounds_section(ctx.diagnoses)
+
+
+def plan_section(ctx: ReportContext) -> list[str]:
+    """`forcemap plan`'s newest plan: intended, predicted and flown tracks (host.plan.report_section)."""
+    return mission_section(ctx.table, ctx.survey)
+
+
 Section = Callable[[ReportContext], list[str]]
 
 SECTIONS: list[Section] = [
@@ -245,9 +255,9 @@ SECTIONS: list[Section] = [
     maps_section,
     residuals_section,
     diagnoses_section,
-    lambda ctx: rounds_section(ctx.diagnoses),  # diagnose's rounds and survey advice
+    rounds_and_advice_section,
     history_section,
-    lambda ctx: mission_section(ctx.table, ctx.survey),  # `forcemap plan`'s newest plan, if any
+    plan_section,
 ]
 
 
