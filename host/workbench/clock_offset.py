@@ -18,6 +18,7 @@ target (diagnose, fit) then says whether the correction matters.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass
@@ -60,17 +61,30 @@ def applicable(survey: Survey, vt: VectorTarget | None) -> bool:
     return vt is not None and all(c in survey.columns for c in AUTOPILOT_COLUMNS)
 
 
-def _autopilot(survey: Survey) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Heading (unwrapped, rad) and ground velocity (east, north) at the samples, gaps filled."""
-    key = ("clock_autopilot",)
-    if key not in survey.cache:
+class ClockWork:
+    """What the offset scans of one survey share: kept with the survey under this class as key."""
+
+    def __init__(self, survey: Survey):
+        self.survey = survey
+        self.scans: dict[tuple[str, float, float], OffsetScan] = {}
+        self.corrected: dict[tuple[str, float], Survey] = {}
+
+    @functools.cached_property
+    def autopilot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Heading (unwrapped, rad) and ground velocity (east, north) at the samples, gaps filled."""
         heading, sog, cog = (
-            prepare_column(survey, name, "autopilot column", allow_constant=True)
+            prepare_column(self.survey, name, "autopilot column", allow_constant=True)
             for name in AUTOPILOT_COLUMNS
         )
         c = np.radians(cog)
-        survey.cache[key] = (np.unwrap(np.radians(heading)), sog * np.sin(c), sog * np.cos(c))
-    return survey.cache[key]
+        return np.unwrap(np.radians(heading)), sog * np.sin(c), sog * np.cos(c)
+
+
+def _work(survey: Survey) -> ClockWork:
+    work = survey.cache.get(ClockWork)
+    if work is None:
+        work = survey.cache[ClockWork] = ClockWork(survey)
+    return work
 
 
 def shifted_vector(survey: Survey, vt: VectorTarget, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -79,7 +93,7 @@ def shifted_vector(survey: Survey, vt: VectorTarget, tau: float) -> tuple[np.nda
     if e is None or n is None:
         raise WorkbenchError(f"the table has no {vt.prefix} vector")
     ts = survey.trel
-    h0, ve0, vn0 = _autopilot(survey)
+    h0, ve0, vn0 = _work(survey).autopilot
     h1, ve1, vn1 = (np.interp(ts + tau, ts, a) for a in (h0, ve0, vn0))
     ae, an = e - ve0, n - vn0
     # a compass (clockwise) rotation by d: (e, n) -> (e cos d + n sin d, -e sin d + n cos d)
@@ -108,12 +122,12 @@ def scan_offset(
             "a clock offset needs a wind or current vector and the columns "
             + ", ".join(AUTOPILOT_COLUMNS)
         )
-    key = ("clock_scan", vt.prefix, max_s, step_s)
-    if key not in survey.cache:
+    scans, key = _work(survey).scans, (vt.prefix, max_s, step_s)
+    if key not in scans:
         taus = np.round(np.arange(-max_s, max_s + step_s / 2, step_s), 6)
         rough = np.array([_roughness(survey, *shifted_vector(survey, vt, float(t))) for t in taus])
-        survey.cache[key] = OffsetScan(taus, rough)
-    return survey.cache[key]
+        scans[key] = OffsetScan(taus, rough)
+    return scans[key]
 
 
 def corrected_survey(survey: Survey, vt: VectorTarget, tau: float) -> Survey:
@@ -160,7 +174,7 @@ def corrected_for(survey: Survey, vt: VectorTarget | None, tau: float) -> tuple[
         )
     if math.isnan(tau):
         tau = scan_offset(survey, vt).offset_s
-    key = ("clock_corrected", vt.prefix, round(tau, 6))
-    if key not in survey.cache:
-        survey.cache[key] = corrected_survey(survey, vt, tau)
-    return survey.cache[key], tau
+    corrected, key = _work(survey).corrected, (vt.prefix, round(tau, 6))
+    if key not in corrected:
+        corrected[key] = corrected_survey(survey, vt, tau)
+    return corrected[key], tau

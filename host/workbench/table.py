@@ -24,7 +24,6 @@ MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
 NOT_COVARIATES = {"t", "lat", "lon", "x", "y"}
-VECTOR_PREFIXES = ("wind", "current", "current_paper")
 # boat kinematics that respond to the current and wind pushing the boat (yaw_rate is not here: in a survey the
 # turns are commanded by the mission, see docs/WORKBENCH.md)
 KINEMATIC = ("sog", "cog", "throttle", "crab")
