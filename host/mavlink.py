@@ -184,11 +184,14 @@ _FIX_FIELDS: dict[str, tuple[str, ...]] = {}
 
 
 def raw_dict(m: Any) -> dict[str, Any]:
-    """The message's fields as JSON-able values (NaN as None, bytes as hex), with its sender."""
-    d = m.to_dict()
-    fix = _FIX_FIELDS.get(d["mavpackettype"])
+    """The message's fields as JSON-able values (NaN as None, text as str, other bytes as hex), with its
+    sender. What pymavlink's ``to_dict`` gives, built without its per-field method calls (hot path)."""
+    d: dict[str, Any] = {"mavpackettype": m._type}
+    for a in m._fieldnames:
+        d[a] = getattr(m, a)
+    fix = _FIX_FIELDS.get(m._type)
     if fix is None:
-        fix = _FIX_FIELDS[d["mavpackettype"]] = tuple(
+        fix = _FIX_FIELDS[m._type] = tuple(
             k for k, v in d.items() if isinstance(v, float | bytes | bytearray | list)
         )
     for k in fix:
@@ -196,7 +199,9 @@ def raw_dict(m: Any) -> dict[str, Any]:
         if isinstance(v, float):
             if not math.isfinite(v):
                 d[k] = None
-        elif isinstance(v, bytes | bytearray):
+        elif isinstance(v, bytes):  # a char[] field: text, as pymavlink's to_dict gives it
+            d[k] = v.decode(errors="backslashreplace").rstrip("\x00")
+        elif isinstance(v, bytearray):
             d[k] = bytes(v).hex()
         elif isinstance(v, list):
             d[k] = [None if isinstance(x, float) and not math.isfinite(x) else x for x in v]
