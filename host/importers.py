@@ -150,6 +150,26 @@ def nmea_line_times(lines: list[bytes]) -> tuple[list[float], str]:
     return times, how
 
 
+def _pipeline(
+    path: str | Path,
+    fmt: str,
+    timing: str,
+    sink: Sink,
+    calibration: Calibration | None,
+    sync: str | None,
+    sample_rate_hz: float | None,
+) -> Pipeline:
+    """The live pipeline for an import, with the file, its format and its timing in the metadata."""
+    return Pipeline(
+        calibration,
+        sink,
+        sync=sync,
+        sample_rate_hz=sample_rate_hz,
+        config={"import": str(path), "format": fmt, "timing": timing},
+        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
+    )
+
+
 def import_nmea(
     path: str | Path,
     sink: Sink,
@@ -166,14 +186,7 @@ def import_nmea(
         raise ImportFailed(
             f"{Path(path).name}: no time in this log (no NMEA RMC, GGA, GLL or ZDA with UTC)"
         )
-    pipe = Pipeline(
-        calibration,
-        sink,
-        sync=sync,
-        sample_rate_hz=sample_rate_hz,
-        config={"import": str(path), "format": "nmea", "timing": how},
-        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
-    )
+    pipe = _pipeline(path, "nmea", how, sink, calibration, sync, sample_rate_hz)
     for line, t in zip(lines, times, strict=True):
         ns = int(t * 1e9)
         pipe.feed("depth", ns, ns, line + b"\n")
@@ -191,13 +204,8 @@ def import_dataflash(
     sample_rate_hz: float | None = None,
 ) -> ImportResult:
     """An ArduPilot DataFlash log (.BIN) through the sample assembler (forcemap.host.dataflash)."""
-    pipe = Pipeline(
-        calibration,
-        sink,
-        sync=sync,
-        sample_rate_hz=sample_rate_hz,
-        config={"import": str(path), "format": "dataflash", "timing": "the log's own clock"},
-        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
+    pipe = _pipeline(
+        path, "dataflash", "the log's own clock", sink, calibration, sync, sample_rate_hz
     )
     reader = DataflashDecoder(pipe)
     try:
@@ -241,14 +249,7 @@ def import_tlog(
 ) -> ImportResult:
     """A MAVLink telemetry log through the pipeline's MAVLink path, at its recorded arrival times."""
     data = Path(path).read_bytes()
-    pipe = Pipeline(
-        calibration,
-        sink,
-        sync=sync,
-        sample_rate_hz=sample_rate_hz,
-        config={"import": str(path), "format": "tlog", "timing": "tlog receive times"},
-        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
-    )
+    pipe = _pipeline(path, "tlog", "tlog receive times", sink, calibration, sync, sample_rate_hz)
     records = 0
     for us, packet in tlog_records(data):
         records += 1
