@@ -7,7 +7,6 @@ progress line is printed.
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import math
@@ -23,25 +22,13 @@ from forcemap.host.workbench.synth import LAT0, LON0, make_survey
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
 
+from tests.tools import csv_rows, write_csv_rows
+
 
 @pytest.fixture(scope="module")
 def small_csv(tmp_path_factory) -> Path:
     """400 s of the synthetic river: enough rows to fit in seconds."""
     return make_survey("river", ["depth_current"], 5, 400.0, tmp_path_factory.mktemp("small"))
-
-
-def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
-    with path.open() as f:
-        r = list(csv.reader(f))
-    return r[0], r[1:]
-
-
-def _write(path: Path, header: list[str], rows: list[list[str]]) -> Path:
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(rows)
-    return path
 
 
 def _copy(src: Path, dst: Path) -> Path:
@@ -210,11 +197,11 @@ def test_an_existing_output_is_replaced_only_with_force(small_csv, tmp_path, cap
 
 
 def test_a_cell_that_is_not_a_number_is_missing_and_named(small_csv, tmp_path, capsys):
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     i = header.index("depth")
     rows[6][i] = "1,5"
     rows[40][i] = "deep"
-    p = _write(tmp_path / "comma.csv", header, rows)
+    p = write_csv_rows(tmp_path / "comma.csv", header, rows)
     s = load_survey(p)
     assert "depth" in s.columns and "depth" not in s.non_numeric
     assert np.isnan(s.columns["depth"]).sum() == 2 and s.n == len(rows)
@@ -228,9 +215,9 @@ def test_a_cell_that_is_not_a_number_is_missing_and_named(small_csv, tmp_path, c
 def test_diagnose_still_finds_depth_with_one_bad_cell(tmp_path_factory, capsys):
     # the issue's case: one `1,5` in the depth column once hid the depth effect ("no missing effect")
     src = make_survey("river", ["depth_current"], 11, 1200.0, tmp_path_factory.mktemp("big"))
-    header, rows = _rows(src)
+    header, rows = csv_rows(src)
     rows[100][header.index("depth")] = "1,5"
-    p = _write(src.with_name("comma.csv"), header, rows)
+    p = write_csv_rows(src.with_name("comma.csv"), header, rows)
     out = p.with_name("d.json")
     code, _, err = _run(
         capsys, ["diagnose", p, "--target", "current_speed", "--json", out, "--quiet"]
@@ -242,12 +229,12 @@ def test_diagnose_still_finds_depth_with_one_bad_cell(tmp_path_factory, capsys):
 
 
 def test_inf_is_missing_with_a_note(small_csv, tmp_path, capsys):
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     i = header.index("water_temp")
     for r in rows[10:13]:
         r[i] = "inf"
     rows[20][i] = "-inf"
-    s = load_survey(_write(tmp_path / "inf.csv", header, rows))
+    s = load_survey(write_csv_rows(tmp_path / "inf.csv", header, rows))
     assert np.isnan(s.columns["water_temp"]).sum() == 4
     assert any("column 'water_temp': 4 infinite value(s) made missing" in n for n in s.notes)
 
@@ -255,13 +242,13 @@ def test_inf_is_missing_with_a_note(small_csv, tmp_path, capsys):
 @pytest.mark.parametrize("fill", ["inf", "", "nan", "-inf"])
 @pytest.mark.parametrize("target", ["depth", "current_speed"])
 def test_an_unusable_target_is_an_error_before_fitting(small_csv, tmp_path, capsys, fill, target):
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     # a vector's speed is modelled through its components: all of them are made unusable
     dead = [target] if target == "depth" else [h for h in header if h.startswith("current_")]
     for r in rows:
         for c in dead:
             r[header.index(c)] = fill
-    p = _write(tmp_path / "dead.csv", header, rows)
+    p = write_csv_rows(tmp_path / "dead.csv", header, rows)
     code, _, err = _run(capsys, ["fit", p, "--target", target, "--no-plots", "--quiet"])
     _one_line(code, err, "current_|current east|depth", "no values|missing")
     assert not (tmp_path / "dead.csv.forcemap" / "history.json").exists()
@@ -273,11 +260,11 @@ def test_an_unusable_target_is_an_error_before_fitting(small_csv, tmp_path, caps
 
 
 def test_lat_out_of_range_rows_are_dropped_with_a_note(small_csv, tmp_path):
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     i = header.index("lat")
     for r in rows[50:53]:
         r[i] = "200"
-    s = load_survey(_write(tmp_path / "lat200.csv", header, rows))
+    s = load_survey(write_csv_rows(tmp_path / "lat200.csv", header, rows))
     assert s.n == len(rows) - 3
     note = next(n for n in s.notes if "outside" in n)
     assert "dropped 3 row(s) with lat outside -90..90 (e.g. 200)" in note and "51, 52, 53" in note
@@ -285,35 +272,35 @@ def test_lat_out_of_range_rows_are_dropped_with_a_note(small_csv, tmp_path):
 
 
 def test_lat_lon_swapped_in_some_rows_are_dropped_as_impossible_jumps(small_csv, tmp_path):
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     i, j = header.index("lat"), header.index("lon")
     for r in rows[100:110]:
         r[i], r[j] = r[j], r[i]  # lat -81, lon 33.95: on the globe, 13,000 km away
-    s = load_survey(_write(tmp_path / "swap.csv", header, rows))
+    s = load_survey(write_csv_rows(tmp_path / "swap.csv", header, rows))
     assert s.n == len(rows) - 10
     note = next(n for n in s.notes if "jumps" in n)
     assert "dropped 10 row(s)" in note and "faster than 20 m/s" in note and "101, 102, 103" in note
     assert np.ptp(s.xy[:, 0]) < 1000
     # one glitch at the very first fix does not drag the track away with it
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     rows[0][i], rows[0][j] = "0", "0"
-    s = load_survey(_write(tmp_path / "null-island.csv", header, rows))
+    s = load_survey(write_csv_rows(tmp_path / "null-island.csv", header, rows))
     assert s.n == len(rows) - 1 and abs(s.lat0 - LAT0) < 0.01 and abs(s.lon0 - LON0) < 0.01
 
 
 def test_lat_lon_swapped_everywhere_is_an_error(small_csv, tmp_path, capsys):
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     i, j = header.index("lat"), header.index("lon")
     header[i], header[j] = header[j], header[i]  # lat = -81.05 is on the globe; lon = 33.95 too ...
-    p = _write(tmp_path / "swapped.csv", header, rows)
+    p = write_csv_rows(tmp_path / "swapped.csv", header, rows)
     s = load_survey(p)  # ... so the map is a consistent one, only mirrored: metres, not megametres
     assert np.ptp(s.xy[:, 0]) < 1000 and np.ptp(s.xy[:, 1]) < 1000
     # a place where swapping leaves the globe: lon 120 E becomes lat 120
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     for r in rows:
         r[i], r[j] = f"{float(r[j]) + 201.05:.7f}", r[i]
     code, _, err = _run(
-        capsys, ["fit", _write(tmp_path / "asia.csv", header, rows), "--target", "depth"]
+        capsys, ["fit", write_csv_rows(tmp_path / "asia.csv", header, rows), "--target", "depth"]
     )
     _one_line(code, err, "lat outside -90..90", "are lat and lon swapped")
 
@@ -336,10 +323,10 @@ def test_a_folder_non_utf8_and_bom(small_csv, tmp_path, capsys):
 
 
 def test_duplicate_column_names_are_refused(small_csv, tmp_path, capsys):
-    header, rows = _rows(small_csv)
+    header, rows = csv_rows(small_csv)
     header[header.index("water_temp")] = "depth"
     code, _, err = _run(
-        capsys, ["fit", _write(tmp_path / "dup.csv", header, rows), "--target", "t"]
+        capsys, ["fit", write_csv_rows(tmp_path / "dup.csv", header, rows), "--target", "t"]
     )
     _one_line(code, err, "'depth' appear more than once")
 

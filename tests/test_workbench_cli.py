@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import re
@@ -14,24 +13,12 @@ from forcemap.host.cli import main
 from forcemap.host.workbench.synth import make_survey
 from forcemap.host.workbench.table import load_survey
 
+from tests.tools import csv_rows, write_csv_rows
+
 
 @pytest.fixture(scope="module")
 def survey_csv(tmp_path_factory) -> Path:
     return make_survey("river", ["depth_current"], 11, 1200.0, tmp_path_factory.mktemp("survey"))
-
-
-def _rows(path: Path) -> tuple[list[str], list[list[str]]]:
-    with path.open() as f:
-        r = list(csv.reader(f))
-    return r[0], r[1:]
-
-
-def _write(path: Path, header: list[str], rows: list[list[str]]) -> Path:
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(rows)
-    return path
 
 
 def test_csv_parquet_and_mcap_read_the_same(survey_csv, tmp_path):
@@ -40,7 +27,7 @@ def test_csv_parquet_and_mcap_read_the_same(survey_csv, tmp_path):
     from mcap.writer import Writer
 
     s = load_survey(survey_csv)
-    header, rows = _rows(survey_csv)
+    header, rows = csv_rows(survey_csv)
     cols = {h: [float(r[i]) for r in rows] for i, h in enumerate(header)}
     pq.write_table(pa.table(cols), tmp_path / "s.parquet")
     with (tmp_path / "s.mcap").open("wb") as f:
@@ -98,47 +85,47 @@ def test_angle_target_is_refused(survey_csv, capsys):
 
 
 def test_constant_target(survey_csv, tmp_path, capsys):
-    header, rows = _rows(survey_csv)
+    header, rows = csv_rows(survey_csv)
     i = header.index("water_temp")
     for r in rows:
         r[i] = "18.0"
-    p = _write(tmp_path / "c.csv", header, rows)
+    p = write_csv_rows(tmp_path / "c.csv", header, rows)
     code, _, err = _run(capsys, ["fit", str(p), "--target", "water_temp", "--quiet"])
     _one_line_error(code, err, "constant")
 
 
 def test_non_numeric_target(survey_csv, tmp_path, capsys):
     # a column of words is not numeric; one word in a column of numbers is a missing cell (test_bad_input)
-    header, rows = _rows(survey_csv)
+    header, rows = csv_rows(survey_csv)
     i = header.index("depth")
     for r in rows:
         r[i] = "deep"
-    p = _write(tmp_path / "n.csv", header, rows)
+    p = write_csv_rows(tmp_path / "n.csv", header, rows)
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
     _one_line_error(code, err, "not numeric")
 
 
 def test_missing_values_in_target(survey_csv, tmp_path, capsys):
-    header, rows = _rows(survey_csv)
+    header, rows = csv_rows(survey_csv)
     i = header.index("depth")
     for r in rows[::3]:
         r[i] = ""
-    p = _write(tmp_path / "m.csv", header, rows)
+    p = write_csv_rows(tmp_path / "m.csv", header, rows)
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
     _one_line_error(code, err, "missing values")
 
 
-def test_too_few_rows(survey_csv, tmp_path, capsys):
-    header, rows = _rows(survey_csv)
-    p = _write(tmp_path / "few.csv", header, rows[:10])
+def test_too_fewcsv_rows(survey_csv, tmp_path, capsys):
+    header, rows = csv_rows(survey_csv)
+    p = write_csv_rows(tmp_path / "few.csv", header, rows[:10])
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
     _one_line_error(code, err, "only 10 usable rows")
 
 
 def test_missing_position_column(survey_csv, tmp_path, capsys):
-    header, rows = _rows(survey_csv)
+    header, rows = csv_rows(survey_csv)
     i = header.index("lat")
-    p = _write(
+    p = write_csv_rows(
         tmp_path / "nolat.csv", header[:i] + header[i + 1 :], [r[:i] + r[i + 1 :] for r in rows]
     )
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
@@ -287,22 +274,22 @@ def test_model_spec_toml_with_user_term_and_random_folds(survey_csv, tmp_path, c
 
 def test_rows_without_position_are_dropped_with_a_note(survey_csv, tmp_path, capsys):
     # a GPS outage leaves a stretch of samples with no position: they are dropped, the rest is fitted
-    header, rows = _rows(survey_csv)
+    header, rows = csv_rows(survey_csv)
     i, j = header.index("lat"), header.index("lon")
     n = len(rows)
     for r in rows[n // 3 : n // 3 + n // 5]:
         r[i] = r[j] = ""
-    p = _write(tmp_path / "gps-outage.csv", header, rows)
+    p = write_csv_rows(tmp_path / "gps-outage.csv", header, rows)
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--no-plots"])
     assert code == 0, err
     assert "dropped" in err and "'lat'" in err
 
 
 def test_table_mostly_without_position_is_refused(survey_csv, tmp_path, capsys):
-    header, rows = _rows(survey_csv)
+    header, rows = csv_rows(survey_csv)
     i = header.index("lat")
     for r in rows[: 2 * len(rows) // 3]:
         r[i] = ""
-    p = _write(tmp_path / "no-gps.csv", header, rows)
+    p = write_csv_rows(tmp_path / "no-gps.csv", header, rows)
     code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
     _one_line_error(code, err, "missing values")

@@ -6,6 +6,7 @@ A missing tool skips a test on a developer's machine and fails it under CI (``CI
 
 from __future__ import annotations
 
+import csv
 import os
 import shutil
 import sys
@@ -58,3 +59,18 @@ def board_lib() -> Path:
     from forcemap.host.cli.bridge import source_tree
 
     return source_tree(Path(tempfile.mkdtemp(prefix="forcemap-board-")))
+
+
+def csv_rows(path: Path) -> tuple[list[str], list[list[str]]]:
+    """A CSV table's header and rows, as text."""
+    with path.open() as f:
+        r = list(csv.reader(f))
+    return r[0], r[1:]
+
+
+def write_csv_rows(path: Path, header: list[str], rows: list[list[str]]) -> Path:
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(rows)
+    return path
