@@ -30,6 +30,7 @@ CASES = [
     ("none", "wind_speed", "none"),
     ("depth_current", "current_speed", "depth"),
     ("dam_release", "current_speed", "t"),
+    ("dam_release:increase=0.06", "current_speed", "t"),
     ("gusts", "wind_speed", "t"),
     ("bank_shelter", "wind_speed", "wind_dir"),
     ("wheel_misalignment", "current_speed", "heading*"),
@@ -56,7 +57,7 @@ def main() -> None:
     print(
         "expected: heading* = heading, heading_rel_current or heading_rel_wind (one covariate on a"
     )
-    print("lawnmower); none = no missing effect reported\n")
+    print("lawnmower); none = no missing effect reported; increase=0.06 is the weak effect\n")
     head = (
         f"{'effect':<19} {'target':<14} {'seed':>4} {'expected':<10} {'ranked first':<20} "
         f"{'gain':>6} {'null':>6} {'ident':>5} {'p':>8} {'found':>5} {'baseline fit':>12} {'diagnose':>9} "

@@ -10,10 +10,11 @@ kinematic covariate of a wind or current target is credited only with the gain t
 its blocked and random-fold gains, and the larger of the two p-values. Causes (depth, time, heading, ...) are
 credited with their blocked-CV gain.
 
-The finding rule (docs/WORKBENCH.md, "What a survey can and cannot tell"): the best candidate is a missing
+The finding rule (docs/WORKBENCH.md, "What a survey can and cannot tell"): a candidate is a missing
 effect when its gain is at least FLOOR, its paired p-value passes Bonferroni, it gains more than every
 time-shifted copy of itself (host/workbench/null.py), and it is identifiable: its stand-in predicted from
-position does not keep most of the gain (host/workbench/identify.py). A finding is added to the model and the
+position does not keep most of the gain (host/workbench/identify.py). The best such candidate is ranked
+first and reported. A finding is added to the model and the
 survey diagnosed again, up to `rounds` times.
 """
 
@@ -27,6 +28,7 @@ from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.diagnosis import Candidate, Diagnosis, Round, explain_candidate
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
+from forcemap.host.workbench.evidence import small_blas
 from forcemap.host.workbench.null import null_gains
 from forcemap.host.workbench.progress import Progress
 from forcemap.host.workbench.spec import parse_term
@@ -37,7 +39,9 @@ from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_
 __all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
 
 # a gain below this is negligible whatever the null says (docs/WORKBENCH.md justifies it)
-FLOOR = 0.05
+FLOOR = 0.10
+# a finding's blocked-CV error must be at least this much below its best null's
+NULL_MARGIN = 0.05
 # the identifiability and null tests run for at most this many candidates that pass the floor and the p-value
 SCREEN = 4
 DEFAULT_ROUNDS = 3
@@ -129,24 +133,16 @@ def diagnose_round(
     names = candidate_covariates(survey, ev.sm)
     proxies = identify.time_proxies(survey, [n for n in names if n != "t"])
     names = [n for n in names if n not in proxies]
-    bar = Progress(label, len(names), progress)
-    results: list[Candidate] = []
-    skipped: dict[str, str] = {}
-    for name in names:
-        bar.step(name)
-        try:
-            results.append(_evaluate(ev, name))
-        except WorkbenchError as exc:
-            skipped[name] = str(exc)
+    results, skipped = _evaluate_all(ev, names, Progress(label, len(names), progress))
     results.sort(key=lambda c: -c.improvement)
     results = _prefer_direct_cause(results, ev.pair_gain)
-    bar.close()
     seconds = {"candidates": time.perf_counter() - clock}
     for c in results:
         if c.covariate == "t":
             c.time_proxies = proxies
     threshold = alpha / max(len(results), 1)
     _judge(ev, results, threshold, seconds)
+    results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
     fam = ev.sm.vector.family if ev.sm.vector else "field"
@@ -161,6 +157,23 @@ def diagnose_round(
     return Round(
         target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds
     )
+
+
+def _evaluate_all(
+    ev: Evaluator, names: list[str], bar: Progress
+) -> tuple[list[Candidate], dict[str, str]]:
+    """Every candidate's evaluation, in the order given; the ones that cannot be modelled, with why."""
+    results: list[Candidate] = []
+    skipped: dict[str, str] = {}
+    with small_blas():
+        for name in names:
+            bar.step(name)
+            try:
+                results.append(_evaluate(ev, name))
+            except WorkbenchError as exc:
+                skipped[name] = str(exc)
+    bar.close()
+    return results, skipped
 
 
 def _evaluate(ev: Evaluator, name: str) -> Candidate:
@@ -211,9 +224,22 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
     seconds.update(identifiability=t_ident, null=t_null)
 
 
+def _evidence_first(results: list[Candidate]) -> list[Candidate]:
+    """The best candidate that passes the finding rule goes first: a larger gain with no evidence behind it
+    (a few blocks, a p-value far from the threshold) is not a better explanation."""
+    lead = next((c for c in results if c.significant), None)
+    if lead is None or lead is results[0]:
+        return results
+    above = results[: results.index(lead)]
+    names = ", ".join(f"{c.covariate} ({c.improvement:.0%}, p {c.p_value:.1e})" for c in above)
+    lead.note = f"ranked above {names}: a larger gain that fails the finding rule"
+    return [lead] + [c for c in results if c is not lead]
+
+
 def beats_null(gain: float, nulls: list[float]) -> bool:
-    """The candidate's error must be at least FLOOR below the best null's: beating chance by a hair is chance."""
-    return (1.0 - gain) <= (1.0 - FLOOR) * (1.0 - max(nulls, default=0.0))
+    """The candidate's error must be at least NULL_MARGIN below the best null's: beating chance by a hair is
+    chance."""
+    return (1.0 - gain) <= (1.0 - NULL_MARGIN) * (1.0 - max(nulls, default=0.0))
 
 
 def _component(sm: SurveyModel) -> str:

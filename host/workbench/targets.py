@@ -164,9 +164,19 @@ class SurveyModel:
 
     # ---- combining the primary (and secondary) Gaussian predictions into the target
     def combine(
-        self, mu_p, sd_p, noise_p, mu_s=None, sd_s=None, noise_s=None, ue=None, un=None
+        self,
+        mu_p,
+        sd_p,
+        noise_p,
+        mu_s=None,
+        sd_s=None,
+        noise_s=None,
+        ue=None,
+        un=None,
+        interval: bool = True,
     ) -> tuple:
-        """(mean, lower95, upper95) of the target from latent means/stds of the flow-frame components."""
+        """(mean, lower95, upper95) of the target from latent means/stds of the flow-frame components; without
+        `interval` a vector's bounds are NaN (the quantiles over the draws are most of the cost)."""
         if self.secondary is None:
             half = 1.96 * np.sqrt(sd_p**2 + noise_p**2)
             return mu_p, mu_p - half, mu_p + half
@@ -181,14 +191,17 @@ class SurveyModel:
         un = self.un if un is None else un
         for a0 in range(0, len(mu_p), 4096):
             sl = slice(a0, a0 + 4096)
-            pa = np.sqrt(sa[sl] ** 2 + na**2)[:, None]
-            pc = np.sqrt(sc[sl] ** 2 + nc**2)[:, None]
             a_lat = ma[sl, None] + sa[sl, None] * z1
             c_lat = mc[sl, None] + sc[sl, None] * z2
-            a_obs = ma[sl, None] + pa * z1
-            c_obs = mc[sl, None] + pc * z2
+            if interval:
+                a_obs = ma[sl, None] + np.sqrt(sa[sl] ** 2 + na**2)[:, None] * z1
+                c_obs = mc[sl, None] + np.sqrt(sc[sl] ** 2 + nc**2)[:, None] * z2
+            else:
+                out_lo[sl] = out_hi[sl] = np.nan
             if self.vector.aspect == "speed":
                 out_mean[sl] = np.hypot(a_lat, c_lat).mean(axis=1)
+                if not interval:
+                    continue
                 obs = np.hypot(a_obs, c_obs)
                 out_lo[sl], out_hi[sl] = np.quantile(obs, [0.025, 0.975], axis=1)
             else:
@@ -203,24 +216,42 @@ class SurveyModel:
                     np.degrees(np.arctan2(np.sin(lat).mean(axis=1), np.cos(lat).mean(axis=1)))
                     % 360.0
                 )
+                if not interval:
+                    out_mean[sl] = mean
+                    continue
                 dev = np.abs(wrap180(direction(a_obs, c_obs) - mean[:, None]))
                 half = np.quantile(dev, 0.95, axis=1)
                 out_mean[sl], out_lo[sl], out_hi[sl] = mean, mean - half, mean + half
         return out_mean, out_lo, out_hi
 
-    def cv(self, folds: np.ndarray, primary: Model | None = None, secondary_cv=None) -> CVResult:
-        """Held-out predictions of the target, weights refitted per fold (hyperparameters from the full fit)."""
+    def cv(
+        self,
+        folds: np.ndarray,
+        primary: Model | None = None,
+        secondary_cv=None,
+        interval: bool = True,
+    ) -> CVResult:
+        """Held-out predictions of the target, weights refitted per fold (hyperparameters from the full fit);
+        without `interval`, no 95 % bounds (NaN): the diagnosis compares errors only."""
         primary = primary or self.primary
         mu_p, sd_p = primary.cv_predict(folds)
         if self.secondary is None:
-            mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_)
+            mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_, interval=interval)
         else:
             mu_s, sd_s = (
                 secondary_cv if secondary_cv is not None else self.secondary.cv_predict(folds)
             )
             ue, un = self._frame_cv(folds)
             mean, lo, hi = self.combine(
-                mu_p, sd_p, primary.noise_std_, mu_s, sd_s, self.secondary.noise_std_, ue, un
+                mu_p,
+                sd_p,
+                primary.noise_std_,
+                mu_s,
+                sd_s,
+                self.secondary.noise_std_,
+                ue,
+                un,
+                interval=interval,
             )
         return CVResult(self.measured, mean, lo, hi, circular=self.circular)
 
