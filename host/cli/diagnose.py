@@ -22,8 +22,11 @@ then adds a term in each candidate covariate in turn: every numeric column outsi
 time (t), and derived ones (heading relative to the flow, speed through water stw, a vector's own direction
 for its speed). For wind and current it also tries clock_offset: the time offset between the autopilot
 and the bridge that makes the vector steadiest through the turns. It ranks them by how much the spatially
-blocked CV error falls, and tests whether the best gain is real (paired Wilcoxon test over spatial blocks,
-Bonferroni over candidates, and at least a 25 % drop).
+blocked CV error falls (pooled over three assignments of the blocks to folds). A candidate is a finding
+when its error falls at least 10 %, a paired Wilcoxon test over spatial blocks passes Bonferroni over the
+candidates, it beats by 5 % the same term on time-shifted copies of itself (its null), and a stand-in
+predicted from position does not keep its gain (identifiable); else the survey advice says what survey
+would tell it apart. A finding is added and the survey diagnosed again, up to --rounds times.
 
 Boat kinematics (sog, cog, crab = heading - cog, throttle) respond to the current and wind being mapped, so at a
 held-out place they carry the answer: they are credited only with the gain that survives random folds,

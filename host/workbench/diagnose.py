@@ -29,7 +29,7 @@ from forcemap.host.workbench.diagnosis import Candidate, Diagnosis, Round, expla
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
 from forcemap.host.workbench.evidence import small_blas
-from forcemap.host.workbench.null import null_gains
+from forcemap.host.workbench.null import beats_null, null_gains
 from forcemap.host.workbench.progress import Progress
 from forcemap.host.workbench.spec import parse_term
 from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
@@ -40,8 +40,6 @@ __all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
 
 # a gain below this is negligible whatever the null says (docs/WORKBENCH.md justifies it)
 FLOOR = 0.10
-# a finding's blocked-CV error must be at least this much below its best null's
-NULL_MARGIN = 0.05
 # the identifiability and null tests run for at most this many candidates that pass the floor and the p-value
 SCREEN = 4
 DEFAULT_ROUNDS = 3
@@ -234,12 +232,6 @@ def _evidence_first(results: list[Candidate]) -> list[Candidate]:
     names = ", ".join(f"{c.covariate} ({c.improvement:.0%}, p {c.p_value:.1e})" for c in above)
     lead.note = f"ranked above {names}: a larger gain that fails the finding rule"
     return [lead] + [c for c in results if c is not lead]
-
-
-def beats_null(gain: float, nulls: list[float]) -> bool:
-    """The candidate's error must be at least NULL_MARGIN below the best null's: beating chance by a hair is
-    chance."""
-    return (1.0 - gain) <= (1.0 - NULL_MARGIN) * (1.0 - max(nulls, default=0.0))
 
 
 def _component(sm: SurveyModel) -> str:

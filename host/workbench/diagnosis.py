@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 
 from forcemap.host.workbench.catalogue import explain
+from forcemap.host.workbench.null import NULL_MARGIN
 
 
 @dataclass
@@ -208,7 +209,7 @@ def explain_candidate(
     verdict = (
         "significant"
         if c.significant
-        else f"not significant (needs a gain >= {floor:.0%}, an error {floor:.0%} below its best null's, and a small p-value)"
+        else f"not significant (needs a gain >= {floor:.0%}, an error {NULL_MARGIN:.0%} below its best null's, and a small p-value)"
     )
     extra = f" ({c.note})" if c.note else ""
     return f"{head}; p = {c.p_value:.1e}, {verdict}{extra}. Likely cause: {cause}. Suggested term: {term}."

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+# a finding's blocked-CV error must be at least this much below its best null's
+NULL_MARGIN = 0.05
 # the shifts, as fractions of the survey: far from 0 and from each other, so each is a different null
 SHIFTS = (0.2, 0.4, 0.6, 0.8)
 
@@ -51,3 +53,9 @@ def null_gains(ev, name: str, values: np.ndarray, theta: np.ndarray) -> list[flo
         model = ev.with_fixed_hypers(name, copy, theta)
         gains.append(float(ev.blocked(model)[1]))
     return gains
+
+
+def beats_null(gain: float, nulls: list[float]) -> bool:
+    """The candidate's error must be at least NULL_MARGIN below the best null's: beating chance by a hair is
+    chance."""
+    return (1.0 - gain) <= (1.0 - NULL_MARGIN) * (1.0 - max(nulls, default=0.0))
