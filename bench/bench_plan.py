@@ -22,20 +22,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.plan.closed_loop import fly, plan_files, survey
-from forcemap.sim_devices import scenario as sc
+from forcemap.host.plan.closed_loop import fly, low_discharge_scenario, plan_files, survey
 
 SEED_A, SEED_B = 1, 2
-
-
-def low_discharge_scenario(folder: Path) -> Path:
-    """The river with its current x 0.6 (bank 0.6, thalweg 1.5 m/s): a dry day."""
-    text = (Path(sc.__file__).parent / "scenarios" / "river.toml").read_text()
-    text = text.replace('name = "river"', 'name = "river_low"')
-    text = text.replace("bank = 1.0 ", "bank = 0.6 ").replace("thalweg = 2.5 ", "thalweg = 1.5 ")
-    path = folder / "river_low.toml"
-    path.write_text(text)
-    return path
 
 
 def row(name: str, f) -> str:  # type: ignore[no-untyped-def]

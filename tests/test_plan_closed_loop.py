@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.plan.closed_loop import fly, plan_files, survey
+from forcemap.host.plan.closed_loop import fly, low_discharge_scenario, plan_files, survey
+from forcemap.host.plan.planner import STRESS
 from forcemap.host.plan.report_section import mission_section
 from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices import waypoints as wp
@@ -67,6 +68,31 @@ def test_lake_plan_changes_nothing_and_loses_nothing(work: Path) -> None:
     assert fp.summary["coverage"] >= fo.summary["coverage"] - 1e-9 >= 0.95
     assert fp.duration_s <= 1.01 * fo.duration_s
     assert np.isfinite(fp.summary["p95_worst_line"]) and fp.summary["p95_worst_line"] <= 3.0
+
+
+def test_wrong_map_is_reported_honestly(work: Path) -> None:
+    """Mapped on a dry day (current x 0.6), flown on a dam-release day (x 1.0 rising to x 1.6): the map is
+    1.7-2.7 times too weak, so every prediction from it must be optimistic, and the plan must say so."""
+    table = survey(str(low_discharge_scenario(work)), SEED_A, work / "survey-low")
+    result, orig, planned = plan_files(table, "lawnmower", work / "plan-wrong", "river")
+    dur = 1.5 * max(result.original.track.duration, result.planned.track.duration) + 120
+    fo = fly(orig, "river", SEED_B, ["dam_release"], dur)
+    fp = fly(planned, "river", SEED_B, ["dam_release"], dur)
+    predicted = result.planned.to_json()["p95_worst_line"]
+    flown = fp.summary["p95_worst_line"]
+    # the original was predicted to hold its lines, and missed them
+    assert result.original.to_json()["coverage"] >= 0.95
+    assert fo.summary["miss"] > 7.0 and fo.summary["coverage"] < 0.9
+    # the planned mission's prediction was far too good ...
+    assert flown > 3.0 * predicted
+    # ... the map's own uncertainty (+-2 sd) does not warn of another day, the higher-discharge one does
+    own = [v["p95_worst_line"] for k, v in result.sensitivity.items() if k.startswith("current_x")]
+    assert len(own) == 2 and all(abs(p - predicted) < 0.25 * (flown - predicted) for p in own)
+    stress = result.sensitivity[f"discharge_x{STRESS:g}"]["p95_worst_line"]
+    assert abs(stress - flown) < abs(predicted - flown)
+    # ... and the plan still did far better than the original, holding its lines
+    assert flown < fo.summary["p95_worst_line"] and fp.summary["coverage"] >= fo.summary["coverage"]
+    assert flown <= 3.0 and fp.summary["coverage"] >= 0.95
 
 
 def test_plan_command_and_report_section(work: Path, capsys) -> None:  # type: ignore[no-untyped-def]

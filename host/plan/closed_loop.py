@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from forcemap.sim_devices import scenario as sc
 from forcemap.sim_devices.engine import Simulation
 from forcemap.sim_devices.offline import make_survey
 
@@ -30,6 +31,17 @@ def survey(scenario: str, seed: int, out: Path, duration_s: float = 1200.0) -> P
     if not table.exists():
         make_survey(scenario, [], seed, duration_s, out)
     return table
+
+
+def low_discharge_scenario(folder: Path) -> Path:
+    """The river with its current x 0.6 (bank 0.6, thalweg 1.5 m/s): a dry day, for mapping with a map
+    that will be wrong on the day the mission is flown."""
+    text = (Path(sc.__file__).parent / "scenarios" / "river.toml").read_text()
+    text = text.replace('name = "river"', 'name = "river_low"')
+    text = text.replace("bank = 1.0 ", "bank = 0.6 ").replace("thalweg = 2.5 ", "thalweg = 1.5 ")
+    path = folder / "river_low.toml"
+    path.write_text(text)
+    return path
 
 
 def plan_files(
