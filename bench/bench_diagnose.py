@@ -48,7 +48,9 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2")
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument(
-        "--effects", default="", help="only these effects (comma-separated; default all)"
+        "--effects",
+        default="",
+        help="only these cases (comma-separated; two effects at once as depth_current+dam_release; default all)",
     )
     ap.add_argument("--out", default="/tmp/forcemap-bench-diagnose")
     ap.add_argument("--rounds", type=int, default=3, help="rounds for the two-effect case")
@@ -67,7 +69,7 @@ def main() -> None:
     print("-" * len(head))
     only = {e for e in args.effects.split(",") if e}
     for effect, target, expected in CASES:
-        if only and effect not in only:
+        if only and effect.replace(",", "+") not in only:
             continue
         for seed in seeds:
             out = Path(args.out) / f"{effect.replace(',', '+')}-{seed}"

@@ -28,7 +28,6 @@ from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.diagnosis import Candidate, Diagnosis, Round, explain_candidate
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
-from forcemap.host.workbench.evidence import small_blas
 from forcemap.host.workbench.null import beats_null, null_gains
 from forcemap.host.workbench.progress import Progress
 from forcemap.host.workbench.spec import parse_term
@@ -163,13 +162,12 @@ def _evaluate_all(
     """Every candidate's evaluation, in the order given; the ones that cannot be modelled, with why."""
     results: list[Candidate] = []
     skipped: dict[str, str] = {}
-    with small_blas():
-        for name in names:
-            bar.step(name)
-            try:
-                results.append(_evaluate(ev, name))
-            except WorkbenchError as exc:
-                skipped[name] = str(exc)
+    for name in names:
+        bar.step(name)
+        try:
+            results.append(_evaluate(ev, name))
+        except WorkbenchError as exc:
+            skipped[name] = str(exc)
     bar.close()
     return results, skipped
 

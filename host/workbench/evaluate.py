@@ -38,7 +38,6 @@ class Evaluator:
         self.survey, self.target = survey, target
         self.sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
         self.fold_ids, self.blocks = repeated_blocked_folds(survey.xy, folds, seed, REPEATS)
-        self.fold_id = self.fold_ids[0]
         # the paired unit of every blocked comparison: the block, over all its assignments
         self.groups = np.tile(self.blocks, REPEATS)
         self.rfold = random_folds(survey.n, folds, seed)
@@ -51,16 +50,19 @@ class Evaluator:
         self._base_r: CVResult | None = None
         self.consequences = consequences_of(target)
 
+    @property
+    def fold_id(self) -> np.ndarray:
+        """The first assignment: the one the identifiability stand-in is predicted on."""
+        return self.fold_ids[0]
+
     def blocked_cv(self, sm: SurveyModel, primary: Model | None = None) -> CVResult:
-        """Held-out predictions of `sm` (with `primary` in place of its own) over every fold assignment."""
-        if sm is not self.sm:  # another survey's model (the clock-corrected one): its own secondary
-            return CVResult.concat(
-                [sm.cv(f, primary=primary, interval=False) for f in self.fold_ids]
-            )
+        """Held-out predictions of `sm` (with `primary` in place of its own) over every fold assignment.
+        Another survey's model (the clock-corrected one) predicts its own secondary."""
+        secondaries = self.sec_b if sm is self.sm else [None] * REPEATS
         return CVResult.concat(
             [
                 sm.cv(f, primary=primary, secondary_cv=s, interval=False)
-                for f, s in zip(self.fold_ids, self.sec_b, strict=True)
+                for f, s in zip(self.fold_ids, secondaries, strict=True)
             ]
         )
 
