@@ -148,3 +148,32 @@ def test_extended_model_shares_design_and_improves_fit():
     ext = base.extended(build_term(parse_term("z", is_circular), is_circular), X, y)
     assert ext.log_marginal_likelihood_ > base.log_marginal_likelihood_ + 50
     assert ext.noise_std_ < 0.6 * base.noise_std_
+
+
+def test_augmented_fold_grams_equal_the_grams_of_the_augmented_rows(field):
+    """Design.augment sums the new block's cross products over the cells of every cached fold assignment;
+    each fold's Gram must still be the Gram of that fold's rows of the augmented design."""
+    xy, _, y = field
+    m = Model(["const", "gp(position, matern32)"]).fit({"position": xy}, y)
+    rng = np.random.default_rng(8)
+    blocked = [(xy[:, 0] // 80).astype(int) % 5, ((xy[:, 0] + 40) // 80).astype(int) % 5]
+    shuffled = rng.permutation(np.arange(len(y)) % 5)
+    for folds in [*blocked, shuffled]:
+        m.design_.fold_grams(folds)
+    new = np.column_stack([np.sin(xy[:, 1] / 17.0), xy[:, 0] / 100.0, np.ones(len(y))])
+    aug = m.design_.augment(new)
+    for folds in [*blocked, shuffled]:
+        full = np.hstack([m.design_.rows(slice(None)), new])
+        for f, G in zip(np.unique(folds), aug.fold_grams(folds), strict=True):
+            rows = full[folds == f]
+            np.testing.assert_allclose(G, rows.T @ rows, rtol=1e-10, atol=1e-9)
+
+
+def test_held_out_means_do_not_depend_on_asking_for_the_spread(field):
+    xy, _, y = field
+    m = Model(["const", "gp(position, matern32)"]).fit({"position": xy}, y)
+    folds = np.arange(len(y)) % 4
+    mu, sd = m.cv_predict(folds)
+    mu_only, none = m.cv_predict(folds, return_std=False)
+    assert none is None and np.all(sd > 0)
+    np.testing.assert_array_equal(mu, mu_only)

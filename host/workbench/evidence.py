@@ -76,17 +76,35 @@ class Design:
         d.blocks, d.sizes = self.blocks + [new], self.sizes + [new.shape[1]]
         cross = np.vstack([b.T @ new for b in self.blocks])
         d.G = np.block([[self.G, cross], [cross.T, new.T @ new]])
-        d._folds = {}
+        d._folds, d._fold_ids = {}, dict(self._fold_ids)
+        if not self._folds:
+            return d
+        cells, cell_cross, cell_gram = self._cell_products(new)
         for key, grams in self._folds.items():
             folds = self._fold_ids[key]
+            column = cells[:, list(self._folds).index(key)]
             d._folds[key] = []
             for f, Gf in zip(np.unique(folds), grams, strict=True):
-                idx = folds == f
-                nf = new[idx]
-                cf = np.vstack([b[idx].T @ nf for b in self.blocks])
-                d._folds[key].append(np.block([[Gf, cf], [cf.T, nf.T @ nf]]))
-        d._fold_ids = dict(self._fold_ids)
+                inside = column == f
+                cf, nn = cell_cross[inside].sum(axis=0), cell_gram[inside].sum(axis=0)
+                d._folds[key].append(np.block([[Gf, cf], [cf.T, nn]]))
         return d
+
+    def _cell_products(self, new: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The cross products of the design and of `new` with `new` over the cells of the cached fold
+        assignments (rows that share a fold in every one): a pass over the data once, not once per assignment.
+        Returns each cell's fold in every assignment, and the products per cell."""
+        ids = np.stack([self._fold_ids[key] for key in self._folds], axis=1)
+        cells, cell_of_row = np.unique(ids, axis=0, return_inverse=True)
+        cell_of_row = cell_of_row.ravel()
+        cross = np.empty((len(cells), self.M, new.shape[1]))
+        gram = np.empty((len(cells), new.shape[1], new.shape[1]))
+        for c in range(len(cells)):
+            rows = cell_of_row == c
+            nc = new[rows]
+            cross[c] = np.vstack([b[rows].T @ nc for b in self.blocks])
+            gram[c] = nc.T @ nc
+        return cells, cross, gram
 
     def fold_grams(self, folds: np.ndarray) -> list[np.ndarray]:
         key = hashlib.sha1(np.ascontiguousarray(folds).tobytes()).hexdigest()
@@ -111,8 +129,11 @@ def evidence(G, b, rr, n, loglam, logsn2, grad=True):
     lam = np.exp(loglam)
     s = np.sqrt(lam)
     sn2 = math.exp(logsn2)
-    B = (s[:, None] * G * s[None, :]) / sn2
-    B[np.diag_indices_from(B)] += 1.0
+    # diag(s) G diag(s) / sn2 + I, in place: the broadcast product with temporaries cost more than the Cholesky
+    t = s / math.sqrt(sn2)
+    B = G * t[:, None]
+    B *= t
+    B.flat[:: len(B) + 1] += 1.0
     L, _ = linalg.cho_factor(B, lower=True, check_finite=False)
     c = s * b
     alpha = linalg.cho_solve((L, True), c, check_finite=False)

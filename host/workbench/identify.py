@@ -73,7 +73,7 @@ def predict_from_model_inputs(ev, name: str, values: np.ndarray) -> tuple[np.nda
             continue
         m = Model([*feat, trend], hyper_rows=p.hyper_rows)
         m.fit(ev.sm.X, y, design=design)
-        preds.append(m.cv_predict(ev.fold_id)[0])
+        preds.append(m.cv_predict(ev.fold_id, return_std=False)[0])
     resid = sum(np.mean((y - q) ** 2) for y, q in zip(parts, preds, strict=True))
     total = sum(np.var(y) for y in parts) or 1.0
     r2 = float(1.0 - resid / total)

@@ -101,7 +101,8 @@ class SurveyFits:
         key = (vt.prefix, vt.aspect, np.ascontiguousarray(folds).tobytes())
         if key not in self._frame_cv:
             me, mn = self.frame(vt)
-            e, n = me.cv_predict(folds)[0], mn.cv_predict(folds)[0]
+            e = me.cv_predict(folds, return_std=False)[0]
+            n = mn.cv_predict(folds, return_std=False)[0]
             sp = np.hypot(e, n)
             sp = np.where(sp > 1e-9, sp, 1.0)
             self._frame_cv[key] = (e / sp, n / sp)
