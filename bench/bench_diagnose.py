@@ -100,6 +100,7 @@ def main() -> None:
                 flush=True,
             )
             if len(d.rounds) > 1:
+                print(f"    {len(d.rounds)} rounds on {survey.n:,} samples in {t_diag:.1f} s")
                 for step in d.steps():
                     print(f"    {step}")
 

@@ -53,8 +53,12 @@ def test_twenty_minutes_wrap_drops_and_reset(board):
         host.close()
         frames = host.frames
 
-    # each write timeout cuts a frame short: the decoder rejects it and loses nothing else
-    assert host.dec.rejected() <= first_fw.write_timeouts
+    # each write timeout cuts a frame short: the decoder rejects it and loses nothing else. Either
+    # boot may time out: the kernel moves pty bytes to the reader from a worker thread, which a busy
+    # machine runs late, so the host can find fewer bytes than were written and fall behind
+    timeouts = first_fw.write_timeouts + emu.firmware.write_timeouts
+    assert emu.firmware is not first_fw
+    assert host.dec.rejected() <= timeouts
     boot_ids = []
     for f in frames:
         if f.boot_id not in boot_ids:
