@@ -31,7 +31,7 @@ from .geo import Geo
 from .instruments import InstrumentConfig, Readings, Sensors
 from .machine_emu import PWRON_RESET
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
-from .truth import COLUMNS, compass, write_all
+from .truth import samples_table, track_arrays, write_all, write_pulses
 
 Sink = Callable[[str, int, bytes], Any]
 Progress = Callable[[float, float], Any]
@@ -371,21 +371,11 @@ class Simulation:
         self.track = self._track()
         if self.truth_dir is not None:
             write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
-            self._write_pulses(Path(self.truth_dir) / "pulses.npz")
+            write_pulses(Path(self.truth_dir) / "pulses.npz", self.boots, self.pulses)
             ms.write_truth(Path(self.truth_dir), self.mission, self.geo)
 
     def _note_boot(self) -> None:
         self.boots.append((self.bridge.boot_id, self.bridge.boot_us))
-
-    def _write_pulses(self, path: Path) -> None:
-        """The pulse ledger: every real pulse on each bridge channel, and each boot's start, on the
-        bridge's timeline in µs (a frame's timeline time is its boot's ``boot_us`` + ``t_us``)."""
-        np.savez_compressed(
-            path,
-            boot_id=np.array([b for b, _ in self.boots], dtype=np.uint64),
-            boot_us=np.array([u for _, u in self.boots], dtype=np.int64),
-            **{f"ch{ch}": np.array(t, dtype=np.int64) for ch, t in enumerate(self.pulses)},
-        )
 
     def run(self, duration_s: float, sink: Sink, progress: Progress | None = None) -> Simulation:
         """The whole survey, offline, as fast as it goes."""
@@ -396,36 +386,11 @@ class Simulation:
 
     # ---- results --------------------------------------------------------------------------
     def _track(self) -> dict[str, np.ndarray]:
-        if not self.rows:
-            return {}
-        r = np.array(self.rows)
-        e = np.array(self.extra)
-        names = ("t", "x", "y", "heading", "yaw_rate", "sog", "boat_east", "boat_north", "depth",
-                 "water_temp", "wind_east", "wind_north", "current_east", "current_north", "wheel1_speed",
-                 "wheel2_speed", "wheel3_speed", "wheel4_speed", "app_wind_speed", "app_wind_angle")  # fmt: skip
-        out = {n: r[:, i] for i, n in enumerate(names)}
-        for i, n in enumerate(("xte", "leg", "throttle", "u", "v")):
-            out[n] = e[:, i]
-        return out
+        return track_arrays(self.rows, self.extra)
 
     def truth_table(self) -> np.ndarray:
         """The samples.csv table: one row per 0.1 s, columns as ``truth.COLUMNS``."""
-        tr = self.track or self._track()
-        if not tr:
-            return np.empty((0, len(COLUMNS)))
-        lat, lon = self.geo.to_latlon(tr["x"], tr["y"])
-        cols = {
-            **tr,
-            "t": self.scenario.t0 + tr["t"],
-            "lat": lat,
-            "lon": lon,
-            "cog": compass(tr["boat_east"], tr["boat_north"]),
-            "wind_speed": np.hypot(tr["wind_east"], tr["wind_north"]),
-            "wind_dir": compass(-tr["wind_east"], -tr["wind_north"]),
-            "current_speed": np.hypot(tr["current_east"], tr["current_north"]),
-            "current_dir": compass(tr["current_east"], tr["current_north"]),
-        }
-        return np.column_stack([cols[c] for c in COLUMNS])
+        return samples_table(self.track or self._track(), self.geo, self.scenario.t0)
 
     def meta(self) -> dict[str, Any]:
         """What effects.json holds."""

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from .fields import World
+from .geo import Geo
 
 COLUMNS = (
     "t", "x", "y", "lat", "lon", "heading", "yaw_rate", "sog", "cog", "boat_east", "boat_north",
@@ -18,11 +19,56 @@ COLUMNS = (
     "wheel4_speed", "app_wind_speed", "app_wind_angle",
 )  # fmt: skip
 FORMATS = {"t": "%.3f", "lat": "%.8f", "lon": "%.8f"}
+# the simulation's per-step rows and extras, in order
+TRACK = ("t", "x", "y", "heading", "yaw_rate", "sog", "boat_east", "boat_north", "depth",
+         "water_temp", "wind_east", "wind_north", "current_east", "current_north", "wheel1_speed",
+         "wheel2_speed", "wheel3_speed", "wheel4_speed", "app_wind_speed", "app_wind_angle")  # fmt: skip
+EXTRA = ("xte", "leg", "throttle", "u", "v")
 
 
 def compass(east: np.ndarray, north: np.ndarray) -> np.ndarray:
     """Compass degrees [0, 360) of a vector's direction (where it points TO)."""
     return np.degrees(np.arctan2(east, north)) % 360.0
+
+
+def track_arrays(rows: list, extra: list) -> dict[str, np.ndarray]:
+    """The true track by column (``TRACK`` and ``EXTRA``) from the simulation's recorded rows."""
+    if not rows:
+        return {}
+    r, e = np.array(rows), np.array(extra)
+    out = {n: r[:, i] for i, n in enumerate(TRACK)}
+    out.update({n: e[:, i] for i, n in enumerate(EXTRA)})
+    return out
+
+
+def samples_table(track: dict[str, np.ndarray], geo: Geo, t0: float) -> np.ndarray:
+    """The samples.csv table from the true track: columns as ``COLUMNS``, UNIX time from ``t0``."""
+    if not track:
+        return np.empty((0, len(COLUMNS)))
+    lat, lon = geo.to_latlon(track["x"], track["y"])
+    cols = {
+        **track,
+        "t": t0 + track["t"],
+        "lat": lat,
+        "lon": lon,
+        "cog": compass(track["boat_east"], track["boat_north"]),
+        "wind_speed": np.hypot(track["wind_east"], track["wind_north"]),
+        "wind_dir": compass(-track["wind_east"], -track["wind_north"]),
+        "current_speed": np.hypot(track["current_east"], track["current_north"]),
+        "current_dir": compass(track["current_east"], track["current_north"]),
+    }
+    return np.column_stack([cols[c] for c in COLUMNS])
+
+
+def write_pulses(path: Path, boots: list[tuple[int, int]], pulses: list[list[int]]) -> None:
+    """The pulse ledger: every real pulse on each bridge channel, and each boot's start, on the
+    bridge's timeline in µs (a frame's timeline time is its boot's ``boot_us`` + ``t_us``)."""
+    np.savez_compressed(
+        path,
+        boot_id=np.array([b for b, _ in boots], dtype=np.uint64),
+        boot_us=np.array([u for _, u in boots], dtype=np.int64),
+        **{f"ch{ch}": np.array(t, dtype=np.int64) for ch, t in enumerate(pulses)},
+    )
 
 
 def write_samples(path: Path, table: np.ndarray) -> None:
