@@ -162,8 +162,8 @@ def test_augmented_fold_grams_equal_the_grams_of_the_augmented_rows(field):
         m.design_.fold_grams(folds)
     new = np.column_stack([np.sin(xy[:, 1] / 17.0), xy[:, 0] / 100.0, np.ones(len(y))])
     aug = m.design_.augment(new)
+    full = np.hstack([m.design_.rows(slice(None)), new])
     for folds in [*blocked, shuffled]:
-        full = np.hstack([m.design_.rows(slice(None)), new])
         for f, G in zip(np.unique(folds), aug.fold_grams(folds), strict=True):
             rows = full[folds == f]
             np.testing.assert_allclose(G, rows.T @ rows, rtol=1e-10, atol=1e-9)

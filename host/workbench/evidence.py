@@ -80,12 +80,10 @@ class Design:
         if not self._folds:
             return d
         cells, cell_cross, cell_gram = self._cell_products(new)
-        for key, grams in self._folds.items():
-            folds = self._fold_ids[key]
-            column = cells[:, list(self._folds).index(key)]
+        for j, (key, grams) in enumerate(self._folds.items()):
             d._folds[key] = []
-            for f, Gf in zip(np.unique(folds), grams, strict=True):
-                inside = column == f
+            for f, Gf in zip(np.unique(self._fold_ids[key]), grams, strict=True):
+                inside = cells[:, j] == f
                 cf, nn = cell_cross[inside].sum(axis=0), cell_gram[inside].sum(axis=0)
                 d._folds[key].append(np.block([[Gf, cf], [cf.T, nn]]))
         return d
@@ -93,7 +91,7 @@ class Design:
     def _cell_products(self, new: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The cross products of the design and of `new` with `new` over the cells of the cached fold
         assignments (rows that share a fold in every one): a pass over the data once, not once per assignment.
-        Returns each cell's fold in every assignment, and the products per cell."""
+        Returns each cell's fold in every assignment (columns in the order of `_folds`), and its products."""
         ids = np.stack([self._fold_ids[key] for key in self._folds], axis=1)
         cells, cell_of_row = np.unique(ids, axis=0, return_inverse=True)
         cell_of_row = cell_of_row.ravel()

@@ -176,8 +176,10 @@ class SurveyModel:
         interval: bool = True,
     ) -> tuple:
         """(mean, lower95, upper95) of the target from latent means/stds of the flow-frame components; without
-        `interval` a vector's bounds are NaN (the quantiles over the draws are most of the cost)."""
+        `interval` the bounds are NaN (for a vector the quantiles over the draws are most of the cost)."""
         if self.secondary is None:
+            if not interval:
+                return mu_p, np.full_like(mu_p, np.nan), np.full_like(mu_p, np.nan)
             half = 1.96 * np.sqrt(sd_p**2 + noise_p**2)
             return mu_p, mu_p - half, mu_p + half
         rng = np.random.default_rng(12345)
