@@ -68,6 +68,11 @@ def main() -> None:
     print(head)
     print("-" * len(head))
     only = {e for e in args.effects.split(",") if e}
+    known = {effect.replace(",", "+") for effect, _, _ in CASES}
+    if only - known:
+        ap.error(
+            f"unknown case {', '.join(sorted(only - known))}; one of {', '.join(sorted(known))}"
+        )
     for effect, target, expected in CASES:
         if only and effect.replace(",", "+") not in only:
             continue
