@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from forcemap.host.mcap_log import read_messages
+from forcemap.host.log.mcap import read_messages
 
 SPIN = "while True: pass"
 

@@ -19,7 +19,7 @@ import argparse
 import time
 from pathlib import Path
 
-from forcemap.host.workbench.diagnose import DIAGNOSE_MAX_BASIS, diagnose
+from forcemap.host.workbench.diagnose.rounds import DIAGNOSE_MAX_BASIS, diagnose
 from forcemap.host.workbench.model import small_blas
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.targets import SurveyModel

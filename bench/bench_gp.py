@@ -2,7 +2,7 @@
 
 Same data, same process, same spatially blocked folds. For each n: fit + predict (mean and std at every
 sample) wall time for both, the ratio, and blocked 5-fold CV RMSE for both (hyperparameters refitted in every
-fold, for both). The data are a synthetic 3-hour lawnmower survey of a river (forcemap.host.workbench.synth), sampled at
+fold, for both). The data are a synthetic 3-hour lawnmower survey of a river (bench.synth_survey), sampled at
 the rate that gives n samples over the whole survey; the target is depth (scalar, sand bars ~80 m).
 scikit-learn is run up to --sklearn-max samples (its cost grows as n^3; 43,000 samples would need a
 15 GB kernel matrix and hours). Finally every target of a 43,000-sample survey is fitted by forcemap.
@@ -20,7 +20,8 @@ import warnings
 import numpy as np
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.model import Model, small_blas
-from forcemap.host.workbench.synth import simulate
+
+from bench.synth_survey import simulate
 
 SURVEY_S = 10_750.0  # 3 h: 43,000 samples at 4 Hz
 BASELINE = ["const", "gp(position, matern32)"]
@@ -70,9 +71,10 @@ def all_targets(n: int) -> None:
     import tempfile
     from pathlib import Path
 
-    from forcemap.host.workbench.synth import make_survey
     from forcemap.host.workbench.table import load_survey
     from forcemap.host.workbench.targets import SurveyModel
+
+    from bench.synth_survey import make_survey
 
     d = tempfile.mkdtemp()
     path = make_survey("river", [], 3, n / 4.0, d)

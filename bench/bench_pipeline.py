@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from forcemap.host.pipeline import NullSink, Pipeline  # noqa: E402
+from forcemap.host.fuse.pipeline import NullSink, Pipeline  # noqa: E402
 from pymavlink.dialects.v20 import ardupilotmega as mavlink  # noqa: E402
 
 LATENCY_NS = 2_000_000
@@ -102,8 +102,8 @@ REAL_NMEA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "
 
 def run_real_nmea(target: float) -> bool:
     """Each real NMEA capture through the pipeline; True if all meet ``target`` x real time."""
-    from forcemap.host.importers import nmea_line_times
-    from forcemap.host.nmea import LineSplitter
+    from forcemap.host.convert.importers import nmea_line_times
+    from forcemap.host.decode.nmea import LineSplitter
 
     ok = True
     for path in sorted(REAL_NMEA.glob("*.*")):

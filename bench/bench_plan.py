@@ -22,7 +22,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.plan.closed_loop import fly, low_discharge_scenario, plan_files, survey
+
+from bench.closed_loop import fly, low_discharge_scenario, plan_files, survey
 
 SEED_A, SEED_B = 1, 2
 

@@ -60,8 +60,8 @@ def synthetic(n: int = 2000, seed: int = 1) -> dict[tuple[int, float], dict[str,
 
 def from_sim(duration: float, seed: int = 1):
     """(flow angle deg, speed through water, lsq error, paper error) per sample of a simulated survey."""
-    from forcemap.host.calibration import Calibration
-    from forcemap.host.pipeline import ListSink, Pipeline
+    from forcemap.host.fuse.calibration import Calibration
+    from forcemap.host.fuse.pipeline import ListSink, Pipeline
     from forcemap.sim_devices.engine import Simulation
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -11,13 +11,13 @@ import math
 import random
 from dataclasses import dataclass, field
 
-from forcemap.host.compensation import (
+from forcemap.host.decode.vane import DEFAULT_TABLE, ideal_raw
+from forcemap.host.fuse.compensation import (
     apparent_from_true,
     boat_to_world,
     wheel_readings,
     world_to_boat,
 )
-from forcemap.host.vane import DEFAULT_TABLE, ideal_raw
 from forcemap.protocol import wire
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 

@@ -51,7 +51,7 @@ def vane_voltage(
     """Divider voltage for wind FROM ``direction_deg_relative_to_bow`` (clockwise from the bow).
 
     ``mounting_offset`` is where the vane's 0 deg mark points, clockwise from the bow (as in
-    ``forcemap.host.vane.decode_vane``).
+    ``forcemap.host.decode.vane.decode_vane``).
     """
     r = vane_resistance(direction_deg_relative_to_bow - mounting_offset)
     return vref * r / (r + pullup)

@@ -13,10 +13,10 @@ import random
 from collections.abc import Callable
 from pathlib import Path
 
-from forcemap.host import calibration
-from forcemap.host.export import export
-from forcemap.host.mcap_log import McapLog
-from forcemap.host.pipeline import Pipeline
+from forcemap.host.convert.export import export
+from forcemap.host.fuse import calibration
+from forcemap.host.fuse.pipeline import Pipeline
+from forcemap.host.log.mcap import McapLog
 
 from .engine import Simulation
 

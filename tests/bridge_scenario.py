@@ -9,7 +9,7 @@ import time
 
 import pytest
 import serial
-from forcemap.host.pulses import PulseTracker
+from forcemap.host.decode.pulses import PulseTracker
 from forcemap.protocol import wire
 
 ANEMO_HZ = 10.0

@@ -8,8 +8,8 @@ the board resets near the end. The host recovers exact pulse counts, edge times 
 import random
 
 import pytest
-from forcemap.host.compensation import wrap180
-from forcemap.host.vane import decode_vane
+from forcemap.host.decode.vane import decode_vane
+from forcemap.host.fuse.compensation import wrap180
 from forcemap.protocol import wire
 from forcemap.sim_devices.bridge_emu import EmulatedBridge, add_bounce, vane_voltage
 from forcemap.sim_devices.usb_cdc import UsbCdc
@@ -102,7 +102,7 @@ def test_twenty_minutes_wrap_drops_and_reset(board):
 
 
 def _totals_between(samples):
-    from forcemap.host.pulses import PulseTracker
+    from forcemap.host.decode.pulses import PulseTracker
 
     tr = PulseTracker()
     for f in samples:
@@ -111,7 +111,7 @@ def _totals_between(samples):
 
 
 def _rates_at(samples):
-    from forcemap.host.pulses import PulseTracker
+    from forcemap.host.decode.pulses import PulseTracker
 
     tr = PulseTracker()
     r = None

@@ -8,8 +8,8 @@ import time
 
 import pytest
 import serial
-from forcemap.host.compensation import wrap180
-from forcemap.host.vane import decode_vane
+from forcemap.host.decode.vane import decode_vane
+from forcemap.host.fuse.compensation import wrap180
 from forcemap.sim_devices.bridge_emu import add_bounce, pulse_times, vane_resistance, vane_voltage
 from forcemap.sim_devices.usb_cdc import UsbCdc
 from hypothesis import given, settings

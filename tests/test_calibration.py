@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from forcemap.host.calibration import Calibration, ConfigError, example_path, load, loads
+from forcemap.host.fuse.calibration import Calibration, ConfigError, example_path, load, loads
 
 
 def test_defaults_are_the_documented_ones():

@@ -22,10 +22,11 @@ from pathlib import Path
 
 from forcemap.host.cli import main
 from forcemap.host.errors import CliError
-from forcemap.host.workbench.synth import make_survey
 from forcemap.host.workbench.table import load_survey
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
+from bench.synth_survey import make_survey
 
 COLUMNS = ["t", "lat", "lon", "depth", "water_temp", "current_speed", "heading"]
 JUNK = ["", "1,5", "inf", "-inf", "nan", "deep", "1e400", "200", "-91", "0", " ", "True", "0x1F",

@@ -8,8 +8,8 @@ import random
 from pathlib import Path
 
 import pytest
-from forcemap.host import compensation as c
-from forcemap.host.nmea import KNOT, NmeaParser
+from forcemap.host.decode.nmea import KNOT, NmeaParser
+from forcemap.host.fuse import compensation as c
 
 from tests.tools import real_data
 

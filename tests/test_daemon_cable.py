@@ -12,7 +12,7 @@ import signal
 import threading
 import time
 
-from forcemap.host.mcap_log import read_messages
+from forcemap.host.log.mcap import read_messages
 
 from tests.test_daemon_support import (
     DaemonProcess,

@@ -18,8 +18,8 @@ import time
 import numpy as np
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.export import COLUMNS
-from forcemap.host.mcap_log import has_footer, read_messages
+from forcemap.host.convert.export import COLUMNS
+from forcemap.host.log.mcap import has_footer, read_messages
 from forcemap.protocol import wire
 from mcap.reader import make_reader
 

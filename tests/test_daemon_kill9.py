@@ -16,7 +16,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 from forcemap.host.cli.log import recover
-from forcemap.host.mcap_log import FileScan, read_messages
+from forcemap.host.log.mcap import FileScan, read_messages
 from mcap.reader import make_reader
 
 from tests.test_daemon_support import (

@@ -7,7 +7,7 @@ import signal
 import time
 
 import pytest
-from forcemap.host.mcap_log import read_messages
+from forcemap.host.log.mcap import read_messages
 from mcap.reader import make_reader
 
 from tests.test_daemon_support import (

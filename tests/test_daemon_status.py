@@ -11,11 +11,11 @@ import json
 import threading
 import time
 
-from forcemap.host.daemon import Daemon
-from forcemap.host.mcap_log import McapLog, has_footer, read_messages
-from forcemap.host.pipeline import Pipeline
-from forcemap.host.sources import port_opener
-from forcemap.host.status import Reporter
+from forcemap.host.acquire.daemon import Daemon
+from forcemap.host.acquire.sources import port_opener
+from forcemap.host.acquire.status import Reporter
+from forcemap.host.fuse.pipeline import Pipeline
+from forcemap.host.log.mcap import McapLog, has_footer, read_messages
 
 from tests.test_daemon_support import PtyPort, depth_sentence
 

@@ -214,7 +214,7 @@ def mcap_files(out: Path) -> list[Path]:
 
 def last_status(out: Path) -> dict:
     """The last /daemon/status the daemon recorded (its final one after a clean stop)."""
-    from forcemap.host.mcap_log import read_messages
+    from forcemap.host.log.mcap import read_messages
 
     status = None
     for m in read_messages(mcap_files(out), "/daemon/status"):

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 import pytest
-from forcemap.host.mcap_log import has_footer
+from forcemap.host.log.mcap import has_footer
 
 
 @pytest.mark.slow

@@ -11,9 +11,9 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.export import COLUMNS, samples_table
-from forcemap.host.mcap_log import McapLog
-from forcemap.host.messages import LocationFix
+from forcemap.host.convert.export import COLUMNS, samples_table
+from forcemap.host.log.mcap import McapLog
+from forcemap.host.log.messages import LocationFix
 
 ROOT = Path(__file__).resolve().parents[1]
 T0 = 1_750_000_000.0

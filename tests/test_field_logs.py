@@ -15,11 +15,11 @@ from pathlib import Path
 
 import jsonschema
 import pytest
-from forcemap.host import compensation as comp
 from forcemap.host.cli import main
-from forcemap.host.importers import import_file, import_nmea
-from forcemap.host.mcap_log import FileScan, iter_records, read_messages
-from forcemap.host.pipeline import ListSink, Pipeline
+from forcemap.host.convert.importers import import_file, import_nmea
+from forcemap.host.fuse import compensation as comp
+from forcemap.host.fuse.pipeline import ListSink, Pipeline
+from forcemap.host.log.mcap import FileScan, iter_records, read_messages
 from mcap.records import Message
 
 KN = 1852.0 / 3600.0
@@ -309,8 +309,8 @@ def test_paddle_wheels_and_a_speed_log_are_both_logged():
 
 def test_a_fixed_sample_rate_gives_a_grid():
     """With ``sample_rate_hz`` the rows fall on a fixed grid instead of the fastest stream's readings."""
-    from forcemap.host.importers import nmea_line_times
-    from forcemap.host.nmea import LineSplitter
+    from forcemap.host.convert.importers import nmea_line_times
+    from forcemap.host.decode.nmea import LineSplitter
 
     path = REAL / "nmea" / "bundg_zeus_9.log"
     splitter = LineSplitter()

@@ -95,7 +95,7 @@ def test_upy_twenty_minutes(tmp_path, board):
     after = [f for f in frames if f.boot_id == boot_ids[0] and f.t_us >= DEAF[1]][0]
     assert after.flags & wire.FLAG_DROPPED_BEFORE
 
-    from forcemap.host.pulses import PulseTracker
+    from forcemap.host.decode.pulses import PulseTracker
 
     tr = PulseTracker()
     rates = None

@@ -12,10 +12,10 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from forcemap.host import importers
 from forcemap.host.cli import main
-from forcemap.host.importers import import_file, tlog_records, why_no_samples
-from forcemap.host.mcap_log import McapLog, read_messages
+from forcemap.host.convert import importers
+from forcemap.host.convert.importers import import_file, tlog_records, why_no_samples
+from forcemap.host.log.mcap import McapLog, read_messages
 
 from tests.tools import IN_CI
 
@@ -285,10 +285,10 @@ def test_paccup_true_wind_through_the_import_path():
     which is forcemap's W = R + V) on the reference rows, within 0.1 kn and 1 deg."""
     import csv
 
-    from forcemap.host.compensation import wrap180
-    from forcemap.host.importers import import_nmea
-    from forcemap.host.nmea import KNOT
-    from forcemap.host.pipeline import ListSink
+    from forcemap.host.convert.importers import import_nmea
+    from forcemap.host.decode.nmea import KNOT
+    from forcemap.host.fuse.compensation import wrap180
+    from forcemap.host.fuse.pipeline import ListSink
 
     sink = ListSink()
     import_nmea(REAL / "nmea" / "PacCupStartNMEA.txt", sink)

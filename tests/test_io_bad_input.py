@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.cli.run import CLOCK_WAIT_S
-from forcemap.host.mcap_log import McapLog, read_messages
+from forcemap.host.log.mcap import McapLog, read_messages
 
 from tests.test_daemon_support import nmea_line
 from tests.test_export import T0, _log

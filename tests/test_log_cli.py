@@ -11,7 +11,7 @@ import time
 
 from forcemap.host.cli import main
 from forcemap.host.cli.log import recover, scan_file
-from forcemap.host.mcap_log import McapLog, read_messages
+from forcemap.host.log.mcap import McapLog, read_messages
 from mcap.reader import make_reader
 
 T0 = 1_750_000_000_000_000_000
@@ -98,7 +98,7 @@ def test_recover_a_file_from_a_killed_writer(tmp_path):
     progress = tmp_path / "progress"
     code = (
         "import os, struct, sys, time\n"
-        "from forcemap.host.mcap_log import McapLog\n"
+        "from forcemap.host.log.mcap import McapLog\n"
         "log = McapLog(sys.argv[1])\n"
         "fd = os.open(sys.argv[2], os.O_RDWR | os.O_CREAT)\n"
         "print(log.path, flush=True)\n"

@@ -6,7 +6,7 @@ import math
 import random
 
 import pytest
-from forcemap.host.mavlink import MavlinkDecoder, is_vehicle, raw_dict, to_si, vehicle_of
+from forcemap.host.decode.mavlink import MavlinkDecoder, is_vehicle, raw_dict, to_si, vehicle_of
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 

@@ -10,7 +10,7 @@ import json
 import math
 
 import pytest
-from forcemap.host.mcap_log import FileScan, McapLog, has_footer, read_messages
+from forcemap.host.log.mcap import FileScan, McapLog, has_footer, read_messages
 from mcap.reader import make_reader
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import random
 
 import pytest
-from forcemap.host.nmea import KNOT, LineSplitter, NmeaParser, depth_below_surface
+from forcemap.host.decode.nmea import KNOT, LineSplitter, NmeaParser, depth_below_surface
 
 
 def cs(body: str) -> str:

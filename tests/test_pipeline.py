@@ -7,8 +7,8 @@ import random
 
 import jsonschema
 import pytest
-from forcemap.host.messages import SAMPLE_COLUMNS, record_type
-from forcemap.host.pipeline import HOLD_S, ListSink, NullSink, Pipeline
+from forcemap.host.fuse.pipeline import HOLD_S, ListSink, NullSink, Pipeline
+from forcemap.host.log.messages import SAMPLE_COLUMNS, record_type
 from forcemap.protocol import wire
 
 from bench.synth_streams import T0, generate, truth_wind_current
@@ -318,7 +318,7 @@ def test_against_the_simulator_truth(tmp_path):
     import csv
 
     import numpy as np
-    from forcemap.host.calibration import Calibration
+    from forcemap.host.fuse.calibration import Calibration
     from forcemap.sim_devices import engine
 
     sink = ListSink()

@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.plan.closed_loop import fly, low_discharge_scenario, plan_files, survey
 from forcemap.host.plan.planner import STRESS
-from forcemap.host.plan.report_section import mission_section
+from forcemap.host.report.mission_section import mission_section
 from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices import waypoints as wp
+
+from bench.closed_loop import fly, low_discharge_scenario, plan_files, survey
 
 SEED_A, SEED_B = 1, 2
 pytestmark = pytest.mark.slow

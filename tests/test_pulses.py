@@ -3,7 +3,7 @@
 import random
 
 import pytest
-from forcemap.host.pulses import PulseTracker, pulses_between
+from forcemap.host.decode.pulses import PulseTracker, pulses_between
 from forcemap.protocol import wire
 from hypothesis import given, settings
 from hypothesis import strategies as st

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 from forcemap.host.cli.run import nmea_sources
-from forcemap.host.mcap_log import read_messages
-from forcemap.host.pipeline import Pipeline
+from forcemap.host.fuse.pipeline import Pipeline
+from forcemap.host.log.mcap import read_messages
 
 from tests.test_daemon_support import (
     DaemonProcess,
@@ -178,7 +178,7 @@ def test_mavlink_only_boat_over_udp(tmp_path):
 
 
 def test_nmea_connection_strings():
-    from forcemap.host.sources import SerialOpener, UdpOpener, nmea_opener
+    from forcemap.host.acquire.sources import SerialOpener, UdpOpener, nmea_opener
 
     udp = nmea_opener("udp:10110")  # a broadcast: every interface
     assert isinstance(udp, UdpOpener) and (udp.host, udp.port) == ("0.0.0.0", 10110)

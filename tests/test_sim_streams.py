@@ -319,7 +319,7 @@ def test_a_machine_that_falls_behind_holds_the_clock_back(tmp_path: Path) -> Non
     longest host time between two of the simulator's catch-up checks, measured around its
     ``advance`` calls, which a busy machine only lengthens), not a stall plus a guessed allowance.
     """
-    from forcemap.host.arrival_clock import SimClock
+    from forcemap.host.acquire.arrival_clock import SimClock
 
     speed, lag_wall, stall_wall, reread_s = 100.0, 0.05, 0.3, 0.02
     ports = PortSet(tmp_path / "ports")

@@ -174,7 +174,7 @@ def test_clock_file(tmp_path: Path) -> None:
     time.sleep(0.01)
     b = c.now_ns()
     assert a >= 1_780_322_400_000_000_000 and b - a >= 50 * 10_000_000 * 0.9
-    from forcemap.host.arrival_clock import SimClock as HostSimClock
+    from forcemap.host.acquire.arrival_clock import SimClock as HostSimClock
 
     h = HostSimClock(path).now_ns()  # the daemon's reader of the same file agrees
     assert b <= h <= c.now_ns()

@@ -16,8 +16,8 @@ import time
 
 import pytest
 import serial
-from forcemap.host.arrival_clock import SimClock, SystemClock, parse_clock
-from forcemap.host.sources import Chunk, Reader, SourceEvent, mavlink_opener, port_opener
+from forcemap.host.acquire.arrival_clock import SimClock, SystemClock, parse_clock
+from forcemap.host.acquire.sources import Chunk, Reader, SourceEvent, mavlink_opener, port_opener
 
 from tests.test_daemon_support import PtyPort, StallProbe
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from forcemap.host.compensation import wrap180
-from forcemap.host.state import StateEstimator
+from forcemap.host.fuse.compensation import wrap180
+from forcemap.host.fuse.state import StateEstimator
 
 
 def test_linear_and_circular_interpolation():

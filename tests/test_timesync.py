@@ -5,7 +5,7 @@ from __future__ import annotations
 import random
 
 import pytest
-from forcemap.host.timesync import ClockFit, SourceClock, UtcFix, WallClock
+from forcemap.host.fuse.timesync import ClockFit, SourceClock, UtcFix, WallClock
 
 
 def points(n, rate_hz, offset, drift, seed=0, start=100.0, max_latency=0.03):

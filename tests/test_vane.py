@@ -1,8 +1,8 @@
 """Host vane decoding: every resistor position at 3.3 V decodes to its direction."""
 
 import pytest
-from forcemap.host import vane
-from forcemap.host.compensation import wrap180
+from forcemap.host.decode import vane
+from forcemap.host.fuse.compensation import wrap180
 from forcemap.sim_devices.bridge_emu import vane_voltage
 
 # ideal read_u16 values at 3.3 V with a 10 kOhm pull-up (research notes; the SparkFun library's constants)

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.workbench.synth import make_survey
 from forcemap.host.workbench.table import load_survey
 
+from bench.synth_survey import make_survey
 from tests.tools import csv_rows, write_csv_rows
 
 

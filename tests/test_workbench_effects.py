@@ -15,7 +15,7 @@ catalogue gives each the same explanation (a misaligned or shadowed sensor, comp
 from __future__ import annotations
 
 import pytest
-from forcemap.host.workbench.diagnose import DIAGNOSE_MAX_BASIS, diagnose
+from forcemap.host.workbench.diagnose.rounds import DIAGNOSE_MAX_BASIS, diagnose
 from forcemap.host.workbench.fitting import fit_target
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import load_survey

@@ -3,7 +3,7 @@
 - One pass along one line (the simulator, a two-waypoint mission): time, the distance along the line and
   the heading are one variable. With no effect nothing is found; with a time ramp (a dam release over the
   whole pass) time is flagged as confounded with position, and the advice is to repeat the line later.
-- Counters next to a time effect (host/workbench/synth.py with an ensemble number, a wrapping sequence
+- Counters next to a time effect (bench/synth_survey.py with an ensemble number, a wrapping sequence
   counter and a second clock): they are folded into t, which is found; no counter is ever a candidate.
 - Two simultaneous effects (depth-driven current and a dam release): found in two rounds, the error falling.
 - A weak effect (a dam release of +6 %, gain 10-20 %, under the old fixed 25 % floor): found.
@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from forcemap.host.workbench import synth
-from forcemap.host.workbench.diagnose import diagnose
+from forcemap.host.workbench.diagnose.rounds import diagnose
 from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices.offline import make_survey
+
+from bench import synth_survey as synth
 
 SEEDS = (1, 2)
 TRANSECT = """[mission]

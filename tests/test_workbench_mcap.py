@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from forcemap.host.export import samples_table
-from forcemap.host.mcap_log import McapLog
+from forcemap.host.convert.export import samples_table
+from forcemap.host.log.mcap import McapLog
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.table import load_survey
 from mcap.reader import make_reader

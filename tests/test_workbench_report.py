@@ -6,13 +6,14 @@ import json
 
 import numpy as np
 import pytest
-from forcemap.host.workbench import report
+from forcemap.host.report import build as report
 from forcemap.host.workbench.fitting import fit_target, record, refit_or_restore, saved_model
 from forcemap.host.workbench.model import Model
 from forcemap.host.workbench.plots import map_grid
-from forcemap.host.workbench.synth import make_survey
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.workspace import load_history, workspace_dir
+
+from bench.synth_survey import make_survey
 
 BASE = ["const", "gp(position, matern32)"]
 

@@ -1,5 +1,5 @@
 """`forcemap diagnose --rounds`, and the rounds in `history` and the report, on a synthetic survey with two
-hidden effects (host/workbench/synth.py: a depth-driven current and a dam release)."""
+hidden effects (bench/synth_survey.py: a depth-driven current and a dam release)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import re
 
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.workbench.synth import make_survey
+
+from bench.synth_survey import make_survey
 
 
 @pytest.fixture(scope="module")

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey_fits import derived_column, survey_fits
-from forcemap.host.workbench.synth import make_survey
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.targets import SurveyModel
+
+from bench.synth_survey import make_survey
 
 
 @pytest.fixture(scope="module")

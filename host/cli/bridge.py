@@ -152,8 +152,8 @@ class Monitor:
     """Decodes a byte stream and formats frames, rates and counters as lines of text."""
 
     def __init__(self, out=None, quiet: bool = False):
-        from forcemap.host.pulses import PulseTracker
-        from forcemap.host.vane import VaneDecoder
+        from forcemap.host.decode.pulses import PulseTracker
+        from forcemap.host.decode.vane import VaneDecoder
         from forcemap.protocol import wire
 
         self.wire = wire

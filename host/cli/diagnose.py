@@ -68,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host.workbench.diagnose import diagnose
+    from forcemap.host.workbench.diagnose.rounds import diagnose
     from forcemap.host.workbench.fitting import resolve_terms
     from forcemap.host.workbench.model import small_blas
     from forcemap.host.workbench.spec import BASELINE, check_terms

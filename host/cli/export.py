@@ -7,8 +7,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+from forcemap.host.convert.export import FORMATS, check_logs, export
 from forcemap.host.errors import CliError
-from forcemap.host.export import FORMATS, check_logs, export
 from forcemap.host.outputs import check_output
 
 EPILOG = """\

@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.outputs import atomic_write, check_output
-    from forcemap.host.workbench.diagnosis import round_steps
+    from forcemap.host.workbench.diagnose.result import round_steps
     from forcemap.host.workbench.errors import WorkbenchError
     from forcemap.host.workbench.workspace import load_diagnoses, load_history
 

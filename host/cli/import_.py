@@ -113,8 +113,8 @@ def _output(args: argparse.Namespace, path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host.calibration import ConfigError, load
-    from forcemap.host.importers import ImportFailed, check_importable, import_to_mcap
+    from forcemap.host.convert.importers import ImportFailed, check_importable, import_to_mcap
+    from forcemap.host.fuse.calibration import ConfigError, load
 
     path = Path(args.file)
     try:

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from forcemap.host.mcap_log import CHUNK_SIZE, LIBRARY, FileScan, iter_records
-from forcemap.host.status import flatten
+from forcemap.host.acquire.status import flatten
+from forcemap.host.log.mcap import CHUNK_SIZE, LIBRARY, FileScan, iter_records
 from mcap.records import Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
 

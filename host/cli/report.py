@@ -37,8 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.outputs import atomic_write, check_output
+    from forcemap.host.report.build import build_report
     from forcemap.host.workbench.model import small_blas
-    from forcemap.host.workbench.report import build_report
     from forcemap.host.workbench.table import load_survey
     from forcemap.host.workbench.workspace import load_diagnoses
 

@@ -13,13 +13,19 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from forcemap.host.arrival_clock import Clock, SimClock, parse_clock
+from forcemap.host.acquire.arrival_clock import Clock, SimClock, parse_clock
+from forcemap.host.acquire.daemon import Daemon
+from forcemap.host.acquire.sources import (
+    Transport,
+    mavlink_opener,
+    nmea_opener,
+    port_opener,
+    split_baud,
+)
+from forcemap.host.acquire.status import Reporter
 from forcemap.host.cli.common import add_sample_rate, positive, sample_rate
-from forcemap.host.daemon import Daemon
 from forcemap.host.errors import CliError
-from forcemap.host.mcap_log import McapLog
-from forcemap.host.sources import Transport, mavlink_opener, nmea_opener, port_opener, split_baud
-from forcemap.host.status import Reporter
+from forcemap.host.log.mcap import McapLog
 
 BRIDGE_BAUD = 115200
 NMEA_BAUD = 4800
@@ -178,7 +184,7 @@ def _pipeline_factory(
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
 
     def make(sink: Any) -> Any:
-        from forcemap.host import pipeline
+        from forcemap.host.fuse import pipeline
 
         # how long a sample waits for the autopilot is host time: a busy machine's stall is
         # `speed` times longer on an accelerated simulator's clock
@@ -223,7 +229,7 @@ def _stop_on_signals(daemon: Daemon) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host import calibration
+    from forcemap.host.fuse import calibration
 
     rotate_bytes = int(positive("--rotate-mb", args.rotate_mb) * 1024 * 1024)
     rotate_seconds = positive("--rotate-min", args.rotate_min) * 60.0

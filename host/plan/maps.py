@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.progress import note
 from forcemap.host.workbench.model import Model, small_blas
-from forcemap.host.workbench.progress import note
 from forcemap.host.workbench.spec import BASELINE, parse_term
 from forcemap.host.workbench.table import Survey, is_circular
 from forcemap.host.workbench.targets import hyper_rows

@@ -7,10 +7,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.progress import note
 from forcemap.host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, random_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
-from forcemap.host.workbench.progress import note
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
 from forcemap.host.workbench.table import Survey
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows

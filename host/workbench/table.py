@@ -206,8 +206,8 @@ def _read_parquet(path: Path) -> dict[str, list]:
 def _read_mcap(path: Path) -> dict[str, list]:
     """The ``/samples`` rows through `forcemap export`'s reader: truncated logs are read up to their
     last complete chunk, and rows repeated (same ``t``) are kept once."""
+    from forcemap.host.convert.export import check_logs, samples_table
     from forcemap.host.errors import CliError
-    from forcemap.host.export import check_logs, samples_table
 
     try:
         check_logs([path])

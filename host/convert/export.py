@@ -1,0 +1,264 @@
+"""The samples table (CSV, Parquet) and the track (GeoJSON, KML) from MCAP logs."""
+
+from __future__ import annotations
+
+import datetime as dt
+import io
+import json
+import math
+import os
+from collections.abc import Iterable, Sequence
+from typing import Any, TextIO
+from xml.sax.saxutils import escape
+
+from forcemap.host.errors import CliError
+from forcemap.host.log.mcap import MCAP_MAGIC, read_messages
+from forcemap.host.log.messages import SAMPLE_COLUMNS
+from forcemap.host.outputs import atomic_path, atomic_write
+
+# docs/CONVENTIONS.md, "The samples table": these first, in this order; other numeric fields follow.
+COLUMNS: tuple[str, ...] = SAMPLE_COLUMNS
+FORMATS = ("csv", "parquet", "geojson", "kml")
+# at most this many sample points in a GeoJSON (the track line keeps every position)
+MAX_POINTS = 5000
+
+
+def _number(value: Any) -> float | None:
+    if isinstance(value, bool):
+        return float(value)
+    if isinstance(value, int | float):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    return None
+
+
+class Table:
+    """Columns of floats (None for missing), in the conventions' order."""
+
+    def __init__(self, columns: list[str], rows: list[list[float | None]]):
+        self.columns = columns
+        self.rows = rows
+
+    def column(self, name: str) -> list[float | None]:
+        i = self.columns.index(name)
+        return [r[i] for r in self.rows]
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+
+def check_logs(paths: Sequence[str | os.PathLike[str]]) -> None:
+    """Refuse, in one line, any path that is not an MCAP file (a table given by mistake, a folder)."""
+    for path in paths:
+        try:
+            with open(path, "rb") as f:
+                head = f.read(len(MCAP_MAGIC))
+        except IsADirectoryError:
+            raise CliError(
+                f"{path} is a folder; give MCAP logs, or a folder that holds some"
+            ) from None
+        except OSError as exc:
+            raise CliError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+        if head != MCAP_MAGIC:
+            raise CliError(
+                f"{path} is not an MCAP log; give the logs that `forcemap run` or "
+                "`forcemap import` wrote"
+            )
+
+
+def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
+    """Every ``/samples`` row of the given files, ordered by ``t``, duplicates (same ``t``) dropped.
+
+    Columns are the conventions' columns first, then any other numeric field in order of first
+    appearance. A column that is empty in every row is left out (``t`` always stays).
+    """
+    records: list[dict[str, Any]] = []
+    extra: dict[str, None] = {}
+    known = set(COLUMNS)
+    for m in read_messages(paths, "/samples"):
+        row = m.message
+        if not isinstance(row, dict):
+            continue
+        if "t" not in row or _number(row.get("t")) is None:
+            row = {**row, "t": m.log_time_ns / 1e9}
+        records.append(row)
+        for k in row:
+            if k not in known and k not in extra:
+                extra[k] = None
+    records.sort(key=lambda r: float(r["t"]))
+    unique: list[dict[str, Any]] = []
+    for r in records:
+        if unique and float(unique[-1]["t"]) == float(r["t"]):
+            continue
+        unique.append(r)
+    candidates = list(COLUMNS) + list(extra)
+    keep = [c for c in candidates if c == "t" or any(_number(r.get(c)) is not None for r in unique)]
+    rows = [[_number(r.get(c)) for c in keep] for r in unique]
+    return Table(keep, rows)
+
+
+def _cell(value: float | None) -> str:
+    if value is None:
+        return ""
+    if value == int(value) and abs(value) < 1e15:
+        return str(int(value))
+    return repr(value)
+
+
+def write_csv(table: Table, out: TextIO) -> None:
+    out.write(",".join(table.columns) + "\n")
+    for row in table.rows:
+        out.write(",".join(_cell(v) for v in row) + "\n")
+
+
+def write_parquet(table: Table, path: str | os.PathLike[str]) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    arrays = [pa.array(table.column(c), type=pa.float64()) for c in table.columns]
+    pq.write_table(pa.table(arrays, names=table.columns), path)
+
+
+def track(paths: Sequence[str | os.PathLike[str]]) -> list[tuple[float, float, float]]:
+    """(t, lat, lon) of the boat: from ``/fix`` if the log has it, else from ``/samples``."""
+    points: list[tuple[float, float, float]] = []
+    for m in read_messages(paths, "/fix"):
+        lat, lon = _number(m.message.get("latitude")), _number(m.message.get("longitude"))
+        if lat is not None and lon is not None and (lat, lon) != (0.0, 0.0):
+            ts = m.message.get("timestamp") or {}
+            t = (
+                ts["sec"] + ts.get("nsec", 0) / 1e9
+                if isinstance(ts, dict) and isinstance(ts.get("sec"), int | float)
+                else m.log_time_ns / 1e9
+            )
+            points.append((t, lat, lon))
+    if not points:
+        table = samples_table(paths)
+        if "lat" in table.columns and "lon" in table.columns:
+            for t, lat, lon in zip(
+                table.column("t"), table.column("lat"), table.column("lon"), strict=True
+            ):
+                if t is not None and lat is not None and lon is not None:
+                    points.append((t, lat, lon))
+    points.sort()
+    return points
+
+
+def _iso(t: float) -> str:
+    return dt.datetime.fromtimestamp(t, dt.UTC).isoformat().replace("+00:00", "Z")
+
+
+def geojson(points: list[tuple[float, float, float]], table: Table | None = None) -> dict[str, Any]:
+    """A FeatureCollection: the track as a LineString, and (thinned) samples as Points."""
+    features: list[dict[str, Any]] = []
+    if points:
+        features.append(
+            {
+                "type": "Feature",
+                "geometry": {
+                    "type": "LineString",
+                    "coordinates": [[lon, lat] for _, lat, lon in points],
+                },
+                "properties": {
+                    "name": "track",
+                    "start": _iso(points[0][0]),
+                    "end": _iso(points[-1][0]),
+                    "points": len(points),
+                },
+            }
+        )
+    if table is not None and "lat" in table.columns and "lon" in table.columns:
+        rows = [
+            r
+            for r in table.rows
+            if r[table.columns.index("lat")] is not None
+            and r[table.columns.index("lon")] is not None
+        ]
+        step = max(1, math.ceil(len(rows) / MAX_POINTS))
+        for r in rows[::step]:
+            props = {c: v for c, v in zip(table.columns, r, strict=True) if v is not None}
+            props["time"] = _iso(props["t"])
+            features.append(
+                {
+                    "type": "Feature",
+                    "geometry": {"type": "Point", "coordinates": [props["lon"], props["lat"]]},
+                    "properties": props,
+                }
+            )
+    return {"type": "FeatureCollection", "features": features}
+
+
+def kml(points: list[tuple[float, float, float]], name: str = "forcemap track") -> str:
+    """A KML document with the track as a LineString and placemarks at its start and end."""
+    out = io.StringIO()
+    out.write('<?xml version="1.0" encoding="UTF-8"?>\n')
+    out.write('<kml xmlns="http://www.opengis.net/kml/2.2">\n<Document>\n')
+    out.write(f"<name>{escape(name)}</name>\n")
+    out.write(
+        '<Style id="track"><LineStyle><color>ff0000ff</color><width>3</width></LineStyle></Style>\n'
+    )
+    if points:
+        out.write("<Placemark><name>track</name><styleUrl>#track</styleUrl>\n")
+        out.write(
+            f"<TimeSpan><begin>{_iso(points[0][0])}</begin><end>{_iso(points[-1][0])}</end></TimeSpan>\n"
+        )
+        out.write("<LineString><tessellate>1</tessellate><coordinates>\n")
+        for _, lat, lon in points:
+            out.write(f"{lon:.7f},{lat:.7f},0\n")
+        out.write("</coordinates></LineString></Placemark>\n")
+        for label, (t, lat, lon) in (("start", points[0]), ("end", points[-1])):
+            out.write(
+                f"<Placemark><name>{label}</name><TimeStamp><when>{_iso(t)}</when></TimeStamp>"
+                f"<Point><coordinates>{lon:.7f},{lat:.7f},0</coordinates></Point></Placemark>\n"
+            )
+    out.write("</Document>\n</kml>\n")
+    return out.getvalue()
+
+
+def export(paths: Iterable[str | os.PathLike[str]], fmt: str, out: str) -> str:
+    """Write ``fmt`` to ``out`` ("-" is stdout for text formats). Returns a one-line summary.
+
+    The file appears whole or not at all; a log with nothing to write writes nothing (CliError).
+    """
+    paths = list(paths)
+    if fmt not in FORMATS:
+        raise CliError(f"unknown format {fmt!r}: expected one of {', '.join(FORMATS)}")
+    if fmt == "parquet" and out == "-":
+        raise CliError("parquet needs an output file (-o FILE)")
+    names = ", ".join(str(p) for p in paths)
+    if fmt in ("csv", "parquet"):
+        table = samples_table(paths)
+        if not len(table):
+            raise CliError(
+                f"no samples in {names}: the log has no /samples rows; "
+                "`forcemap log info FILE` shows what it holds"
+            )
+        if fmt == "parquet":
+            with atomic_path(out) as tmp:
+                write_parquet(table, tmp)
+        else:
+            _write_text(out, lambda f: write_csv(table, f))
+        return f"{len(table)} samples, {len(table.columns)} columns -> {out}"
+    points = track(paths)
+    if not points:
+        raise CliError(
+            f"no position in {names}: neither /fix nor /samples has a latitude and longitude"
+        )
+    if fmt == "geojson":
+        doc = geojson(points, samples_table(paths))
+        _write_text(out, lambda f: json.dump(doc, f))
+    else:
+        text = kml(points, name=os.path.basename(str(paths[0])) if paths else "forcemap track")
+        _write_text(out, lambda f: f.write(text))
+    return f"{len(points)} track points -> {out}"
+
+
+def _write_text(out: str, write) -> None:
+    import sys
+
+    if out == "-":
+        write(sys.stdout)
+        sys.stdout.flush()
+        return
+    with atomic_write(out) as f:
+        write(f)

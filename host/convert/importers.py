@@ -1,0 +1,329 @@
+"""Existing logs through the live pipeline: NMEA 0183 captures, MAVLink telemetry logs (tlog) and
+ArduPilot DataFlash logs (.BIN).
+
+NMEA captures carry no receive times. Each line gets one from the sentences' own UTC: every line
+where the UTC time of day (RMC, GGA, GLL, ZDA) moves forward is an anchor, and lines between
+anchors are spread evenly; the date comes from the first RMC or ZDA that has one (else 1970-01-01).
+A capture with no UTC at all is paced at 1 s per line. tlogs carry the ground station's receive
+time (8-byte big-endian UNIX microseconds) before each packet, used as the arrival time. DataFlash
+logs are read by ``forcemap.host.convert.dataflash``.
+
+An import that gives no samples says why in one line (no position, no time, no measurements), and
+``import_to_mcap`` then leaves no file behind.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from forcemap.host.convert.dataflash import DataflashDecoder
+from forcemap.host.decode.nmea import LineSplitter, NmeaParser
+from forcemap.host.fuse.calibration import Calibration
+from forcemap.host.fuse.pipeline import Pipeline, Sink
+from forcemap.host.log.mcap import McapLog
+from forcemap.host.outputs import atomic_path
+
+FORMATS = ("nmea", "tlog", "dataflash")
+DATAFLASH_MAGIC = b"\xa3\x95"
+DAY = 86400.0
+MAX_TLOG_US = (1 << 63) // 1000  # the latest time an MCAP log can hold (year 2262)
+# a DataFlash log starts with its FMT records: the magic, then message type 128 (FMT), 89 bytes each
+DATAFLASH_FMT = DATAFLASH_MAGIC + b"\x80"
+DATAFLASH_FMT_LEN = 89
+IMPORT_DIAG_PERIOD_S = 10.0  # /diagnostics every 10 s of log time (the daemon: every second)
+
+
+class ImportFailed(ValueError):
+    """A file that cannot be imported: the message is one line for the user."""
+
+
+@dataclass
+class ImportResult:
+    """What an import did: the pipeline's counters and the number of records read."""
+
+    path: str
+    format: str
+    records: int = 0
+    counters: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def is_dataflash(head: bytes) -> bool:
+    """True when ``head`` (the first bytes of a file) is the start of a DataFlash log: FMT records."""
+    if not head.startswith(DATAFLASH_FMT):
+        return False
+    nxt = head[DATAFLASH_FMT_LEN : DATAFLASH_FMT_LEN + len(DATAFLASH_MAGIC)]
+    return len(head) < DATAFLASH_FMT_LEN + 2 or nxt == DATAFLASH_MAGIC
+
+
+def detect_format(path: str | Path) -> str:
+    """``nmea``, ``tlog`` or ``dataflash`` from the name and the first bytes; else ImportFailed."""
+    p = Path(path)
+    try:
+        with open(p, "rb") as f:
+            head = f.read(4096)
+    except OSError as e:
+        raise ImportFailed(f"{p}: cannot read: {e.strerror or e}") from None
+    if is_dataflash(head):
+        return "dataflash"
+    if p.suffix.lower() == ".tlog":
+        return "tlog"
+    if len(head) > 8 and head[8] in (0xFD, 0xFE):
+        return "tlog"
+    lines = [ln.strip() for ln in head.splitlines()]
+    if sum(ln[:1] in (b"$", b"!") for ln in lines) >= max(1, len(lines) // 10):
+        return "nmea"
+    raise ImportFailed(
+        f"{p.name}: not a format forcemap recognises (NMEA 0183 text, a MAVLink tlog or an "
+        "ArduPilot .BIN log); if it is one of them, give --format nmea|tlog|dataflash"
+    )
+
+
+def check_importable(path: str | Path, fmt: str | None = None) -> str:
+    """The format to import ``path`` with: ``fmt`` if given, else detected."""
+    if fmt is None:
+        return detect_format(path)
+    if fmt not in FORMATS:
+        raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
+    try:
+        with open(path, "rb"):
+            pass
+    except OSError as e:
+        raise ImportFailed(f"{path}: cannot read: {e.strerror or e}") from None
+    return fmt
+
+
+def nmea_line_times(lines: list[bytes]) -> tuple[list[float], str]:
+    """A UNIX time for every line (see the module docstring) and how it was found."""
+    parser = NmeaParser()
+    tods: list[tuple[int, float]] = []
+    date0: float | None = None
+    for i, line in enumerate(lines):
+        if not any(k in line for k in (b"RMC,", b"GGA,", b"GLL,", b"ZDA,")):
+            continue
+        s = parser.parse(line)
+        if s is None or not s.valid or s.data.get("tod") is None:
+            continue
+        tod = s.data["tod"]
+        if date0 is None and s.data.get("utc") is not None:
+            date0 = s.data["utc"] - tod
+        tods.append((i, tod))
+    n = len(lines)
+    if not tods:
+        return [float(i) for i in range(n)], "no UTC in the file: 1 s per line from 1970-01-01"
+    base = date0 if date0 is not None else 0.0
+    anchors: list[tuple[int, float]] = []
+    day = 0.0
+    prev_tod = None
+    for i, tod in tods:
+        if prev_tod is not None and tod < prev_tod - DAY / 2:
+            day += DAY  # past midnight
+        t = base + day + tod
+        prev_tod = tod
+        if anchors and not (anchors[-1][1] < t <= anchors[-1][1] + 3600.0):
+            continue  # not moving forward, or a corrupt stamp
+        anchors.append((i, t))
+    if len(anchors) >= 2 and anchors[-1][0] > anchors[0][0]:
+        rate = (anchors[-1][1] - anchors[0][1]) / (anchors[-1][0] - anchors[0][0])
+    else:
+        rate = 1.0
+    times = [0.0] * n
+    k = 0
+    for i in range(n):
+        while k + 1 < len(anchors) and anchors[k + 1][0] <= i:
+            k += 1
+        i0, t0 = anchors[k]
+        if i < i0:
+            times[i] = t0 - (i0 - i) * rate
+        elif k + 1 < len(anchors):
+            i1, t1 = anchors[k + 1]
+            times[i] = t0 + (t1 - t0) * (i - i0) / (i1 - i0)
+        else:
+            times[i] = t0 + (i - i0) * rate
+    how = "UTC anchors from RMC/GGA/GLL/ZDA" + (
+        "" if date0 is not None else ", no date in the file: 1970-01-01"
+    )
+    return times, how
+
+
+def _pipeline(
+    path: str | Path,
+    fmt: str,
+    timing: str,
+    sink: Sink,
+    calibration: Calibration | None,
+    sync: str | None,
+    sample_rate_hz: float | None,
+) -> Pipeline:
+    """The live pipeline for an import, with the file, its format and its timing in the metadata."""
+    return Pipeline(
+        calibration,
+        sink,
+        sync=sync,
+        sample_rate_hz=sample_rate_hz,
+        config={"import": str(path), "format": fmt, "timing": timing},
+        diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
+    )
+
+
+def import_nmea(
+    path: str | Path,
+    sink: Sink,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    sample_rate_hz: float | None = None,
+) -> ImportResult:
+    """An NMEA 0183 capture through the pipeline's NMEA path."""
+    data = Path(path).read_bytes()
+    splitter = LineSplitter()
+    lines = splitter.feed(data) + splitter.flush()
+    times, how = nmea_line_times(lines)
+    if how.startswith("no UTC"):
+        raise ImportFailed(
+            f"{Path(path).name}: no time in this log (no NMEA RMC, GGA, GLL or ZDA with UTC)"
+        )
+    pipe = _pipeline(path, "nmea", how, sink, calibration, sync, sample_rate_hz)
+    for line, t in zip(lines, times, strict=True):
+        ns = int(t * 1e9)
+        pipe.feed("depth", ns, ns, line + b"\n")
+    pipe.close()
+    res = ImportResult(str(path), "nmea", len(lines), pipe.counters(), [how])
+    _check_errors(pipe, res)
+    return res
+
+
+def import_dataflash(
+    path: str | Path,
+    sink: Sink,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    sample_rate_hz: float | None = None,
+) -> ImportResult:
+    """An ArduPilot DataFlash log (.BIN) through the sample assembler (forcemap.host.convert.dataflash)."""
+    pipe = _pipeline(
+        path, "dataflash", "the log's own clock", sink, calibration, sync, sample_rate_hz
+    )
+    reader = DataflashDecoder(pipe)
+    try:
+        reader.read(str(path))
+    except Exception as e:  # DFReader on a file that is not DataFlash
+        raise ImportFailed(f"{Path(path).name}: not a readable DataFlash log ({e})") from None
+    pipe.close()
+    used = ", ".join(f"{k} {n}" for k, n in sorted(reader.used.items())) or "none"
+    res = ImportResult(str(path), "dataflash", reader.records, pipe.counters())
+    res.notes.append(f"DataFlash records used: {used}")
+    _check_errors(pipe, res)
+    return res
+
+
+def tlog_records(data: bytes) -> Iterator[tuple[int, bytes]]:
+    """(UNIX µs, packet bytes) for each record of a tlog. Bytes that don't frame are skipped."""
+    i, n = 0, len(data)
+    while i + 9 <= n:
+        magic = data[i + 8]
+        if magic == 0xFE:
+            size = data[i + 9] + 8 if i + 9 < n else 0
+        elif magic == 0xFD and i + 10 < n:
+            size = data[i + 9] + 12 + (13 if data[i + 10] & 0x01 else 0)
+        else:
+            i += 1
+            continue
+        (us,) = struct.unpack_from(">Q", data, i)
+        if us > MAX_TLOG_US:  # not a time: these bytes do not frame a record
+            i += 1
+            continue
+        yield us, data[i + 8 : i + 8 + size]
+        i += 8 + size
+
+
+def import_tlog(
+    path: str | Path,
+    sink: Sink,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    sample_rate_hz: float | None = None,
+) -> ImportResult:
+    """A MAVLink telemetry log through the pipeline's MAVLink path, at its recorded arrival times."""
+    data = Path(path).read_bytes()
+    pipe = _pipeline(path, "tlog", "tlog receive times", sink, calibration, sync, sample_rate_hz)
+    records = 0
+    for us, packet in tlog_records(data):
+        records += 1
+        ns = us * 1000
+        pipe.feed("mavlink", ns, ns, packet)
+    pipe.close()
+    res = ImportResult(str(path), "tlog", records, pipe.counters())
+    _check_errors(pipe, res)
+    return res
+
+
+def _check_errors(pipe: Pipeline, res: ImportResult) -> None:
+    if pipe.errors:
+        res.notes.append(
+            f"internal errors: {dict(pipe.errors)}; last: {pipe.last_error.strip().splitlines()[-1]}"
+        )
+
+
+def import_file(
+    path: str | Path,
+    sink: Sink,
+    fmt: str | None = None,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    sample_rate_hz: float | None = None,
+) -> ImportResult:
+    """Import one file in the given or detected format."""
+    fmt = check_importable(path, fmt)
+    readers = {"nmea": import_nmea, "tlog": import_tlog, "dataflash": import_dataflash}
+    if fmt in readers:
+        return readers[fmt](path, sink, calibration, sync, sample_rate_hz)
+    raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
+
+
+def why_no_samples(res: ImportResult) -> str:
+    """One line on why an import gave no samples ('' if it gave some)."""
+    c = res.counters
+    if c["samples"]["emitted"]:
+        return ""
+    name = Path(res.path).name
+    if not c.get("last_fix"):
+        return f"{name}: no position in this log (no GPS fix), so no samples"
+    return (
+        f"{name}: no measurements in this log (no wind, depth, speed through water or water "
+        "temperature), so no samples"
+    )
+
+
+def import_to_mcap(
+    path: str | Path,
+    out: str | Path,
+    fmt: str | None = None,
+    calibration: Calibration | None = None,
+    sync: str | None = None,
+    check: Callable[[ImportResult], None] | None = None,
+    sample_rate_hz: float | None = None,
+) -> ImportResult:
+    """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
+
+    ImportFailed (and no file) when the log cannot give samples; the message says why. ``check``
+    may refuse the result first (by raising), with the same effect.
+    """
+    fmt = check_importable(path, fmt)
+    with atomic_path(out) as tmp:
+        log = McapLog(
+            Path(tmp).parent, first_path=tmp, rotate_bytes=1 << 62, rotate_seconds=float("inf")
+        )
+        try:
+            res = import_file(path, log, fmt, calibration, sync, sample_rate_hz)
+        finally:
+            log.close()
+        if check is not None:
+            check(res)
+        reason = why_no_samples(res)
+        if reason:
+            raise ImportFailed(reason)
+    return res

@@ -1,0 +1,250 @@
+"""NMEA 0183 instruments: sentences logged, navigation to the boat state, readings to the assembler.
+
+One line splitter per port, one strict parser for all. Navigation: RMC, GGA, GLL (position), VTG
+(ground velocity), HDT, HDG/HDM with variation, VHW's true heading (heading); ignored once an
+autopilot gives navigation. Readings: MWV R and VWR (apparent wind), MWV T and MWD (the
+instrument's true wind), VHW (speed through water), DPT, DBT, DBS (depth), MTW (water temperature).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from forcemap.host.decode.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
+from forcemap.host.fuse import compensation as comp
+from forcemap.host.log.messages import (
+    ApparentWind,
+    BoatState,
+    Depth,
+    NmeaSentence,
+    TrueWind,
+    WaterSpeed,
+)
+
+if TYPE_CHECKING:
+    from forcemap.host.fuse.pipeline import Pipeline
+
+DPT_PRIORITY_S = 5.0  # DBT and DBS count only when no DPT came this long
+
+
+class NmeaDecoder:
+    """Lines from any number of NMEA ports; values to the pipeline's state and assembler."""
+
+    def __init__(self, pipe: Pipeline) -> None:
+        self.pipe = pipe
+        self.splitters: dict[str, LineSplitter] = {}
+        self.parser = NmeaParser()
+        self.variation: float | None = pipe.cal.magnetic_variation_deg
+        self.dpt_t = -math.inf
+        self.bytes = 0
+        self.handlers = {
+            "DPT": self._depth,
+            "DBT": self._depth,
+            "DBS": self._depth,
+            "MTW": self._mtw,
+            "RMC": self._rmc,
+            "GGA": self._gga,
+            "GLL": self._gll,
+            "VTG": self._vtg,
+            "HDT": self._hdt,
+            "HDM": self._hdm,
+            "HDG": self._hdm,
+            "VHW": self._vhw,
+            "MWV": self._mwv,
+            "VWR": self._vwr,
+            "MWD": self._mwd,
+        }
+
+    def feed(self, source: str, wall: float, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
+        self.bytes += len(data)
+        splitter = self.splitters.get(source)
+        if splitter is None:
+            splitter = self.splitters[source] = LineSplitter()
+        for line in splitter.feed(data):
+            try:
+                self.line(line, source, wall, t_mono_ns, t_wall_ns)
+            except Exception:
+                self.pipe.internal("depth")
+
+    def gap(self, source: str) -> None:
+        self.splitters.pop(source, None)
+
+    def flush(self, now: float) -> None:
+        """The unterminated last line of every port (at close)."""
+        for source, splitter in self.splitters.items():
+            for line in splitter.flush():
+                self.line(line, source, now, None, int(now * 1e9))
+
+    def counters(self) -> dict[str, Any]:
+        return {**self.parser.counters(), "bytes": self.bytes}
+
+    def line(
+        self, line: bytes, source: str, t: float, t_mono_ns: int | None, t_wall_ns: int
+    ) -> None:
+        s = self.parser.parse(line)
+        if s is None:
+            return
+        msg = NmeaSentence(s.text, s.valid, s.reason, s.talker, s.type, source)
+        msg.t_mono_ns, msg.t_wall_ns = t_mono_ns, t_wall_ns
+        self.pipe.write("/nmea/sentence", t, msg)
+        if s.valid and s.data:
+            handler = self.handlers.get(s.type)
+            if handler is not None:
+                handler(s, t)
+
+    # --- readings -----------------------------------------------------------------------------------
+
+    def _reading(self, kind: str, t: float, value: tuple, s: Sentence) -> None:
+        ref = s.data.get("reference") if s.type == "MWV" else None
+        label = f"nmea {s.type} {ref}" if ref else f"nmea {s.type}"
+        self.pipe.assembler.reading(kind, t, value, label)
+
+    def _depth(self, s: Sentence, t: float) -> None:
+        if s.type == "DBS":
+            depth = s.data.get("depth_m")
+        else:
+            depth = depth_below_surface(s, self.pipe.cal.depth_offset_m)
+        if depth is None:
+            return
+        # DPT says where its transducer is; DBT and DBS count only when no DPT came lately
+        if s.type == "DPT":
+            self.dpt_t = t
+        if s.type == "DPT" or t - self.dpt_t > DPT_PRIORITY_S:
+            self._reading("depth", t, (depth,), s)
+        msg = Depth(self.pipe.utc_s(t), depth, None, s.type, "nmea")
+        self.pipe.write("/depth", t, msg)
+
+    def _mtw(self, s: Sentence, t: float) -> None:
+        temp = s.data["water_temp"]
+        if temp is not None:
+            self._reading("temp", t, (temp,), s)
+            self.pipe.write("/depth", t, Depth(self.pipe.utc_s(t), None, temp, s.type, "nmea"))
+
+    def _vhw(self, s: Sentence, t: float) -> None:
+        if s.data["heading"] is not None:
+            self._heading(t, s.data["heading"], s)
+        stw = s.data["stw"]
+        if stw is not None:
+            self._reading("stw", t, (stw,), s)
+            self.pipe.write("/water/speed", t, WaterSpeed(self.pipe.utc_s(t), stw, s.type, "nmea"))
+
+    def _mwv(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if d["status"] != "A" or d["angle"] is None or d["speed"] is None:
+            return
+        if d["reference"] == "R":
+            self._apparent(s, t, d["speed"], d["angle"])
+        elif d["reference"] == "T":
+            heading = self.pipe.assembler.state.at(t, edge=True).heading
+            if heading is not None:
+                self._instrument_wind(s, t, d["speed"], comp.wrap360(heading + d["angle"]))
+
+    def _vwr(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if d["angle"] is not None and d["speed"] is not None:
+            self._apparent(s, t, d["speed"], d["angle"])
+
+    def _mwd(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if d["dir"] is not None and d["speed"] is not None:
+            self._instrument_wind(s, t, d["speed"], d["dir"])
+        elif d["dir_mag"] is not None and d["speed"] is not None and self.variation is not None:
+            self._instrument_wind(s, t, d["speed"], comp.wrap360(d["dir_mag"] + self.variation))
+
+    def _instrument_wind(self, s: Sentence, t: float, speed: float, direction: float) -> None:
+        self._reading("true", t, (speed, direction), s)
+        e, n = comp.velocity(speed, direction)
+        msg = TrueWind(self.pipe.utc_s(t), speed, direction, -e, -n, source="nmea")
+        msg.route, msg.sentence = "instrument", s.type
+        self.pipe.write("/wind/true", t, msg)
+
+    def _apparent(self, s: Sentence, t: float, speed: float, angle: float) -> None:
+        pipe = self.pipe
+        t_log = pipe.utc_s(t)
+        pipe.write("/wind/apparent", t, ApparentWind(t_log, speed, angle, source="nmea"))
+        self._reading("app", t, (speed, angle), s)
+        st = pipe.assembler.state.at(t, edge=True)
+        if st.heading is None or st.v_east is None or st.v_north is None:
+            return
+        we, wn = comp.true_wind(speed, angle, st.heading, st.v_east, st.v_north)
+        msg = TrueWind(t_log, math.hypot(we, wn), comp.from_direction(we, wn), we, wn, speed, angle)
+        msg.heading, msg.boat_east, msg.boat_north = st.heading, st.v_east, st.v_north
+        msg.source, msg.sentence = "nmea", s.type
+        pipe.write("/wind/true", t, msg)
+
+    # --- navigation ---------------------------------------------------------------------------------
+
+    def _nav_ok(self, s: Sentence) -> bool:
+        if s.type in ("RMC", "HDG") and s.data.get("variation") is not None:
+            if self.pipe.cal.magnetic_variation_deg is None:
+                self.variation = s.data["variation"]
+        return not self.pipe.mav_nav  # the autopilot is the navigation source when there is one
+
+    def _rmc(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if self._nav_ok(s) and d["status"] == "A" and d["lat"] is not None:
+            self._fix(s, t, d["lat"], d["lon"], d["sog"], d["cog"])
+
+    def _gga(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if self._nav_ok(s) and d["lat"] is not None and d.get("quality"):
+            self._fix(s, t, d["lat"], d["lon"], None, None, d.get("alt") or 0.0)
+
+    def _gll(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if self._nav_ok(s) and d["status"] == "A" and d["lat"] is not None:
+            self._fix(s, t, d["lat"], d["lon"], None, None)
+
+    def _vtg(self, s: Sentence, t: float) -> None:
+        d = s.data
+        state = self.pipe.assembler.state
+        if not self._nav_ok(s) or d["sog"] is None or not state.position.v:
+            return
+        sog, cog = d["sog"], d["cog"]
+        last = state.position.v[-1]
+        if cog is not None:
+            ve, vn = comp.velocity(sog, cog)
+        else:
+            ve, vn = (0.0, 0.0) if sog == 0 else (None, None)
+        state.add_position(t, last[0], last[1], ve, vn)
+        self.pipe.assembler.nav["velocity"] = "nmea VTG"
+
+    def _hdt(self, s: Sentence, t: float) -> None:
+        if self._nav_ok(s) and s.data["heading"] is not None:
+            self._heading(t, s.data["heading"], s)
+
+    def _hdm(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if self._nav_ok(s) and d["heading_mag"] is not None and self.variation is not None:
+            true = d["heading_mag"] + (d.get("deviation") or 0.0) + self.variation
+            self._heading(t, true, s, f"nmea {s.type}+variation")
+
+    def _heading(self, t: float, heading: float, s: Sentence, label: str = "") -> None:
+        if self.pipe.mav_nav:
+            return
+        self.pipe.assembler.state.add_heading(t, heading)
+        self.pipe.assembler.nav["heading"] = label or f"nmea {s.type}"
+
+    def _fix(
+        self,
+        s: Sentence,
+        t: float,
+        lat: float,
+        lon: float,
+        sog: float | None,
+        cog: float | None,
+        alt: float = 0.0,
+    ) -> None:
+        asm = self.pipe.assembler
+        state = asm.state
+        if sog is not None:
+            state.add_position_sog_cog(t, lat, lon, sog, cog)
+            asm.nav["velocity"] = f"nmea {s.type}"
+        else:
+            last = state.position.v[-1] if state.position.v else None
+            state.add_position(t, lat, lon, last[2] if last else None, last[3] if last else None)
+        asm.nav["position"] = f"nmea {s.type}"
+        self.pipe.fix(t, lat, lon, alt, None)
+        msg = BoatState(**state.at(t, edge=True).as_message(), source="nmea")
+        self.pipe.write("/boat/state", t, msg)

@@ -1,0 +1,278 @@
+"""The survey report: one self-contained HTML file (images embedded as base64 PNG).
+
+`build_report` runs the functions in `SECTIONS` in order; each takes the `ReportContext` and returns its HTML
+parts. A new section is one function and one line in `SECTIONS`.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from forcemap.host.progress import note
+from forcemap.host.report.diagnose_section import rounds_section
+from forcemap.host.report.mission_section import mission_section
+from forcemap.host.workbench import clock_offset, plots
+from forcemap.host.workbench.cv import blocked_folds
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.failures import failure_summary
+from forcemap.host.workbench.fitting import refit_or_restore
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.workspace import load_diagnoses, load_history, workspace_dir
+
+CSS = """
+body { font-family: sans-serif; max-width: 1100px; margin: 1em auto; color: #222; }
+h1 { font-size: 1.5em; } h2 { border-bottom: 1px solid #ccc; margin-top: 1.6em; }
+table { border-collapse: collapse; font-size: 0.9em; } td, th { border: 1px solid #ccc; padding: 3px 6px; }
+th { background: #eee; } img { max-width: 100%; } .found { color: #060; font-weight: bold; }
+.none { color: #555; } .small { font-size: 0.85em; color: #555; }
+"""
+
+MAPPED = (
+    ("current_speed", "current speed (m/s)", True),
+    ("wind_speed", "wind speed (m/s)", True),
+    ("depth", "depth (m)", False),
+)
+
+
+@dataclass
+class ReportContext:
+    """What every section may read: the table, its survey, the workspace's history and diagnoses."""
+
+    table: Path
+    survey: Survey
+    ws: Path
+    history: list[dict]
+    diagnoses: dict[str, dict]
+    progress: bool = True
+    # fitted models by (target, terms), shared between sections
+    models: dict[tuple[str, tuple[str, ...]], SurveyModel] = field(default_factory=dict)
+
+    def model(self, target: str, terms: list[str]) -> SurveyModel:
+        """The fitted model of `target` with `terms`: rebuilt from the workspace's saved fit when there is
+        one, else fitted; once per report."""
+        key = (target, tuple(terms))
+        if key not in self.models:
+            self.models[key] = refit_or_restore(
+                self.ws, self.history, self.survey, target, terms, self.progress
+            )
+        return self.models[key]
+
+
+def img(fig, alt: str) -> str:
+    """An <img> with the figure embedded as base64 PNG."""
+    data = base64.b64encode(plots.png_bytes(fig)).decode()
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def _latest_terms(history: list[dict], target: str) -> list[str]:
+    for h in reversed(history):
+        if h["target"] == target:
+            return h["terms"]
+    return list(BASELINE)
+
+
+def _map_terms(survey: Survey, history: list[dict], target: str) -> list[str]:
+    """The target's latest terms; a clock offset fitted for any aspect of the same vector (wind_dir, say)
+    corrects the whole vector, so the map of its speed uses it too."""
+    terms = _latest_terms(history, target)
+    vt = survey.vector_target(target)
+    if vt is None or clock_offset.split_terms(terms)[1] is not None:
+        return terms
+    for h in reversed(history):
+        other = survey.vector_target(h["target"])
+        if other is not None and other.prefix == vt.prefix:
+            offset = [t for t in h["terms"] if clock_offset.split_terms([t])[1] is not None]
+            if offset:
+                return terms + offset
+    return terms
+
+
+def header_section(ctx: ReportContext) -> list[str]:
+    survey = ctx.survey
+    dur = float(survey.trel.max()) / 60.0
+    span = np.ptp(survey.xy, axis=0)
+    parts = [
+        f"<h1>forcemap survey report: {html.escape(ctx.table.name)}</h1>",
+        f"<p>{survey.n} samples over {dur:.0f} min, an area of {span[0]:.0f} m x {span[1]:.0f} m centred on "
+        f"{survey.lat0:.5f}, {survey.lon0:.5f}. Generated {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}.</p>",
+    ]
+    parts += [f"<p class=small>note: {html.escape(n)}</p>" for n in survey.notes]
+    return parts
+
+
+def measurements_section(ctx: ReportContext) -> list[str]:
+    parts = ["<h2>Measurements</h2>"]
+    for col, label, _ in MAPPED:
+        if col in ctx.survey.columns:
+            values = ctx.survey.columns[col]
+            parts.append(img(plots.scatter_map(ctx.survey, values, f"measured {col}", label), col))
+    return parts
+
+
+def maps_section(ctx: ReportContext) -> list[str]:
+    survey = ctx.survey
+    parts = [
+        "<h2>Model maps: mean and uncertainty</h2>",
+        "<p>Wind and current are modelled through their east/north components: arrows show the modelled "
+        "velocity of the medium (where it moves to), colour its speed. Depth is shown with contours. Terms in "
+        "covariates are evaluated at typical values (depth from its own map, time at mid-survey).</p>",
+    ]
+    X, Y, mask = plots.map_grid(survey)
+    grid = np.column_stack([X.ravel(), Y.ravel()])
+    for target, label, arrows in MAPPED:
+        try:
+            terms = _map_terms(survey, ctx.history, target)
+            note(f"report: mapping {target} ({' + '.join(terms)}) ...", ctx.progress)
+            pred = ctx.model(target, terms).predict_grid(grid)
+        except WorkbenchError as exc:
+            parts.append(
+                f"<p class=small>{html.escape(target)}: not mapped ({html.escape(str(exc))})</p>"
+            )
+            continue
+        name = target.split("_")[0]
+        parts.append(f"<h3>{html.escape(name)}: {html.escape(' + '.join(terms))}</h3>")
+        fig = plots.field_map(X, Y, mask, pred, name, label, arrows, not arrows, survey)
+        parts.append(img(fig, target))
+    return parts
+
+
+def residuals_section(ctx: ReportContext) -> list[str]:
+    targets = list(dict.fromkeys([h["target"] for h in ctx.history] + list(ctx.diagnoses)))
+    if not targets:
+        return []
+    parts = [
+        "<h2>Residuals: where the models fail</h2>",
+        "<p>Held-out residuals from spatially blocked 5-fold cross-validation of the latest fit of each "
+        "target (measured minus predicted).</p>",
+    ]
+    for target in targets:
+        parts += _target_residuals(ctx, target)
+    return parts
+
+
+def _target_residuals(ctx: ReportContext, target: str) -> list[str]:
+    survey = ctx.survey
+    try:
+        terms = _latest_terms(ctx.history, target)
+        note(f"report: residuals of {target} ...", ctx.progress)
+        sm = ctx.model(target, terms)
+        cv = sm.cv(blocked_folds(survey.xy)[0])
+    except WorkbenchError as exc:
+        return [f"<p class=small>{html.escape(target)}: {html.escape(str(exc))}</p>"]
+    unit = " deg" if sm.circular else ""
+    parts = [
+        f"<h3>{html.escape(target)}: {html.escape(' + '.join(terms))}</h3>",
+        f"<p>CV RMSE {cv.rmse:.4g}{unit}, MAE {cv.mae:.4g}{unit}, 95 % coverage {cv.coverage95:.1%}.</p><ul>",
+    ]
+    parts += [f"<li>{html.escape(s)}</li>" for s in failure_summary(survey, cv.error, unit)]
+    parts.append("</ul>")
+    title = f"{target}: held-out residuals"
+    parts.append(
+        img(plots.scatter_map(survey, cv.error, title, "residual", "RdBu_r", True), "residual map")
+    )
+    extra = {k: v for k, v in sm.X.items() if k != "position"}
+    title = f"{target}: residual against covariates"
+    parts.append(
+        img(plots.residual_panels(survey, cv.error, extra, title, target), "residual panels")
+    )
+    return parts
+
+
+def diagnoses_section(ctx: ReportContext) -> list[str]:
+    parts = ["<h2>Missing effects, ranked</h2>"]
+    if not ctx.diagnoses:
+        parts.append(
+            f"<p>No diagnosis yet: run <code>forcemap diagnose {html.escape(ctx.table.name)} --target TARGET</code>.</p>"
+        )
+    for target, d in ctx.diagnoses.items():
+        parts += _diagnosis(target, d)
+    return parts
+
+
+def _diagnosis(target: str, d: dict) -> list[str]:
+    base = d["baseline"]
+    parts = [
+        f"<h3>{html.escape(target)} (model {html.escape(' + '.join(base['terms']))}, CV RMSE {base['cv_rmse']:.4g})</h3>"
+    ]
+    if d.get("missing_effect_found") and d["candidates"]:
+        parts.append(
+            f"<p class=found>missing effect found: {html.escape(d['candidates'][0]['covariate'])}</p>"
+        )
+    else:
+        parts.append("<p class=none>no missing effect found</p>")
+    parts.append(
+        "<table><tr><th>#</th><th>covariate</th><th>CV RMSE</th><th>improvement</th><th>explanation</th></tr>"
+    )
+    for i, c in enumerate(d["candidates"][:10], 1):
+        parts.append(
+            f"<tr><td>{i}</td><td>{html.escape(c['covariate'])}</td><td>{c['cv_rmse']:.4g}</td>"
+            f"<td>{c['improvement']:+.1%}</td><td class=small>{html.escape(c['explanation'])}</td></tr>"
+        )
+    parts.append("</table>")
+    return parts
+
+
+def history_section(ctx: ReportContext) -> list[str]:
+    parts = ["<h2>Error history</h2>"]
+    if not ctx.history:
+        return parts + ["<p>No fits recorded yet.</p>"]
+    parts.append(
+        "<table><tr><th>fit</th><th>target</th><th>terms</th><th>CV RMSE</th><th>MAE</th><th>coverage 95 %</th></tr>"
+    )
+    for h in ctx.history:
+        parts.append(
+            f"<tr><td>{h['fit']}</td><td>{html.escape(h['target'])}</td><td>{html.escape(' + '.join(h['terms']))}</td>"
+            f"<td>{h['cv_rmse']:.4g}</td><td>{h['cv_mae']:.4g}</td><td>{h['coverage95']:.1%}</td></tr>"
+        )
+    parts.append("</table>")
+    parts.append(img(plots.history_figure(ctx.history), "error history"))
+    return parts
+
+
+def rounds_and_advice_section(ctx: ReportContext) -> list[str]:
+    """Each diagnosis round with the error falling, and the survey advice (host.workbench.report_diagnose)."""
+    return rounds_section(ctx.diagnoses)
+
+
+def plan_section(ctx: ReportContext) -> list[str]:
+    """`forcemap plan`'s newest plan: intended, predicted and flown tracks (host.plan.report_section)."""
+    return mission_section(ctx.table, ctx.survey)
+
+
+Section = Callable[[ReportContext], list[str]]
+
+SECTIONS: list[Section] = [
+    header_section,
+    measurements_section,
+    maps_section,
+    residuals_section,
+    diagnoses_section,
+    rounds_and_advice_section,
+    history_section,
+    plan_section,
+]
+
+
+def build_report(
+    table: Path, survey: Survey, progress: bool = True, sections: list[Section] | None = None
+) -> str:
+    """The report's HTML: every section of `sections` (default `SECTIONS`) in order."""
+    ws = workspace_dir(table)
+    ctx = ReportContext(table, survey, ws, load_history(ws), load_diagnoses(ws), progress)
+    parts: list[str] = []
+    for section in SECTIONS if sections is None else sections:
+        parts += section(ctx)
+    return page(table.name, parts)
+
+
+def page(name: str, parts: list[str]) -> str:
+    body = "\n".join(parts)
+    return f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>forcemap report: {html.escape(name)}</title><style>{CSS}</style></head><body>\n{body}\n</body></html>\n"

@@ -1,0 +1,237 @@
+"""The result of `diagnose`: candidates, the rounds of findings, their JSON contract and their text."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from forcemap.host.workbench.diagnose.catalogue import explain
+from forcemap.host.workbench.diagnose.null import NULL_MARGIN
+
+
+@dataclass
+class Candidate:
+    covariate: str
+    term: str
+    cv_rmse: float
+    improvement: float
+    p_value: float
+    blocked_gain: float
+    random_gain: float | None
+    consequence: bool
+    explanation: str = ""
+    significant: bool = False
+    note: str = ""
+    # judged only for candidates that pass the floor and the p-value (None: not judged)
+    identifiable: bool | None = None
+    confounded_with: list[str] = field(default_factory=list)
+    predictability: float | None = None  # blocked-CV R^2 of the candidate from the model's inputs
+    replaced_gain: float | None = None  # gain with the candidate replaced by that prediction
+    null_gains: list[float] = field(default_factory=list)
+    time_proxies: list[str] = field(default_factory=list)  # counters and clocks folded into t
+    hypers: object = field(
+        default=None, repr=False
+    )  # the extended model's theta, for the null's refits
+
+    def to_json(self) -> dict:
+        return {
+            "covariate": self.covariate,
+            "cv_rmse": self.cv_rmse,
+            "improvement": self.improvement,
+            "explanation": self.explanation,
+            "identifiable": self.identifiable,
+            "confounded_with": self.confounded_with,
+            "null_gains": self.null_gains,
+        }
+
+
+@dataclass
+class Round:
+    """One diagnosis of one model: its candidates, best first, and what it found."""
+
+    target: str
+    terms: list[str]
+    cv_rmse: float
+    candidates: list[Candidate]
+    missing_effect_found: bool
+    skipped: dict[str, str] = field(default_factory=dict)
+    advice: str | None = None
+    time_proxies: list[str] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def added(self) -> Candidate | None:
+        return self.candidates[0] if self.missing_effect_found else None
+
+    def to_json(self) -> dict:
+        return {
+            "baseline": {"terms": self.terms, "cv_rmse": self.cv_rmse},
+            "missing_effect_found": self.missing_effect_found,
+            "added": self.added.term if self.added else None,
+            "cv_rmse_after": self.added.cv_rmse if self.added else self.cv_rmse,
+            "advice": self.advice,
+            "candidates": [c.to_json() for c in self.candidates],
+        }
+
+    def lines(self) -> list[str]:
+        out = [
+            f"target {self.target}: current model {' + '.join(self.terms)}, blocked-CV RMSE {self.cv_rmse:.4g}"
+        ]
+        for name in self.time_proxies:
+            out.append(
+                f"{name} only counts time (it is monotone in time): it carries the information t carries, "
+                "so it is folded into t and never named as a cause"
+            )
+        if self.missing_effect_found:
+            best = self.candidates[0]
+            out += [f"missing effect found: {best.covariate}", f"  {best.explanation}"]
+        else:
+            out.append(
+                "no missing effect found: no identifiable covariate beats its null significantly"
+            )
+        if self.advice:
+            out.append(f"  survey advice: {self.advice}")
+        out += [
+            "",
+            f"{'rank':>4}  {'covariate':<22} {'cv_rmse':>9} {'gain':>7} {'null max':>8} {'p':>8}  note",
+        ]
+        for i, c in enumerate(self.candidates, 1):
+            notes = []
+            if c.consequence:
+                notes.append("consequence: credited with its random-fold gain")
+            if c.identifiable is False:
+                notes.append(f"confounded with {', '.join(c.confounded_with)}")
+            null = f"{max(c.null_gains):>+8.1%}" if c.null_gains else f"{'':>8}"
+            mark = "*" if c.significant else " "
+            out.append(
+                f"{i:>4}{mark} {c.covariate:<22} {c.cv_rmse:>9.4g} {c.improvement:>+7.1%} {null} "
+                f"{c.p_value:>8.1e}  {'; '.join(notes)}"
+            )
+        return out
+
+
+@dataclass
+class Diagnosis:
+    """Every round, in order; the first round's findings are the top-level ones (the stable contract)."""
+
+    target: str
+    rounds: list[Round]
+
+    @property
+    def first(self) -> Round:
+        return self.rounds[0]
+
+    @property
+    def terms(self) -> list[str]:
+        return self.first.terms
+
+    @property
+    def cv_rmse(self) -> float:
+        return self.first.cv_rmse
+
+    @property
+    def candidates(self) -> list[Candidate]:
+        return self.first.candidates
+
+    @property
+    def missing_effect_found(self) -> bool:
+        return self.first.missing_effect_found
+
+    @property
+    def skipped(self) -> dict[str, str]:
+        return self.first.skipped
+
+    def to_json(self) -> dict:
+        """The stable machine-readable contract (docs/WORKBENCH.md documents every key)."""
+        first = self.first.to_json()
+        return {
+            "target": self.target,
+            "baseline": first["baseline"],
+            "missing_effect_found": first["missing_effect_found"],
+            "candidates": first["candidates"],
+            "advice": first["advice"],
+            "rounds": [r.to_json() for r in self.rounds],
+        }
+
+    def details(self) -> dict:
+        out = self.to_json()
+        out["candidate_details"] = [
+            {k: v for k, v in c.__dict__.items() if k != "hypers"} for c in self.first.candidates
+        ]
+        out["skipped"] = self.first.skipped
+        out["time_proxies"] = self.first.time_proxies
+        out["seconds"] = [r.seconds for r in self.rounds]
+        return out
+
+    def steps(self) -> list[str]:
+        """The error falling, one line per round."""
+        return round_steps(self.to_json())
+
+    def summary(self) -> str:
+        lines = []
+        for i, r in enumerate(self.rounds, 1):
+            if len(self.rounds) > 1:
+                lines.append(f"== round {i}")
+            lines += r.lines() + [""]
+        if len(self.rounds) > 1:
+            lines += self.steps()
+        return "\n".join(lines).rstrip()
+
+
+def explain_candidate(
+    c: Candidate, what: str, family: str, floor: float, others_confounded: list[str]
+) -> str:
+    """The candidate's line of text: its gain, the verdict and why, a likely cause and a term."""
+    cause, term = explain(c.covariate)
+    head = (
+        f"adding {c.term}{' ' + what if what else ''} cuts the blocked-CV RMSE by {c.blocked_gain:.0%}"
+        if c.blocked_gain >= 0
+        else f"adding {c.term} does not help (blocked-CV RMSE {-c.blocked_gain:.0%} worse)"
+    )
+    if c.time_proxies:
+        head += f" ({', '.join(c.time_proxies)} only count time and are folded into t)"
+    if c.consequence:
+        rg = c.random_gain if c.random_gain is not None else math.nan
+        head += (
+            f"; it is a consequence of the {family} being mapped, so it is credited only with the gain "
+            f"left when the field is known (random folds: {rg:.0%})"
+        )
+    if c.null_gains:
+        head += f"; the same term on time-shifted copies of {c.covariate} gains at most {max(c.null_gains):.0%}"
+    if c.identifiable is False:
+        also = f" (so are {', '.join(others_confounded)})" if others_confounded else ""
+        verdict = (
+            f"not identifiable: {c.covariate} is confounded with {' and '.join(c.confounded_with)} on this "
+            f"survey{also}: predicted from them block by block (R^2 = {c.predictability:.2f}) it still gains "
+            f"{c.replaced_gain:.0%}, so the gain cannot be told from the map's; do not read it as a cause"
+        )
+        return f"{head}; p = {c.p_value:.1e}, {verdict}."
+    verdict = (
+        "significant"
+        if c.significant
+        else f"not significant (needs a gain >= {floor:.0%}, an error {NULL_MARGIN:.0%} below its best null's, and a small p-value)"
+    )
+    extra = f" ({c.note})" if c.note else ""
+    return f"{head}; p = {c.p_value:.1e}, {verdict}{extra}. Likely cause: {cause}. Suggested term: {term}."
+
+
+def round_steps(diagnosis_json: dict) -> list[str]:
+    """One line per round of a diagnosis (its JSON, as saved in the workspace): what was added and the error
+    falling. A diagnosis saved before rounds existed is its own single round."""
+    rounds = diagnosis_json.get("rounds") or [
+        {**diagnosis_json, "added": None, "cv_rmse_after": diagnosis_json["baseline"]["cv_rmse"]}
+    ]
+    out = []
+    for i, r in enumerate(rounds, 1):
+        before = r["baseline"]["cv_rmse"]
+        step = f"round {i}: blocked-CV RMSE {before:.4g}"
+        if r.get("added"):
+            after = r["cv_rmse_after"]
+            fall = 1.0 - after / before if before > 0 else 0.0
+            step += f" -> {after:.4g} with {r['added']} ({fall:.0%} lower)"
+        else:
+            step += ": nothing more found" + (
+                f"; survey advice: {r['advice']}" if r.get("advice") else ""
+            )
+        out.append(step)
+    return out

@@ -1,0 +1,271 @@
+"""Find the missing effects: add a term in each candidate covariate, measure the blocked-CV gain, judge it against
+a null and against what position can tell, add the finding and look again.
+
+Causes and consequences. The boat's kinematics (sog, cog, crab = heading - cog, throttle) respond to the
+current and wind that push it: at a held-out place they carry information about the very field being
+mapped, so in spatially blocked CV they "predict" it although no effect is missing. A genuine instrument error
+that grows with boat speed, or appears in turns, is different: it is there even where the field is known. So a
+kinematic covariate of a wind or current target is credited only with the gain that survives random
+(interleaved) folds, where every held-out sample has measured neighbours and the field is known: the smaller of
+its blocked and random-fold gains, and the larger of the two p-values. Causes (depth, time, heading, ...) are
+credited with their blocked-CV gain.
+
+The finding rule (docs/WORKBENCH.md, "What a survey can and cannot tell"): a candidate is a missing
+effect when its gain is at least FLOOR, its paired p-value passes Bonferroni, it gains more than every
+time-shifted copy of itself (host/workbench/diagnose/null.py), and it is identifiable: its stand-in predicted from
+position does not keep most of the gain (host/workbench/diagnose/identify.py). The best such candidate is ranked
+first and reported. A finding is added to the model and the
+survey diagnosed again, up to `rounds` times.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+
+from forcemap.host.progress import Progress
+from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench.cv import DEFAULT_FOLDS
+from forcemap.host.workbench.diagnose import identify
+from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
+from forcemap.host.workbench.diagnose.null import beats_null, null_gains
+from forcemap.host.workbench.diagnose.result import (
+    Candidate,
+    Diagnosis,
+    Round,
+    explain_candidate,
+)
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.spec import parse_term
+from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
+from forcemap.host.workbench.table import Survey, family, is_circular
+from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
+
+__all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
+
+# a gain below this is negligible whatever the null says (docs/WORKBENCH.md justifies it)
+FLOOR = 0.10
+# the identifiability and null tests run for at most this many candidates that pass the floor and the p-value
+SCREEN = 4
+DEFAULT_ROUNDS = 3
+# a proxy gives way to a direct cause that leaves it less than this to add (see _prefer_direct_cause)
+PROXY_LEFTOVER = 0.25
+# a direct cause within this many places of a leading proxy may take its place
+PROXY_WINDOW = 10
+ALPHA = 0.05
+PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab"}
+
+
+def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
+    """Every numeric column outside the target's family, time, and derived ones (heading relative to the flow,
+    speed through water)."""
+    used = {i for s in sm.term_specs for i in s.inputs}
+    fam = sm.vector.family if sm.vector else family(sm.target)
+    names = []
+    for name in survey.numeric_columns():
+        if name in SKIP or name == sm.target or name in used:
+            continue
+        if fam is not None and family(name) == fam:
+            continue
+        names.append(name)
+    if "t" not in used:
+        names.append("t")
+    if "heading" in survey.columns:
+        for derived in ("heading_rel_current", "heading_rel_wind"):
+            if (
+                derived not in used
+                and derived not in names
+                and survey.vector_target(derived.replace("heading_rel_", "") + "_speed")
+            ):
+                names.append(derived)
+    if (
+        fam != "current"
+        and "stw" not in used
+        and "stw" not in names
+        and survey.vector_target("current_speed")
+        and "sog" in survey.columns
+    ):
+        names.append("stw")
+    if sm.clock_offset is None and clock_offset.applicable(survey, sm.vector):
+        names.append(clock_offset.NAME)
+    if sm.vector and sm.vector.aspect == "speed":
+        own_dir = sm.vector.name.replace("_speed", "_dir")
+        if own_dir in survey.columns and own_dir not in used:
+            names.append(own_dir)
+    return names
+
+
+def diagnose(
+    survey: Survey,
+    target: str,
+    terms: list[str] | None = None,
+    folds: int = DEFAULT_FOLDS,
+    seed: int = 0,
+    rounds: int = DEFAULT_ROUNDS,
+    alpha: float = ALPHA,
+    progress: bool = True,
+) -> Diagnosis:
+    """Diagnose, add what is found, and diagnose again, until nothing more is found or `rounds` are done."""
+    if rounds < 1:
+        raise WorkbenchError(f"--rounds must be at least 1, not {rounds}")
+    terms = list(terms or ["const", "gp(position, matern32)"])
+    done: list[Round] = []
+    for i in range(rounds):
+        label = f"diagnose {target}" + (f" (round {i + 1})" if i else "")
+        r = diagnose_round(survey, target, terms, folds, seed, alpha, progress, label)
+        done.append(r)
+        if r.added is None:
+            break
+        terms = terms + [r.added.term]
+    return Diagnosis(target, done)
+
+
+def diagnose_round(
+    survey: Survey,
+    target: str,
+    terms: list[str],
+    folds: int,
+    seed: int,
+    alpha: float,
+    progress: bool,
+    label: str,
+) -> Round:
+    """One diagnosis of the model with `terms`: every candidate's gain, ranked, judged."""
+    clock = time.perf_counter()
+    ev = Evaluator(survey, target, terms, folds, seed)
+    names = candidate_covariates(survey, ev.sm)
+    proxies = identify.time_proxies(survey, [n for n in names if n != "t"])
+    names = [n for n in names if n not in proxies]
+    results, skipped = _evaluate_all(ev, names, Progress(label, len(names), progress))
+    results.sort(key=lambda c: -c.improvement)
+    results = _prefer_direct_cause(results, ev.pair_gain)
+    seconds = {"candidates": time.perf_counter() - clock}
+    for c in results:
+        if c.covariate == "t":
+            c.time_proxies = proxies
+    threshold = alpha / max(len(results), 1)
+    _judge(ev, results, threshold, seconds)
+    results = _evidence_first(results)
+    others = [c.covariate for c in results if c.identifiable is False]
+    what = _component(ev.sm)
+    fam = ev.sm.vector.family if ev.sm.vector else "field"
+    for c in results:
+        rest = [o for o in others if o != c.covariate]
+        w = "" if c.covariate == clock_offset.NAME else what
+        c.explanation = explain_candidate(c, w, fam, FLOOR, rest)
+    found = bool(results) and results[0].significant
+    advice = None
+    if results and results[0].identifiable is False:
+        advice = identify.advice(results[0].covariate, proxies)
+    return Round(
+        target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds
+    )
+
+
+def _evaluate_all(
+    ev: Evaluator, names: list[str], bar: Progress
+) -> tuple[list[Candidate], dict[str, str]]:
+    """Every candidate's evaluation, in the order given; the ones that cannot be modelled, with why."""
+    results: list[Candidate] = []
+    skipped: dict[str, str] = {}
+    for name in names:
+        bar.step(name)
+        try:
+            results.append(_evaluate(ev, name))
+        except WorkbenchError as exc:
+            skipped[name] = str(exc)
+    bar.close()
+    return results, skipped
+
+
+def _evaluate(ev: Evaluator, name: str) -> Candidate:
+    if name == clock_offset.NAME:
+        term, rmse, gain, p = ev.clock()
+        return Candidate(name, term, rmse, gain, p, gain, None, False)
+    if name != "t":
+        derived_column(ev.survey, name)
+    model = ev.extended(name)
+    cv, gain_b, p_b = ev.blocked(model)
+    gain, p, gain_r = gain_b, p_b, None
+    is_consequence = name in ev.consequences
+    if is_consequence:
+        gain_r, p_r = ev.random(model)
+        gain, p = min(gain_b, gain_r), max(p_b, p_r)
+    spec = str(parse_term(name, is_circular))
+    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence)
+    c.hypers = model.theta_
+    return c
+
+
+def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: dict) -> None:
+    """Mark each candidate significant or not: floor, p-value, null, identifiability (the last two only for
+    the few that pass the first two, best first)."""
+    t_null = t_ident = 0.0
+    screened = 0
+    for c in results:
+        c.significant = False
+        if c.improvement < FLOOR or c.p_value > threshold or screened >= SCREEN:
+            continue
+        screened += 1
+        if c.covariate == clock_offset.NAME:
+            # a correction of the target, not a covariate: nothing to shift, nothing position could predict
+            c.identifiable, c.significant = True, True
+            continue
+        values = survey_inputs(ev.survey, {c.covariate})[c.covariate]
+        t0 = time.perf_counter()
+        stand_in, c.predictability = identify.predict_from_model_inputs(ev, c.covariate, values)
+        c.replaced_gain = float(ev.blocked(ev.extended(c.covariate, stand_in))[1])
+        t1 = time.perf_counter()
+        c.null_gains = null_gains(ev, c.covariate, values, c.hypers)
+        t2 = time.perf_counter()
+        t_ident, t_null = t_ident + t1 - t0, t_null + t2 - t1
+        c.identifiable = c.replaced_gain < identify.REPLACED_SHARE * c.blocked_gain
+        if not c.identifiable:
+            c.confounded_with = identify.confounders(ev)
+        c.significant = c.identifiable and beats_null(c.improvement, c.null_gains)
+    seconds.update(identifiability=t_ident, null=t_null)
+
+
+def _evidence_first(results: list[Candidate]) -> list[Candidate]:
+    """The best candidate that passes the finding rule goes first: a larger gain with no evidence behind it
+    (a few blocks, a p-value far from the threshold) is not a better explanation."""
+    lead = next((c for c in results if c.significant), None)
+    if lead is None or lead is results[0]:
+        return results
+    above = results[: results.index(lead)]
+    names = ", ".join(f"{c.covariate} ({c.improvement:.0%}, p {c.p_value:.1e})" for c in above)
+    lead.note = f"ranked above {names}: a larger gain that fails the finding rule"
+    return [lead] + [c for c in results if c is not lead]
+
+
+def _component(sm: SurveyModel) -> str:
+    if sm.primary_is_along:
+        return "along the flow (speed)"
+    return "across the flow (direction)" if sm.vector and sm.circular else ""
+
+
+def is_proxy(name: str) -> bool:
+    """Covariates that stand in for a cause rather than being one: time (everything that changes along the
+    track), the apparent wind (speed and angle), course and crab (on straight legs they follow the heading),
+    and the raw paddle-wheel speeds (the boat's speed through water, seen along one axis)."""
+    return name in PROXIES or re.fullmatch(r"wheel\d+_speed", name) is not None
+
+
+def _prefer_direct_cause(results: list[Candidate], pair_gain) -> list[Candidate]:
+    """If a proxy leads, but a direct covariate close behind leaves the proxy little to add once it is in the
+    model, the direct covariate is the explanation and goes first."""
+    if not results or not is_proxy(results[0].covariate) or results[0].improvement <= 0:
+        return results
+    lead = results[0]
+    for i, c in enumerate(results[1:PROXY_WINDOW], start=1):
+        if is_proxy(c.covariate) or c.consequence:
+            continue  # a consequence of the field is no direct cause (sog reads the current it explains)
+        if c.improvement < 0.5 * lead.improvement or c.improvement < PROXY_LEFTOVER:
+            continue
+        if pair_gain(c.covariate, lead.covariate) < PROXY_LEFTOVER:
+            c.note = (
+                f"ranked above {lead.covariate}: once {c.covariate} is in the model, a term in "
+                f"{lead.covariate} adds less than {PROXY_LEFTOVER:.0%}"
+            )
+            return [c] + [r for j, r in enumerate(results) if j != i]
+    return results
