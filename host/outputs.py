@@ -6,14 +6,16 @@ Every command that writes a file goes through here, so that the rules hold every
 - an existing output is replaced only with ``--force``;
 - the output's folder must exist and be writable, checked *before* the heavy work;
 - the file appears whole or not at all: it is written to a temporary file in the same folder
-  and renamed over the target.
+  and renamed over the target;
+- its mode honours the umask (0644 under the usual 022), as any other tool's output: the temporary
+  file is created with 0666 like ``open``, not 0600 like ``tempfile.mkstemp``.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO
@@ -51,12 +53,7 @@ class atomic_path(contextlib.AbstractContextManager):  # noqa: N801 - used like 
 
     def __init__(self, out: str | os.PathLike[str]):
         self.path = Path(out)
-        fd, tmp = tempfile.mkstemp(
-            prefix=f".{self.path.name}.", suffix=".part" + self.path.suffix,
-            dir=self.path.parent or ".",
-        )  # fmt: skip
-        os.close(fd)
-        self.tmp = Path(tmp)
+        self.tmp = _new_file(self.path)
 
     def __enter__(self) -> Path:
         return self.tmp
@@ -67,6 +64,17 @@ class atomic_path(contextlib.AbstractContextManager):  # noqa: N801 - used like 
         else:
             with contextlib.suppress(FileNotFoundError):
                 self.tmp.unlink()
+
+
+def _new_file(out: Path) -> Path:
+    """A new, empty file beside ``out`` with a name no one else has; mode 0666 less the umask."""
+    while True:
+        tmp = out.with_name(f".{out.name}.{secrets.token_hex(4)}.part{out.suffix}")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        except FileExistsError:
+            continue
+        return tmp
 
 
 @contextlib.contextmanager

@@ -170,7 +170,7 @@ def test_outputs_into_a_missing_folder_are_refused_before_any_fitting(small_csv,
     assert not (tmp_path / "survey.csv.forcemap").exists()  # refused commands leave nothing behind
     code, _, err = _run(capsys, ["fit", table, "--target", "depth", "--quiet", "--no-plots"])
     assert code == 0
-    code, _, err = _run(capsys, ["history", table, "--plot", missing / "h.png"])
+    code, _, err = _run(capsys, ["history", table, "-o", missing / "h.png"])
     _one_line(code, err, "does not exist")
     assert not missing.exists()
 
@@ -429,10 +429,10 @@ def test_user_function_is_loaded_from_the_current_folder_without_sys_path(
 def test_demo_refuses_a_folder_holding_other_data(tmp_path, capsys):
     (tmp_path / "logs").mkdir()
     (tmp_path / "logs" / "run-2026-05-01.mcap").write_bytes(b"a field log")
-    code, _, err = _run(capsys, ["demo", "--out", tmp_path])
+    code, _, err = _run(capsys, ["demo", "-o", tmp_path])
     _one_line(code, err, "holds files that no demo wrote")
     assert (tmp_path / "logs" / "run-2026-05-01.mcap").read_bytes() == b"a field log"
     for speed in ("0", "nan"):
-        code, _, err = _run(capsys, ["demo", "--out", tmp_path / "new", f"--speed={speed}"])
+        code, _, err = _run(capsys, ["demo", "-o", tmp_path / "new", f"--speed={speed}"])
         _one_line(code, err, "--speed must be a finite number above 0")
     assert not (tmp_path / "new").exists()

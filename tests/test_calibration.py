@@ -152,7 +152,7 @@ def test_calibration_error_is_one_line_from_the_cli(tmp_path, capsys):
     boat = tmp_path / "boat.toml"
     boat.write_text("[vane]\nvref = 3300\n")
     code = main(
-        ["run", "--config", str(boat), "--bridge", str(tmp_path / "none"), "--out", str(tmp_path)]
+        ["run", "--boat", str(boat), "--bridge", str(tmp_path / "none"), "-o", str(tmp_path)]
     )
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err

@@ -238,10 +238,10 @@ def test_every_command_on_malformed_files(table, suffix, spec, config, target, o
             ["fit", t, "--target", target, "--model", good, "--quiet", "--no-plots"],
             ["fit", t, "--target", target, "--model", s, "--json", d / "out" / "f.json", "--quiet"],
             ["diagnose", t, "--target", target, "--model", s, "--quiet", "--json", d / "d.json"],
-            ["history", t, "--plot", d / "h.png"],
+            ["history", t, "-o", d / "h.png"],
             ["export", t, "-o", d / "export.csv"],
             ["log", "info", t],
-            ["import", n, "--config", c, "--out", d / "imported"],
+            ["import", n, "--boat", c, "-o", d / "imported"],
         ]
         if not _loads(t):  # the report refits every target: on a table that loads it takes a minute
             runs.append(["report", t, "-o", d / "r.html", "--quiet"])

@@ -44,7 +44,7 @@ def test_simulated_river_through_daemon_to_samples_table(tmp_path):
         sim = subprocess.Popen(
             [sys.executable, "-m", "forcemap.host.cli", "sim", "--scenario", "river", "--faults", "default",
              "--speed", str(SPEED), "--duration", DURATION, "--ports", str(ports),
-             "--truth", str(truth)],
+             "-o", str(truth)],
             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         )  # fmt: skip
         try:
@@ -88,7 +88,7 @@ def test_simulated_river_through_daemon_to_samples_table(tmp_path):
         assert virtual / SPEED <= MAX_RECONNECT_S + stall
 
     csv_path = tmp_path / "samples.csv"
-    assert main(["export", str(path), "--format", "csv", "-o", str(csv_path)]) == 0
+    assert main(["export", str(path), "-o", str(csv_path)]) == 0
     rows = list(csv.DictReader(csv_path.open()))
     header = list(rows[0])
     assert [c for c in header if c in COLUMNS] == [c for c in COLUMNS if c in header]
@@ -170,6 +170,6 @@ def test_simulated_river_through_daemon_to_samples_table(tmp_path):
     assert lost > 0 and checked > 5 * 0.5 * 4 * duration
 
     for fmt in ("parquet", "geojson", "kml"):
-        assert main(["export", str(path), "--format", fmt, "-o", str(tmp_path / f"s.{fmt}")]) == 0
+        assert main(["export", str(path), "-o", str(tmp_path / f"s.{fmt}")]) == 0
     track = json.loads((tmp_path / "s.geojson").read_text())["features"][0]
     assert len(track["geometry"]["coordinates"]) > 0.5 * duration

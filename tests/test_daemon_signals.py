@@ -60,7 +60,7 @@ def test_bad_config_is_one_clear_error(tmp_path):
     bad = tmp_path / "boat.toml"
     bad.write_text("[anemometer]\nmps_per_hz = 'fast'\n")
     daemon = DaemonProcess(
-        tmp_path / "out", {"depth": str(tmp_path / "nothing")}, "--config", str(bad)
+        tmp_path / "out", {"depth": str(tmp_path / "nothing")}, "--boat", str(bad)
     )
     rc = daemon.proc.wait(30)
     daemon._thread.join(5)
@@ -107,9 +107,9 @@ def test_rotation_gives_complete_files_each_with_the_metadata(tmp_path):
 def test_command_line_errors_exit_2_before_anything_starts(tmp_path, capsys):
     from forcemap.host.cli import main
 
-    assert main(["run", "--out", str(tmp_path / "a")]) == 2
+    assert main(["run", "-o", str(tmp_path / "a")]) == 2
     assert "at least one of" in capsys.readouterr().err
-    assert main(["run", "--mavlink", "udpout:10.0.0.1:14550", "--out", str(tmp_path / "b")]) == 2
+    assert main(["run", "--mavlink", "udpout:10.0.0.1:14550", "-o", str(tmp_path / "b")]) == 2
     assert "udpout" in capsys.readouterr().err
-    assert main(["run", "--depth", "x", "--clock", "gps", "--out", str(tmp_path / "c")]) == 2
+    assert main(["run", "--depth", "x", "--clock", "gps", "-o", str(tmp_path / "c")]) == 2
     assert not any(tmp_path.iterdir())

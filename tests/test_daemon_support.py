@@ -95,7 +95,7 @@ class DaemonProcess:
     """`forcemap run` as a subprocess; stderr (one JSON line per event) is collected as events."""
 
     def __init__(self, out: Path, ports: dict[str, str], *extra: str, quiet: bool = True):
-        args = [sys.executable, "-m", "forcemap.host.cli", "run", "--out", str(out)]
+        args = [sys.executable, "-m", "forcemap.host.cli", "run", "-o", str(out)]
         for name, port in ports.items():
             args += [f"--{name}", port]
         args += list(extra)

@@ -19,7 +19,7 @@ def test_demo_runs_the_whole_story(tmp_path):
             "-m",
             "forcemap.host.cli",
             "demo",
-            "--out",
+            "-o",
             str(out),
             "--duration",
             "6m",

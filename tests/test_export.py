@@ -63,7 +63,7 @@ def test_columns_are_the_documented_ones_in_order():
 def test_csv_keeps_order_leaves_out_empty_columns_and_writes_blanks(tmp_path):
     path = _log(tmp_path, water_temp=None, extra_probe=1.25, note="text")
     out = tmp_path / "s.csv"
-    assert main(["export", str(path), "--format", "csv", "-o", str(out)]) == 0
+    assert main(["export", str(path), "-o", str(out)]) == 0
     rows = list(csv.reader(out.open()))
     header = rows[0]
     expected = [
@@ -94,7 +94,7 @@ def test_csv_keeps_order_leaves_out_empty_columns_and_writes_blanks(tmp_path):
 def test_parquet_has_nulls_and_float_columns(tmp_path):
     path = _log(tmp_path)
     out = tmp_path / "s.parquet"
-    assert main(["export", str(path), "--format", "parquet", "-o", str(out)]) == 0
+    assert main(["export", str(path), "-o", str(out)]) == 0
     table = pq.read_table(out)
     assert table.column_names[:3] == ["t", "lat", "lon"]
     assert table.num_rows == 40
@@ -124,7 +124,7 @@ def test_truncated_log_exports_its_complete_part(tmp_path):
 def test_geojson_track_from_fix_and_sample_points(tmp_path):
     path = _log(tmp_path)
     out = tmp_path / "track.geojson"
-    assert main(["export", str(path), "--format", "geojson", "-o", str(out)]) == 0
+    assert main(["export", str(path), "-o", str(out)]) == 0
     doc = json.loads(out.read_text())
     line = doc["features"][0]
     assert line["geometry"]["type"] == "LineString"
@@ -137,7 +137,7 @@ def test_geojson_track_from_fix_and_sample_points(tmp_path):
 def test_kml_track_falls_back_to_samples_without_fix(tmp_path):
     path = _log(tmp_path, fixes=False)
     out = tmp_path / "track.kml"
-    assert main(["export", str(path), "--format", "kml", "-o", str(out)]) == 0
+    assert main(["export", str(path), "-o", str(out)]) == 0
     root = ET.parse(out).getroot()
     ns = {"k": "http://www.opengis.net/kml/2.2"}
     coords = root.find(".//k:LineString/k:coordinates", ns).text.split()

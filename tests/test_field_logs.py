@@ -42,7 +42,7 @@ PACCUP_SHARE = dict.fromkeys(
 @pytest.fixture(scope="module")
 def paccup(tmp_path_factory):
     out = tmp_path_factory.mktemp("paccup")
-    assert main(["import", str(PACCUP), "--out", str(out)]) == 0
+    assert main(["import", str(PACCUP), "-o", str(out)]) == 0
     (mcap,) = out.glob("*.mcap")
     csv_path = out / "samples.csv"
     assert main(["export", str(mcap), "-o", str(csv_path)]) == 0
@@ -247,7 +247,8 @@ def test_a_dataflash_log_with_gps_att_and_rfnd_gives_samples(tmp_path, capsys):
     assert cols["depth"] == "dataflash RFND" and cols["lat"] == "dataflash GPS"
     # the whole command: an MCAP that exports the same rows
     out = tmp_path / "out"
-    assert main(["import", str(path), "--out", str(out)]) == 0
+    out.mkdir()
+    assert main(["import", str(path), "-o", str(out)]) == 0
     (mcap,) = out.glob("*.mcap")
     assert sum(1 for _ in read_messages(mcap, "/samples")) == len(truth)
     capsys.readouterr()
@@ -260,17 +261,18 @@ def test_no_position_no_time_no_measurements_are_one_line_and_no_file(tmp_path, 
     }
     for name, text in cases.items():
         (tmp_path / name).write_text(text)
-    assert main(["import", str(tmp_path / "notime.nmea"), "--out", str(tmp_path / "o")]) == 2
+    (tmp_path / "o").mkdir()
+    assert main(["import", str(tmp_path / "notime.nmea"), "-o", str(tmp_path / "o")]) == 2
     assert "no time in this log" in capsys.readouterr().err
     zda = "$ECZDA,194310,14,07,2008,,*5F\n"
     (tmp_path / "nopos.nmea").write_text(zda + "$IIMTW,016,C*3A\n" * 20)
-    assert main(["import", str(tmp_path / "nopos.nmea"), "--out", str(tmp_path / "o")]) == 2
+    assert main(["import", str(tmp_path / "nopos.nmea"), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no position in this log" in err
     nomeas = tmp_path / "nomeas.nmea"
     rmc = "$ECRMC,194310,A,3748.784,N,12226.831,W,8.0,316.0,140708,015.0,E,A*18\n"
     nomeas.write_text(zda + rmc * 5)
-    assert main(["import", str(nomeas), "--out", str(tmp_path / "o")]) == 2
+    assert main(["import", str(nomeas), "-o", str(tmp_path / "o")]) == 2
     assert "no measurements in this log" in capsys.readouterr().err
     assert not list((tmp_path / "o").iterdir())
 

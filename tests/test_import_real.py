@@ -163,7 +163,7 @@ def run_import(tmp_path, monkeypatch):
 
             monkeypatch.setattr(importers, "McapLog", fake)
         path = next(REAL.glob(f"*/{name}"))
-        rc = main(["import", str(path), "--out", str(tmp_path), *extra])
+        rc = main(["import", str(path), "-o", str(tmp_path), *extra])
         return rc, (logs[-1] if logs else None), tmp_path
 
     return run
@@ -207,17 +207,17 @@ def test_tlog(name, tmp_path, capsys):
     assert sum(n for t, n in log.counts.items() if t.startswith("/mavlink/")) == good
     assert log.counts["/boat/state"] == gpi_fixes
     assert log.counts["/samples"] == 0 and reason in why_no_samples(res)
-    assert main(["import", str(path), "--out", str(tmp_path)]) == 2
+    assert main(["import", str(path), "-o", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and reason in err
     assert not list(tmp_path.iterdir())
 
 
 def test_dataflash_without_gps_says_so_in_one_line(tmp_path, capsys):
-    """The real ArduSub .BIN has no GPS: one line, exit 2, no file (with or without --format)."""
+    """The real ArduSub .BIN has no GPS: one line, exit 2, no file (with or without --from)."""
     path = REAL / "mavlink" / "ardusub_4.1_bluerov_small.BIN"
-    for extra in ([], ["--format", "dataflash"]):
-        assert main(["import", str(path), "--out", str(tmp_path), *extra]) == 2
+    for extra in ([], ["--from", "dataflash"]):
+        assert main(["import", str(path), "-o", str(tmp_path), *extra]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "no position in this log" in err
     assert not list(tmp_path.iterdir())
@@ -230,8 +230,8 @@ def test_dataflash_without_gps_says_so_in_one_line(tmp_path, capsys):
 def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
     junk = tmp_path / "junk.dat"
     junk.write_bytes(b"\x01\x02 hello")
-    assert main(["import", str(junk), "--out", str(tmp_path)]) == 2
-    assert main(["import", str(tmp_path / "missing.log"), "--out", str(tmp_path)]) == 2
+    assert main(["import", str(junk), "-o", str(tmp_path)]) == 2
+    assert main(["import", str(tmp_path / "missing.log"), "-o", str(tmp_path)]) == 2
     bad_cfg = tmp_path / "boat.toml"
     bad_cfg.write_text('[vane]\nvref = "x"\n')
     assert (
@@ -239,11 +239,11 @@ def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
             [
                 "import",
                 str(junk),
-                "--config",
+                "--boat",
                 str(bad_cfg),
-                "--format",
+                "--from",
                 "nmea",
-                "--out",
+                "-o",
                 str(tmp_path),
             ]
         )

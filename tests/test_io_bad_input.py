@@ -74,7 +74,7 @@ def test_export_writes_atomically_and_leaves_no_temporary_file(tmp_path, fmt):
     log = _log(tmp_path)
     out_dir = tmp_path / "out"
     out_dir.mkdir()
-    assert main(["export", str(log), "--format", fmt, "-o", str(out_dir)]) == 0
+    assert main(["export", str(log), "--to", fmt, "-o", str(out_dir)]) == 0
     assert listing(out_dir) == {log.with_suffix("." + fmt).name}  # a folder: named like the input
 
 
@@ -82,7 +82,7 @@ def test_export_of_a_log_without_samples_writes_nothing(tmp_path, capsys):
     with McapLog(tmp_path / "logs") as log:
         log.write("/depth", int(T0 * 1e9), {"t": T0, "depth": 3.0})
     for fmt in ("csv", "kml"):
-        assert main(["export", str(log.path), "--format", fmt]) == 2
+        assert main(["export", str(log.path), "--to", fmt]) == 2
         assert "no " in one_line(capsys, "export")
     assert listing(tmp_path / "logs") == {log.path.name}
 
@@ -126,7 +126,7 @@ def test_import_of_random_bytes_names_no_format_and_leaves_nothing(tmp_path, cap
 def test_import_with_a_format_on_random_bytes_leaves_no_partial_mcap(tmp_path, capsys, fmt):
     # seeds where some 8-byte "times" are beyond what MCAP can hold (they crashed the writer)
     junk = random_bytes(tmp_path / "junk.dat", n=200_000)
-    assert main(["import", str(junk), "--format", fmt, "--out", str(tmp_path / "out")]) == 2
+    assert main(["import", str(junk), "--from", fmt, "-o", str(tmp_path / "out")]) == 2
     err = one_line(capsys, "import")
     assert ("MAVLink" if fmt == "tlog" else "NMEA") in err and "DataFlash" not in err
     assert listing(tmp_path / "out") == set()
@@ -144,10 +144,11 @@ def test_import_and_export_take_the_same_output_options(tmp_path, capsys):
     assert "--force" in one_line(capsys, "import")
     assert digest(out) == first
     assert main(["import", str(capture), "-o", str(out), "--force"]) == 0
-    # no -o: beside the input, as export does; the older --out DIR still works
+    # no -o: beside the input, as export does; -o DIR names it like the input
     assert main(["import", str(capture)]) == 0
     assert (tmp_path / "capture.mcap").is_file()
-    assert main(["import", str(capture), "--out", str(tmp_path / "new")]) == 0
+    (tmp_path / "new").mkdir()
+    assert main(["import", str(capture), "-o", str(tmp_path / "new")]) == 0
     assert listing(tmp_path / "new") == {"capture.mcap"}
     assert digest(capture) == before
     capsys.readouterr()
@@ -162,7 +163,7 @@ def test_import_and_export_take_the_same_output_options(tmp_path, capsys):
 def test_run_with_a_missing_sim_clock_gives_up_in_a_few_seconds(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     t0 = time.monotonic()
-    assert main(["run", "--depth", "x", "--clock", "sim:MISSING", "--out", "logs"]) == 2
+    assert main(["run", "--depth", "x", "--clock", "sim:MISSING", "-o", "logs"]) == 2
     elapsed = time.monotonic() - t0
     err = one_line(capsys, "run")
     assert "MISSING" in err and "forcemap sim" in err
@@ -177,11 +178,11 @@ def test_run_with_a_missing_sim_clock_gives_up_in_a_few_seconds(tmp_path, capsys
         (["--mavlink", "udp:host:notaport"], "udp:host:notaport"),
         (["--nmea", "udp:0"], "port from 1 to 65535"),
         (["--depth", "x", "--rotate-mb", "0"], "--rotate-mb"),
-        (["--depth", "x", "--rotate-min", "-5"], "--rotate-min"),
+        (["--depth", "x", "--rotate-every", "0s"], "--rotate-every"),
         (["--depth", "x", "--rotate-mb", "nan"], "--rotate-mb"),
     ],
 )
 def test_run_refuses_what_cannot_work(tmp_path, capsys, args, words):
-    assert main(["run", *args, "--out", str(tmp_path / "logs")]) == 2
+    assert main(["run", *args, "-o", str(tmp_path / "logs")]) == 2
     assert words in one_line(capsys, "run")
     assert not (tmp_path / "logs").exists()

@@ -50,7 +50,7 @@ def test_info_reports_channels_duration_gaps_and_counters(tmp_path, capsys):
     assert "boat_toml" in text
     assert "depth" in text and "4.00 s" in text  # the outage, from the daemon's events
     assert "depth.rejected" in text
-    assert main(["log", "info", "--json", str(path)]) == 0
+    assert main(["log", "info", "--json", "-", str(path)]) == 0
     [info] = json.loads(capsys.readouterr().out)
     assert info["topics"]["/nmea/sentence"]["count"] == 2800
     assert abs((info["end_ns"] - info["start_ns"]) / 1e9 - 2999 * 0.02) < 1e-6

@@ -40,7 +40,7 @@ def test_waypoint_file_round_trip(tmp_path: Path) -> None:
 def test_sim_offline_flies_a_waypoint_file_and_records_it(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     path = write_file(tmp_path)
     truth = tmp_path / "truth"
-    assert main(["sim", "--mission", str(path), "--duration", "150", "--truth", str(truth)]) == 0
+    assert main(["sim", "--mission", str(path), "--duration", "150s", "-o", str(truth)]) == 0
     assert not (tmp_path / "ports").exists()
     _, flown = wp.read_wpl(truth / "mission.waypoints")
     _, given = wp.read_wpl(path)
@@ -56,8 +56,8 @@ def test_sim_offline_flies_a_waypoint_file_and_records_it(tmp_path: Path, capsys
 
 
 def test_sim_without_ports_needs_truth(capsys) -> None:  # type: ignore[no-untyped-def]
-    assert main(["sim", "--duration", "10"]) == 2
-    assert "--truth DIR" in capsys.readouterr().err
+    assert main(["sim", "--duration", "10s"]) == 2
+    assert "-o DIR" in capsys.readouterr().err
 
 
 def test_boat_model_overrides(tmp_path: Path) -> None:

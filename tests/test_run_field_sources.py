@@ -62,7 +62,7 @@ def finish(daemon: DaemonProcess) -> Counter:
 
 def daemon_out(daemon: DaemonProcess) -> Path:
     args = daemon.proc.args
-    return Path(args[args.index("--out") + 1])
+    return Path(args[args.index("-o") + 1])
 
 
 def test_nmea_source_names():

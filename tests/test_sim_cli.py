@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.cli.sim import parse_duration
+from forcemap.host.cli.common import parse_duration
 from forcemap.sim_devices import effects, faults, mission, scenario
 
 
@@ -37,7 +37,7 @@ def test_help_teaches(capsys) -> None:  # type: ignore[no-untyped-def]
 
 
 def test_durations() -> None:
-    assert [parse_duration(s) for s in ("600", "90s", "30m", "1.5h", "1h30m")] == [
+    assert [parse_duration(s) for s in ("600s", "90s", "30m", "1.5h", "1h30m")] == [
         600,
         90,
         1800,
@@ -47,8 +47,8 @@ def test_durations() -> None:
 
 
 def test_short_run_writes_truth(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
-    rc = main(["sim", "--scenario", "lake", "--duration", "20s", "--speed", "200", "--effects", "gusts",
-               "--faults", "default", "--ports", str(tmp_path / "p"), "--truth", str(tmp_path / "t"), "--seed", "4"])  # fmt: skip
+    rc = main(["sim", "--scenario", "lake", "--duration", "20s", "--speed", "200", "--phenomena", "gusts",
+               "--faults", "default", "--ports", str(tmp_path / "p"), "-o", str(tmp_path / "t"), "--seed", "4"])  # fmt: skip
     assert rc == 0
     out = capsys.readouterr().out
     assert str(tmp_path / "p" / "bridge") in out and str(tmp_path / "p" / "mavlink") in out
@@ -59,8 +59,8 @@ def test_short_run_writes_truth(tmp_path: Path, capsys) -> None:  # type: ignore
 
 
 def test_bad_arguments(capsys) -> None:  # type: ignore[no-untyped-def]
-    assert main(["sim", "--effects", "nope", "--ports", "/tmp/x-never"]) == 2
-    assert main(["sim", "--duration", "10"]) == 2
+    assert main(["sim", "--phenomena", "nope", "--ports", "/tmp/x-never"]) == 2
+    assert main(["sim", "--duration", "10s"]) == 2
     assert "unknown effect" in capsys.readouterr().err
 
 
@@ -68,7 +68,7 @@ def test_ctrl_c_stops_cleanly(tmp_path: Path) -> None:
     ports, truth = tmp_path / "p", tmp_path / "t"
     proc = subprocess.Popen(
         [sys.executable, "-m", "forcemap.host.cli", "sim", "--scenario", "river", "--duration", "1h", "--speed", "5",
-         "--ports", str(ports), "--truth", str(truth)],
+         "--ports", str(ports), "-o", str(truth)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     assert proc.stdout is not None
@@ -100,7 +100,7 @@ def test_ports_or_truth_in_a_file_is_refused(tmp_path: Path, capsys) -> None:  #
     f = tmp_path / "notes.txt"
     f.write_text("mine\n")
     assert main(["sim", "--ports", str(f)]) == 2
-    assert main(["sim", "--ports", str(tmp_path / "p"), "--truth", str(f)]) == 2
+    assert main(["sim", "--ports", str(tmp_path / "p"), "-o", str(f)]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and err.count("is a file; give a folder") == 2
     assert f.read_text() == "mine\n"

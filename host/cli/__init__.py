@@ -80,12 +80,13 @@ typical session:
   forcemap demo                                   # everything, simulated, in a few minutes
   forcemap sim --scenario river --ports /tmp/ports --speed 50 &
   forcemap run --bridge /tmp/ports/bridge --depth /tmp/ports/depth \\
-               --mavlink /tmp/ports/mavlink,115200 --out logs/
-  forcemap export logs/run-*.mcap --format csv -o survey.csv
+               --mavlink /tmp/ports/mavlink,115200 --clock sim:/tmp/ports/clock -o logs/
+  forcemap export logs/run-*.mcap -o survey.csv
   forcemap fit survey.csv --target current_speed
   forcemap diagnose survey.csv --target current_speed
 
-Units and conventions: docs/CONVENTIONS.md. `forcemap COMMAND --help` explains each command.
+Units and conventions: docs/CONVENTIONS.md. The options' grammar (-o/--output, --force, --json PATH|-,
+--boat, --quiet, durations as 30s/20m/3h): docs/CLI.md. `forcemap COMMAND --help` explains each command.
 """
 
 

@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from forcemap.host.cli.common import add_quiet
+
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("protocol", "firmware_bridge")
 MARCH = {"nano_rp2040": "armv6m", "nano_esp32": "xtensawin"}
@@ -58,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     m.add_argument(
         "--frames", type=int, default=0, help="stop after this many frames (0: run until Ctrl-C)"
     )
-    m.add_argument("--quiet", action="store_true", help="only the one-second summaries")
+    add_quiet(m, "no frame-by-frame output; only the one-second summaries")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,4 +1,11 @@
-"""Shared plumbing of the workbench commands: the table argument, outputs checked up front, JSON, notes.
+"""The CLI's one grammar: shared option builders, old spellings, durations, outputs, JSON, notes.
+
+Every option that more than one command takes is declared here, once, so that it means one thing
+(docs/CLI.md): ``-o/--output`` for what a command writes, ``--force`` to replace it, ``--json PATH|-``
+for machine output, ``--boat BOAT.toml`` for the boat, ``--quiet`` for no progress, ``--effects`` for
+model terms, ``--phenomena`` for the simulator's, durations as ``30s``, ``20m``, ``3h``.
+An old spelling keeps working for one release through ``add_deprecated``: a one-line note on stderr
+names the new spelling, and the value lands where the new option puts it.
 
 Errors are not handled here: a ``CliError`` (``WorkbenchError`` is one) reaches ``forcemap.host.cli.main``,
 which prints it on one line and exits 2.
@@ -9,11 +16,234 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TextIO
 
 from forcemap.host.errors import CliError
 from forcemap.host.outputs import atomic_write, check_output
+
+# ---------------------------------------------------------------- old spellings
+
+
+def deprecation_note(prog: str, old: str, new: str) -> None:
+    """The one line an old spelling prints on stderr."""
+    print(
+        f"{prog}: note: {old} is deprecated and goes in the next release; use {new}",
+        file=sys.stderr,
+    )
+
+
+class Deprecated(argparse.Action):
+    """An old spelling: prints its note, then stores (through ``convert``) into the new option's dest."""
+
+    def __init__(self, option_strings, dest, new: str = "", convert=None, **kwargs):  # type: ignore[no-untyped-def]
+        kwargs.setdefault("default", argparse.SUPPRESS)  # the new option's default stands
+        kwargs.setdefault("help", argparse.SUPPRESS)
+        super().__init__(option_strings, dest, **kwargs)
+        self.new = new
+        self.convert = convert
+
+    def __call__(self, parser, namespace, values, option_string=None):  # type: ignore[no-untyped-def]
+        deprecation_note(parser.prog, option_string or self.dest, self.new)
+        value = self.const if self.nargs == 0 else values
+        if self.convert is not None:
+            try:
+                value = self.convert(value)
+            except (ValueError, argparse.ArgumentTypeError) as exc:
+                raise argparse.ArgumentError(self, str(exc)) from None
+        setattr(namespace, self.dest, value)
+
+
+def add_deprecated(
+    parser: argparse.ArgumentParser,
+    old: str | tuple[str, ...],
+    new: str,
+    dest: str,
+    *,
+    flag: bool = False,
+    const: Any = None,
+    convert: Callable[[Any], Any] | None = None,
+) -> None:
+    """Keep ``old`` working for one release: it stores into ``dest`` and names ``new`` on stderr."""
+    names = (old,) if isinstance(old, str) else old
+    extra: dict[str, Any] = {"nargs": 0, "const": const} if flag else {}
+    parser.add_argument(
+        *names, dest=dest, action=Deprecated, new=new, convert=convert, **extra
+    )  # fmt: skip
+
+
+# ---------------------------------------------------------------- durations
+
+_UNIT_S = {"h": 3600.0, "m": 60.0, "s": 1.0}
+_NUMBER = r"(?:\d+(?:\.\d*)?|\.\d+)"
+
+
+def parse_duration(text: str) -> float:
+    """``30s``, ``20m``, ``3h``, ``1.5h`` or ``1h30m`` to seconds (ValueError otherwise)."""
+    compact = text.strip().replace(" ", "").lower()
+    parts = re.findall(rf"({_NUMBER})([hms])", compact)
+    if not parts or "".join(a + b for a, b in parts) != compact:
+        raise ValueError(
+            f"bad duration {text!r}: use a number and a unit, e.g. 30s, 20m, 3h, 1h30m"
+        )
+    return sum(float(v) * _UNIT_S[u] for v, u in parts)
+
+
+class Duration(argparse.Action):
+    """A duration option: ``30s``/``20m``/``3h`` to seconds. A bare number still means
+    ``bare_unit`` seconds for one release, with a note asking for the unit."""
+
+    def __init__(self, option_strings, dest, bare_unit: float = 1.0, **kwargs):  # type: ignore[no-untyped-def]
+        kwargs.setdefault("metavar", "DURATION")
+        super().__init__(option_strings, dest, **kwargs)
+        self.bare_unit = bare_unit
+
+    def __call__(self, parser, namespace, values, option_string=None):  # type: ignore[no-untyped-def]
+        text = str(values).strip()
+        if re.fullmatch(_NUMBER, text):
+            seconds = float(text) * self.bare_unit
+            deprecation_note(
+                parser.prog, f"{option_string} {text} (a number without a unit)",
+                f"{option_string} {seconds:g}s",
+            )  # fmt: skip
+        else:
+            try:
+                seconds = parse_duration(text)
+            except ValueError as exc:
+                raise argparse.ArgumentError(self, str(exc)) from None
+        setattr(namespace, self.dest, seconds)
+
+
+def add_duration(
+    parser: argparse.ArgumentParser, name: str, default: float | None, help: str, **kwargs: Any
+) -> None:
+    """A duration option; its value is in seconds (``default`` too)."""
+    parser.add_argument(name, action=Duration, default=default, help=help, **kwargs)
+
+
+def format_duration(seconds: float) -> str:
+    """Seconds as a duration the parser reads back (``35m``, ``90s``, ``1.5h``)."""
+    for unit in ("h", "m"):
+        n = seconds / _UNIT_S[unit]
+        if n >= 1 and float(n).is_integer():
+            return f"{n:g}{unit}"
+    return f"{seconds:g}s"
+
+
+# ---------------------------------------------------------------- shared options
+
+
+def add_output(
+    parser: argparse.ArgumentParser,
+    help: str,
+    *,
+    required: bool = False,
+    force: bool = True,
+    **kw: Any,
+) -> None:
+    """``-o/--output`` (what the command writes: a file, or a folder for several) and ``--force``."""
+    parser.add_argument("-o", "--output", required=required, help=help, **kw)
+    if force:
+        add_force(parser)
+
+
+def add_force(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--force", action="store_true", help="replace an existing output")
+
+
+class JsonOrOldFlag(argparse.Action):
+    """``--json PATH|-`` where ``--json`` was a flag (``log info``): the bare flag, or the flag followed
+    by an .mcap (a log to read, never the output), still prints the JSON on stdout, with a note."""
+
+    def __init__(self, option_strings, dest, **kwargs):  # type: ignore[no-untyped-def]
+        super().__init__(option_strings, dest, nargs="?", const=None, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):  # type: ignore[no-untyped-def]
+        if values is None or str(values).lower().endswith(".mcap"):
+            deprecation_note(parser.prog, "--json without a value", "--json - (or --json PATH)")
+            if values is not None:
+                namespace.json_files = [*getattr(namespace, "json_files", []), values]
+            values = "-"
+        setattr(namespace, self.dest, values)
+
+
+def add_json(
+    parser: argparse.ArgumentParser, what: str = "the result", old_flag: bool = False
+) -> None:
+    """``--json PATH``: the machine-readable result; ``-`` prints nothing but the JSON on stdout.
+    ``old_flag``: the command's ``--json`` was a flag, which keeps working for one release."""
+    parser.add_argument(
+        "--json",
+        metavar="PATH",
+        action=JsonOrOldFlag if old_flag else "store",
+        help=f"write {what} as JSON to PATH; '-' prints only the JSON on stdout (the rest on stderr)",
+    )
+
+
+def add_boat(parser: argparse.ArgumentParser, what: str, old_config: bool = True) -> None:
+    """``--boat BOAT.toml`` (and the old ``--config``, with its note, where it was the spelling)."""
+    parser.add_argument("--boat", metavar="BOAT.toml", help=what)
+    if old_config:
+        add_deprecated(parser, "--config", "--boat BOAT.toml", "boat")
+
+
+def add_quiet(
+    parser: argparse.ArgumentParser, what: str = "no progress on stderr; only the results"
+) -> None:
+    parser.add_argument("--quiet", action="store_true", help=what)
+
+
+def add_sync(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--sync",
+        choices=("interpolate", "approximate"),
+        default=None,
+        help="boat-state matching: interpolate at each sample's time (default), or the paper's "
+        "nearest-neighbour ApproximateTime scheme; overrides sync.mode in the boat TOML",
+    )
+
+
+def add_target(parser: argparse.ArgumentParser, what: str = "column to model") -> None:
+    """``--target``: the same rule everywhere, this option or else the ``--model`` spec's target."""
+    parser.add_argument(
+        "--target",
+        help=f"{what}, e.g. current_speed, wind_dir, depth (default: the --model spec's target)",
+    )
+
+
+def add_effects(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--effects``: model terms (never the simulator's phenomena: those are ``--phenomena``)."""
+    parser.add_argument("--effects", metavar="TERMS", help=what)
+
+
+def add_phenomena(parser: argparse.ArgumentParser, what: str, default: str | None) -> None:
+    """``--phenomena``: what the simulator simulates (the old ``--effects``/``--effect`` too)."""
+    parser.add_argument("--phenomena", metavar="LIST", default=default, help=what)
+
+
+def require_target(target: str | None) -> str:
+    if not target:
+        raise CliError("no target: give --target COLUMN (or target = ... in the --model spec)")
+    return target
+
+
+def human(args: argparse.Namespace) -> TextIO:
+    """Where human text goes: stdout, or stderr when stdout carries the JSON (``--json -``)."""
+    return sys.stderr if str(getattr(args, "json", None)) == "-" else sys.stdout
+
+
+def output_for(given: str | None, first_input: str, suffix: str) -> str:
+    """The output path: ``given`` (a folder gets the input's name with ``suffix``) or the default."""
+    if given is None:
+        return str(Path(first_input).with_suffix(suffix))
+    if given != "-" and Path(given).is_dir():
+        return str(Path(given) / Path(first_input).with_suffix(suffix).name)
+    if given.endswith("/"):
+        raise CliError(f"the folder {given} does not exist; create it first")
+    return given
 
 
 def add_table(parser: argparse.ArgumentParser) -> None:
@@ -33,7 +263,7 @@ def add_workspace_options(parser: argparse.ArgumentParser, output: bool = True) 
         "start a new history",
     )
     if output:
-        parser.add_argument("--force", action="store_true", help="replace an existing output file")
+        add_force(parser)
 
 
 def teach(parser: argparse.ArgumentParser, epilog: str) -> None:
@@ -66,16 +296,17 @@ def prepare_workspace(args: argparse.Namespace, create: bool = False) -> Path:
     return ws
 
 
-def check_json_output(args: argparse.Namespace) -> None:
-    """--json OUT must be writable (and new, or --force) before the work starts."""
+def check_json_output(args: argparse.Namespace, inputs: list | None = None) -> None:
+    """--json PATH must be writable (and new, or --force) before the work starts."""
     if args.json is not None and str(args.json) != "-":
-        check_output(args.json, [args.table], force=args.force)
+        check_output(args.json, [args.table] if inputs is None else inputs, force=args.force)
 
 
-def write_json(path: Path | None, data: dict) -> None:
+def write_json(path: str | Path | None, data: Any, indent: int = 2) -> None:
+    """The JSON to ``path``, or alone on stdout for ``-``; nothing without ``--json``."""
     if path is None:
         return
-    text = json.dumps(data, indent=2)
+    text = json.dumps(data, indent=indent)
     if str(path) == "-":
         print(text)
     else:
@@ -83,7 +314,7 @@ def write_json(path: Path | None, data: dict) -> None:
             f.write(text + "\n")
 
 
-def print_notes(survey) -> None:
+def print_notes(survey: Any) -> None:
     for n in survey.notes:
         print(f"note: {n}", file=sys.stderr)
 

@@ -4,7 +4,7 @@
 2. `forcemap run` (the daemon) reads the ports and logs to MCAP until the survey ends;
 3. `forcemap export` writes the samples table;
 4. `forcemap fit` fits the paper's baseline; `forcemap diagnose` names what it is missing;
-5. `forcemap fit --effects ...` refits with that effect; `forcemap report` writes the HTML report.
+5. `forcemap fit --effects ...` refits with that term; `forcemap report` writes the HTML report.
 """
 
 from __future__ import annotations
@@ -20,35 +20,52 @@ import sys
 import time
 from pathlib import Path
 
+from forcemap.host.cli.common import (
+    add_deprecated,
+    add_duration,
+    add_output,
+    add_phenomena,
+    format_duration,
+    parse_duration,
+)
 from forcemap.host.errors import CliError
 
 EPILOG = """\
 examples:
   forcemap demo                                  # river, hidden depth-dependent current
-  forcemap demo --effect dam_release --target current_speed
-  forcemap demo --effect anemometer_upwash --target wind_speed --out /tmp/demo
+  forcemap demo --phenomena dam_release --target current_speed
+  forcemap demo --phenomena anemometer_upwash --target wind_speed -o /tmp/demo
 
-Every step prints the command it runs, so you can repeat any of them by hand. --out must be a new or
-empty folder, or one an earlier demo wrote (whose outputs the new demo replaces).
+Every step prints the command it runs, so you can repeat any of them by hand. -o must be a new or
+empty folder, or one an earlier demo wrote (whose outputs the new demo replaces without --force).
 """
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = EPILOG
-    p.add_argument("--out", default="demo-output", help="output folder (default ./demo-output)")
-    p.add_argument("--scenario", default="river", help="simulated scenario (default river)")
-    p.add_argument(
-        "--effect",
-        default="depth_current",
-        help="hidden effect the model does not know about (default depth_current; see `forcemap sim --list`)",
+    add_output(
+        p,
+        "output folder (default ./demo-output)",
+        force=False,
+        default="demo-output",
+        metavar="DIR",
     )
+    add_deprecated(p, "--out", "-o/--output DIR", "output")
+    p.add_argument("--scenario", default="river", help="simulated scenario (default river)")
+    add_phenomena(
+        p,
+        "hidden phenomenon the model does not know about (default depth_current; see "
+        "`forcemap sim --list`)",
+        "depth_current",
+    )
+    add_deprecated(p, "--effect", "--phenomena NAME", "phenomena")
     p.add_argument(
         "--target",
         default="current_speed",
         help="samples-table column to map (default current_speed)",
     )
-    p.add_argument("--duration", default="35m", help="simulated survey length (default 35m)")
+    add_duration(p, "--duration", parse_duration("35m"), "simulated survey length (default 35m)")
     p.add_argument(
         "--speed", type=float, default=60.0, help="simulator speed-up over real time (default 60)"
     )
@@ -81,13 +98,13 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     sim_cmd = _forcemap(
         "sim",
         "--scenario", args.scenario,
-        "--duration", args.duration,
+        "--duration", format_duration(args.duration),
         "--speed", str(args.speed),
-        "--effects", args.effect,
+        "--phenomena", args.phenomena,
         "--faults", args.faults,
         "--seed", str(args.seed),
         "--ports", str(ports),
-        "--truth", str(truth),
+        "-o", str(truth),
     )  # fmt: skip
     run_cmd = _forcemap(
         "run",
@@ -95,7 +112,7 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
         "--depth", str(ports / "depth"),
         "--mavlink", f"{ports / 'mavlink'},115200",
         "--clock", f"sim:{ports / 'clock'}",
-        "--out", str(logs),
+        "-o", str(logs),
         "--quiet",
     )  # fmt: skip
     # the daemon first: it waits for the simulator's clock file, so its start-up (seconds on a
@@ -143,9 +160,9 @@ OWN = ("ports", "logs", "truth", "survey.csv", "survey.csv.forcemap", "fit-basel
 def prepare_output(out: Path) -> None:
     """A new folder, or one an earlier demo wrote (its files are replaced); never someone's data."""
     if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out} is a file; give a folder for the demo's outputs")
+        raise CliError(f"-o {out} is a file; give a folder for the demo's outputs")
     if out.is_dir() and any(out.iterdir()) and not (out / MARKER).exists():
-        raise CliError(f"--out {out} holds files that no demo wrote; give a new or empty folder")
+        raise CliError(f"-o {out} holds files that no demo wrote; give a new or empty folder")
     try:
         out.mkdir(parents=True, exist_ok=True)
         (out / MARKER).write_text("written by `forcemap demo`; a new demo replaces its files\n")
@@ -164,20 +181,21 @@ def prepare_output(out: Path) -> None:
 def run(args: argparse.Namespace) -> int:
     if not math.isfinite(args.speed) or args.speed <= 0:
         raise CliError(f"--speed must be a finite number above 0, not {args.speed:g}")
-    out = Path(args.out).resolve()
+    out = Path(args.output).resolve()
     prepare_output(out)
     os.environ.setdefault("MPLBACKEND", "Agg")
     t_start = time.monotonic()
 
     _step(
-        f"1/5 simulated survey: {args.scenario}, hidden effect '{args.effect}', {args.duration} at x{args.speed:g}"
+        f"1/5 simulated survey: {args.scenario}, hidden phenomenon '{args.phenomena}', "
+        f"{format_duration(args.duration)} at x{args.speed:g}"
     )
     mcaps = survey(args, out)
     _run(_forcemap("log", "info", str(mcaps[0])))
 
     _step("2/5 samples table")
     table = out / "survey.csv"
-    _run(_forcemap("export", *map(str, mcaps), "--format", "csv", "-o", str(table)))
+    _run(_forcemap("export", *map(str, mcaps), "-o", str(table)))
 
     _step("3/5 the paper's baseline: zero-mean GP on position, Matern 3/2")
     base_json = out / "fit-baseline.json"
@@ -215,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
     _run(_forcemap("report", str(table), "-o", str(report)))
 
     print("\n== summary")
-    print(f"hidden effect        : {args.effect}")
+    print(f"hidden phenomenon    : {args.phenomena}")
     print(f"diagnosis            : {found or 'no missing effect found'}")
     print(
         f"blocked-CV RMSE      : {before:.3f} -> {after:.3f} ({args.target}, {100 * (before - after) / before:.0f} % lower)"

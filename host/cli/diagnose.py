@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from forcemap.host.cli.common import (
+    add_effects,
+    add_json,
+    add_quiet,
     add_table,
+    add_target,
     add_workspace_options,
     check_json_output,
+    human,
     prepare_workspace,
     print_notes,
+    require_target,
     teach,
     write_json,
 )
@@ -47,15 +52,11 @@ examples:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
-    parser.add_argument("--target", required=True, help="column to diagnose, e.g. current_speed")
-    parser.add_argument(
-        "--effects", help="start from baseline + these effects instead of the latest fit"
-    )
+    add_target(parser, "column to diagnose")
+    add_effects(parser, "start from baseline + these terms instead of the latest fit")
     parser.add_argument("--model", help="start from this TOML model spec instead of the latest fit")
     parser.add_argument("--baseline", action="store_true", help="start from the paper's baseline")
-    parser.add_argument(
-        "--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)"
-    )
+    add_json(parser)
     parser.add_argument(
         "--rounds",
         type=int,
@@ -63,7 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="add each finding and diagnose again, at most N times (default 3)",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_quiet(parser)
     add_workspace_options(parser)
 
 
@@ -77,25 +78,26 @@ def run(args: argparse.Namespace) -> int:
 
     if args.rounds < 1:
         raise CliError(f"--rounds must be at least 1, not {args.rounds}")
+    # the same rule as fit: --target, or else the --model spec's target
+    given, target = resolve_terms(args.model, args.effects, args.target)
+    target = require_target(target)
     check_json_output(args)
     ws = prepare_workspace(args)
     if args.model or args.effects:
-        terms, _ = resolve_terms(args.model, args.effects, args.target)
+        terms = given
     elif args.baseline:
         terms = list(BASELINE)
     else:
-        terms = current_terms(ws, args.target) or list(BASELINE)
+        terms = current_terms(ws, target) or list(BASELINE)
     check_terms(terms)
     survey = load_survey(args.table)
     with small_blas():
-        result = diagnose(survey, args.target, terms, rounds=args.rounds, progress=not args.quiet)
+        result = diagnose(survey, target, terms, rounds=args.rounds, progress=not args.quiet)
     print_notes(survey)
-    save_diagnosis(ws, args.target, result.details())
-    if args.json and str(args.json) != "-":
-        write_json(args.json, result.to_json())
-    print(result.summary())
+    save_diagnosis(ws, target, result.details())
+    write_json(args.json, result.to_json())
+    out = human(args)
+    print(result.summary(), file=out)
     for name, why in result.skipped.items():
-        print(f"skipped {name}: {why}")
-    if args.json and str(args.json) == "-":
-        write_json(args.json, result.to_json())
+        print(f"skipped {name}: {why}", file=out)
     return 0

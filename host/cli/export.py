@@ -7,6 +7,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+from forcemap.host.cli.common import add_deprecated, add_output, output_for
 from forcemap.host.convert.export import FORMATS, check_logs, export
 from forcemap.host.errors import CliError
 from forcemap.host.outputs import check_output
@@ -15,35 +16,14 @@ EPILOG = """\
 examples:
   forcemap export logs/run-20260601T140000Z.mcap              # -> logs/run-20260601T140000Z.csv
   forcemap export logs/ -o survey.csv                         # every log in the folder, one table
-  forcemap export run.mcap --format parquet -o survey.parquet
-  forcemap export run.mcap --format kml -o out/               # -> out/run.kml
+  forcemap export run.mcap -o survey.parquet                  # the format from the suffix
+  forcemap export run.mcap --to kml -o out/                   # -> out/run.kml
   forcemap export run.mcap -o - | head                        # CSV on stdout
 
+The format is the output's suffix (.csv, .parquet, .geojson, .kml), or --to where there is no file name
+to read it from (a folder, stdout, the default beside the input); csv when neither says.
 An existing output is replaced only with --force. `forcemap import` takes the same -o and --force.
 """
-
-
-def add_output_options(parser: argparse.ArgumentParser, suffix: str) -> None:
-    """``-o/--output`` (a file, or a folder for a file named like the input) and ``--force``."""
-    parser.add_argument(
-        "-o",
-        "--output",
-        metavar="OUT",
-        help=f"output file, or an existing folder for one named like the input ({suffix}); "
-        "default: beside the (first) input",
-    )
-    parser.add_argument("--force", action="store_true", help="replace an existing output file")
-
-
-def output_for(given: str | None, first_input: str, suffix: str) -> str:
-    """The output path: ``given`` (a folder gets the input's name with ``suffix``) or the default."""
-    if given is None:
-        return str(Path(first_input).with_suffix(suffix))
-    if given != "-" and Path(given).is_dir():
-        return str(Path(given) / Path(first_input).with_suffix(suffix).name)
-    if given.endswith("/"):
-        raise CliError(f"the folder {given} does not exist; create it first")
-    return given
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,8 +38,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "files", nargs="+", metavar="FILE", help="MCAP logs of one survey, or a directory of them"
     )
-    parser.add_argument("--format", "-f", choices=FORMATS, default="csv")
-    add_output_options(parser, ".csv, .parquet, .geojson or .kml; '-' for stdout, not parquet")
+    add_output(
+        parser,
+        "output file (.csv, .parquet, .geojson or .kml), an existing folder for one named like the "
+        "first input, or '-' for stdout (not parquet); default: beside the first input",
+        metavar="OUT",
+    )
+    parser.add_argument(
+        "--to",
+        choices=FORMATS,
+        default=None,
+        help="the output's format, where its name does not say (default: from the suffix, else csv)",
+    )
+    add_deprecated(parser, ("--format", "-f"), "--to FORMAT, or an output suffix", "to")
 
 
 def _expand(paths: list[str]) -> list[str]:
@@ -78,13 +69,32 @@ def _expand(paths: list[str]) -> list[str]:
     return out
 
 
+def output_format(given: str | None, to: str | None) -> str:
+    """The format: ``--to``, else the output's suffix, else csv; a suffix that disagrees is an error."""
+    suffix = Path(given).suffix.lower().lstrip(".") if given not in (None, "-") else ""
+    if given not in (None, "-") and Path(given).is_dir():
+        suffix = ""
+    if suffix and suffix not in FORMATS and to is None:
+        raise CliError(
+            f"cannot tell the format from {given}: name it .csv, .parquet, .geojson or .kml, "
+            "or give --to"
+        )
+    if to and suffix in FORMATS and suffix != to:
+        raise CliError(f"--to {to} but the output {given} is named .{suffix}; make them agree")
+    return to or (suffix if suffix in FORMATS else "csv")
+
+
 def run(args: argparse.Namespace) -> int:
     files = _expand(args.files)
     check_logs(files)
-    out = output_for(args.output, files[0], "." + args.format)
+    given = args.output
+    if given not in (None, "-") and not Path(given).is_dir():
+        check_output(given, files, args.force)  # an input named as the output: refused first
+    fmt = output_format(given, args.to)
+    out = output_for(given, files[0], "." + fmt)
     if out != "-":
         check_output(out, files, args.force)
-    summary = export(files, args.format, out)
+    summary = export(files, fmt, out)
     if out != "-":
         print(summary, file=sys.stderr)
     return 0

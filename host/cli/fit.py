@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from forcemap.host.cli.common import (
+    add_effects,
+    add_json,
+    add_quiet,
     add_table,
+    add_target,
     add_workspace_options,
     check_json_output,
+    human,
     prepare_workspace,
     print_notes,
+    require_target,
     teach,
     write_json,
 )
@@ -39,17 +44,16 @@ The CV folds are spatially blocked (whole areas held out). --folds random holds 
 along-track neighbours stay in training: that flatters every model. The fit is saved in TABLE.forcemap/
 with residual plots; `forcemap history TABLE` lists every fit. A fit whose CV error is not a number
 (a user function gave NaN) is refused, never saved. An existing --json file is replaced only with
---force; a corrupt history.json stops the fit until it is fixed or --reset-history moves it aside.
+--force; with --json - stdout carries only the JSON (the summary goes to stderr). A corrupt
+history.json stops the fit until it is fixed or --reset-history moves it aside.
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
-    parser.add_argument("--target", help="column to model, e.g. current_speed, wind_dir, depth")
-    parser.add_argument(
-        "--effects", help="comma-separated covariates or terms to add, e.g. depth,t"
-    )
+    add_target(parser)
+    add_effects(parser, "comma-separated covariates or terms to add, e.g. depth,t")
     parser.add_argument("--model", help="TOML model spec (terms, optional target)")
     parser.add_argument(
         "--folds",
@@ -57,16 +61,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="blocked",
         help="CV folds (default blocked)",
     )
-    parser.add_argument(
-        "--json", type=Path, metavar="OUT", help="write the result as JSON (- for stdout)"
-    )
+    add_json(parser)
     parser.add_argument("--no-plots", action="store_true", help="do not write residual plots")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_quiet(parser)
     add_workspace_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host.workbench.errors import WorkbenchError
     from forcemap.host.workbench.fitting import (
         fit_target,
         record,
@@ -79,8 +80,7 @@ def run(args: argparse.Namespace) -> int:
 
     # everything that can be checked is checked before the fit, which can take a minute
     terms, target = resolve_terms(args.model, args.effects, args.target)
-    if not target:
-        raise WorkbenchError("no target: give --target COLUMN (or target = ... in the model spec)")
+    target = require_target(target)
     check_terms(terms)
     check_json_output(args)
     ws = prepare_workspace(args)
@@ -89,13 +89,11 @@ def run(args: argparse.Namespace) -> int:
         result = fit_target(survey, target, terms, args.folds, progress=not args.quiet)
     print_notes(survey)
     entry = record(args.table, result)
-    if args.json is not None and str(args.json) != "-":
-        write_json(args.json, result.to_json())
-    print(result.summary())
+    write_json(args.json, result.to_json())
+    out = human(args)
+    print(result.summary(), file=out)
     if not args.no_plots:
         for p in save_residual_plots(args.table, result, entry["fit"]):
-            print(f"wrote {p}")
-    print(f"saved fit {entry['fit']} in {ws}")
-    if args.json is not None and str(args.json) == "-":
-        write_json(args.json, result.to_json())
+            print(f"wrote {p}", file=out)
+    print(f"saved fit {entry['fit']} in {ws}", file=out)
     return 0

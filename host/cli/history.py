@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from forcemap.host.cli.common import add_table, add_workspace_options, prepare_workspace, teach
+from forcemap.host.cli.common import (
+    add_deprecated,
+    add_output,
+    add_table,
+    add_workspace_options,
+    prepare_workspace,
+    teach,
+)
 
 EPILOG = """\
 Every `forcemap fit` of the table is recorded in TABLE.forcemap/history.json. history prints them and
@@ -14,16 +21,17 @@ The latest `forcemap diagnose` of each target follows, round by round: what it a
 
 examples:
   forcemap history survey.csv
-  forcemap history survey.csv --plot errors.png
+  forcemap history survey.csv -o errors.png
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
-    parser.add_argument(
-        "--plot", type=Path, help="where to write the plot (default TABLE.forcemap/history.png)"
+    add_output(
+        parser, "the plot, a PNG file (default TABLE.forcemap/history.png)", force=False, type=Path
     )
+    add_deprecated(parser, "--plot", "-o/--output PNG", "output", convert=Path)
     add_workspace_options(parser)
 
 
@@ -40,8 +48,8 @@ def run(args: argparse.Namespace) -> int:
         raise WorkbenchError(
             f"no fits recorded for {args.table}; run `forcemap fit {args.table} --target ...` first"
         )
-    if args.plot is not None:
-        plot = check_output(args.plot, [args.table], force=args.force)
+    if args.output is not None:
+        plot = check_output(args.output, [args.table], force=args.force)
     else:
         plot = ws / "history.png"  # the workspace's own file, redrawn every time
         check_output(plot, [args.table], force=True)

@@ -7,8 +7,15 @@ import textwrap
 from pathlib import Path
 from typing import Any
 
-from forcemap.host.cli.common import add_sample_rate, sample_rate
-from forcemap.host.cli.export import add_output_options, output_for
+from forcemap.host.cli.common import (
+    add_boat,
+    add_deprecated,
+    add_output,
+    add_sample_rate,
+    add_sync,
+    output_for,
+    sample_rate,
+)
 from forcemap.host.errors import CliError
 from forcemap.host.outputs import check_output
 
@@ -16,7 +23,7 @@ EPILOG = """\
 examples:
   forcemap import capture.nmea                 # -> capture.mcap beside it
   forcemap import flight.tlog -o logs/         # -> logs/flight.mcap
-  forcemap import capture.txt --format nmea -o survey.mcap
+  forcemap import capture.txt --from nmea -o survey.mcap --boat boat.toml
   forcemap export survey.mcap -o survey.csv    # then the samples table, as for `forcemap run`
 
 An existing output is replaced only with --force; a file that cannot be imported leaves nothing
@@ -37,25 +44,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="NMEA 0183 capture (text), MAVLink telemetry log (.tlog) or DataFlash log (.BIN)",
     )
-    add_output_options(parser, ".mcap")
-    parser.add_argument(
-        "--out", metavar="DIR", dest="out_dir", help="the older form of -o DIR (created if missing)"
+    add_output(
+        parser,
+        "output file, or an existing folder for one named like the input (.mcap); "
+        "default: beside the input",
+        metavar="OUT",
     )
+    add_deprecated(parser, "--out", "-o/--output DIR (an existing folder)", "out_dir")
     parser.add_argument(
-        "--format",
+        "--from",
+        dest="source_format",
         choices=("nmea", "tlog", "dataflash"),
         default=None,
-        help="input format (default: from the name and the first bytes)",
+        help="the input's format (default: from the name and the first bytes)",
     )
-    parser.add_argument(
-        "--config", default=None, metavar="BOAT_TOML", help="calibration (default: built-in)"
-    )
-    parser.add_argument(
-        "--sync",
-        choices=("interpolate", "approximate"),
-        default=None,
-        help="boat-state matching (default: the config's sync.mode)",
-    )
+    add_deprecated(parser, "--format", "--from nmea|tlog|dataflash", "source_format")
+    add_boat(parser, "calibration (default: built-in; see host/data/boat.example.toml)")
+    add_sync(parser)
     add_sample_rate(parser)
 
 
@@ -89,7 +94,7 @@ def summary(res: Any) -> list[str]:
 
 
 def check_found(res: Any) -> None:
-    """Refuse an import that found nothing it could read (random bytes, the wrong --format)."""
+    """Refuse an import that found nothing it could read (random bytes, the wrong --from)."""
     c = res.counters
     name = Path(res.path).name
     if res.format == "nmea" and not c.get("depth", {}).get("accepted", 1):
@@ -99,14 +104,15 @@ def check_found(res: Any) -> None:
 
 
 def _output(args: argparse.Namespace, path: Path) -> Path:
-    if args.out_dir is not None and args.output is not None:
+    out_dir = getattr(args, "out_dir", None)  # the old --out DIR, which creates the folder
+    if out_dir is not None and args.output is not None:
         raise CliError("give -o/--output or the older --out DIR, not both")
-    if args.out_dir is not None:
+    if out_dir is not None:
         try:
-            Path(args.out_dir).mkdir(parents=True, exist_ok=True)
+            Path(out_dir).mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise CliError(f"cannot create the folder {args.out_dir} ({exc.strerror})") from None
-        return Path(args.out_dir) / f"{path.stem}.mcap"
+            raise CliError(f"cannot create the folder {out_dir} ({exc.strerror})") from None
+        return Path(out_dir) / f"{path.stem}.mcap"
     if args.output == "-":
         raise CliError("an MCAP log needs an output file (-o FILE.mcap) or folder")
     return Path(output_for(args.output, str(path), ".mcap"))
@@ -118,10 +124,10 @@ def run(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     try:
-        cal = load(args.config)
+        cal = load(args.boat)
         if not path.is_file():
             raise ImportFailed(f"{path}: no such file")
-        fmt = check_importable(path, args.format)
+        fmt = check_importable(path, args.source_format)
     except (ConfigError, ImportFailed) as e:
         raise CliError(str(e)) from None
     out = check_output(_output(args, path), [path], args.force)

@@ -9,12 +9,13 @@ import os
 import statistics
 import sys
 from array import array
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
 from forcemap.host.acquire.status import flatten
+from forcemap.host.cli.common import add_force, add_json, add_output, write_json
+from forcemap.host.errors import CliError
 from forcemap.host.log.mcap import CHUNK_SIZE, LIBRARY, FileScan, iter_records
 from mcap.records import Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
@@ -42,15 +43,14 @@ ERROR_WORDS = (
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="log_command", metavar="ACTION", required=True)
     info = sub.add_parser("info", help="channels, counts, duration, gaps and error counters")
-    info.add_argument("files", nargs="+", metavar="FILE")
-    info.add_argument("--json", action="store_true", help="print the summary as JSON")
+    info.add_argument("files", nargs="*", metavar="FILE", help="MCAP logs")
+    add_json(info, "the summary", old_flag=True)
+    add_force(info)
     rec = sub.add_parser(
         "recover", help="rewrite a truncated (killed) file as a complete one with index and summary"
     )
     rec.add_argument("file", metavar="FILE")
-    rec.add_argument(
-        "-o", "--output", metavar="OUT", help="output file (default: FILE with -recovered)"
-    )
+    add_output(rec, "output file (default: FILE with -recovered)", metavar="OUT")
 
 
 @dataclass
@@ -369,33 +369,43 @@ def _default_output(path: str) -> str:
     return str(p.with_name(p.stem + "-recovered" + p.suffix))
 
 
+def info_cmd(args: argparse.Namespace) -> int:
+    from forcemap.host.outputs import check_output
+
+    files = [*args.files, *getattr(args, "json_files", [])]
+    if not files:
+        raise CliError("give one or more MCAP logs")
+    if args.json not in (None, "-"):
+        check_output(args.json, files, force=args.force)
+    status = 0
+    infos: list[LogInfo] = []
+    for path in files:
+        try:
+            infos.append(scan_file(path))
+        except OSError as exc:
+            print(f"forcemap log info: {exc}", file=sys.stderr)
+            status = 1
+    if args.json != "-":
+        for info in infos:
+            print_info(info)
+    write_json(args.json, [info_json(i) for i in infos], indent=1)
+    return status
+
+
 def run(args: argparse.Namespace) -> int:
+    from forcemap.host.outputs import check_output
+
     if args.log_command == "info":
-        status = 0
-        infos: Iterable[LogInfo] = []
-        infos = []
-        for path in args.files:
-            try:
-                infos.append(scan_file(path))
-            except OSError as exc:
-                print(f"forcemap log info: {exc}", file=sys.stderr)
-                status = 1
-        if args.json:
-            json.dump([info_json(i) for i in infos], sys.stdout, indent=1)
-            sys.stdout.write("\n")
-        else:
-            for info in infos:
-                print_info(info)
-        return status
-    out = args.output or _default_output(args.file)
-    if os.path.abspath(out) == os.path.abspath(args.file):
-        print("forcemap log recover: the output must not be the input", file=sys.stderr)
-        return 2
+        return info_cmd(args)
+    if not Path(args.file).is_file():
+        raise CliError(f"{args.file}: no such file")
+    if os.path.abspath(args.output or "") == os.path.abspath(args.file):
+        raise CliError("the output must not be the input; choose another output file")
+    out = check_output(args.output or _default_output(args.file), [args.file], args.force)
     try:
         count, scan = recover(args.file, out)
     except OSError as exc:
-        print(f"forcemap log recover: {exc}", file=sys.stderr)
-        return 1
+        raise CliError(f"cannot recover {args.file}: {exc.strerror or exc}") from None
     state = f"truncated ({scan.error})" if scan.truncated else "complete"
     print(f"{args.file}: {state}; wrote {count} messages to {out}")
     return 0

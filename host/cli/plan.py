@@ -3,12 +3,21 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
-from forcemap.host.cli.common import add_table, teach
+from forcemap.host.cli.common import (
+    add_boat,
+    add_json,
+    add_output,
+    add_quiet,
+    add_table,
+    check_json_output,
+    human,
+    teach,
+    write_json,
+)
 
 EPILOG = """\
 The maps are the survey's latest fits of current_speed and wind_speed (`forcemap fit`; fitted first if
@@ -42,10 +51,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         required=True,
         help="QGC WPL 110 file (.waypoints), simulator mission TOML, or a built-in mission name",
     )
-    parser.add_argument(
-        "-o", "--output", type=Path, required=True, help="PLANNED: writes .waypoints, .toml, .json"
-    )
-    parser.add_argument("--boat", type=Path, help="TOML overriding the boat and controller model")
+    add_output(
+        parser, "PLANNED: writes PLANNED.waypoints, PLANNED.toml, PLANNED.json", required=True,
+        type=Path, metavar="PLANNED",
+    )  # fmt: skip
+    add_boat(parser, "TOML overriding the boat and controller model", old_config=False)
     parser.add_argument(
         "--scenario",
         default="river",
@@ -54,15 +64,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--upload", metavar="PORT[,BAUD]", help="send the adjusted mission over MAVLink"
     )
-    parser.add_argument(
-        "--json", metavar="OUT", help="write the per-line prediction as JSON (- for stdout)"
-    )
-    parser.add_argument("--force", action="store_true", help="replace existing outputs")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_json(parser, "the per-line prediction")
+    add_quiet(parser)
 
 
-def print_table(result) -> None:  # type: ignore[no-untyped-def]
+def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
     o, p = result.original, result.planned
+
+    def print(line: str) -> None:  # noqa: A001 - the table goes where the human text goes
+        out.write(line + "\n")
+
     print("per intended line (predicted): original -> planned")
     print(" line  length   p95 m          worst m        coverage         time s      no headway")
     for i, (a, b) in enumerate(zip(o.scores, p.scores, strict=True)):
@@ -94,7 +105,7 @@ def print_table(result) -> None:  # type: ignore[no-untyped-def]
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.errors import CliError
-    from forcemap.host.outputs import atomic_write, check_output
+    from forcemap.host.outputs import check_output
     from forcemap.host.plan.boat_model import load_boat
     from forcemap.host.plan.maps import survey_maps
     from forcemap.host.plan.mission_io import Frame, output_paths, read_mission, write_outputs
@@ -104,10 +115,9 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.workbench.table import load_survey
 
     progress = not args.quiet
-    for out in output_paths(args.output):
-        check_output(out, [args.table, args.mission], args.force)
-    if args.json and args.json != "-":
-        check_output(args.json, [args.table, args.mission], args.force)
+    for path in output_paths(args.output):
+        check_output(path, [args.table, args.mission], args.force)
+    check_json_output(args, [args.table, args.mission])
     if not args.table.exists():
         raise CliError(f"no such table {args.table}")
     boat = load_boat(args.boat)
@@ -133,8 +143,9 @@ def run(args: argparse.Namespace) -> int:
             )
 
     result = plan_mission(wps, mission.speeds, lines, maps, boat, step)
-    print(f"boat: {boat.describe()}")
-    print_table(result)
+    out = human(args)
+    print(f"boat: {boat.describe()}", file=out)
+    print_table(result, out)
     report = result.to_json()
     plan = result.planned.plan
     paths = write_outputs(
@@ -147,17 +158,13 @@ def run(args: argparse.Namespace) -> int:
     )
     save_plan(args.table, mission.name, result, maps)
     for p in paths:
-        print(f"wrote {p}")
-    if args.json:
-        text = json.dumps(report, indent=1)
-        if args.json == "-":
-            print(text)
-        else:
-            with atomic_write(args.json) as f:
-                f.write(text + "\n")
+        print(f"wrote {p}", file=out)
+    write_json(args.json, report, indent=1)
     if args.upload:
         from forcemap.host.plan.upload import upload_file
 
         n = upload_file(args.upload, paths[0], progress=progress)
-        print(f"uploaded {n} mission items to {args.upload}; the vehicle acknowledged them")
+        print(
+            f"uploaded {n} mission items to {args.upload}; the vehicle acknowledged them", file=out
+        )
     return 0

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 
 from forcemap.host.cli.common import (
+    add_output,
+    add_quiet,
     add_table,
     add_workspace_options,
     prepare_workspace,
@@ -28,10 +30,10 @@ examples:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
-    parser.add_argument(
-        "-o", "--output", type=Path, help="HTML file to write (default TABLE.forcemap/report.html)"
+    add_output(
+        parser, "HTML file to write (default TABLE.forcemap/report.html)", force=False, type=Path
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_quiet(parser)
     add_workspace_options(parser)
 
 

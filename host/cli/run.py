@@ -23,7 +23,18 @@ from forcemap.host.acquire.sources import (
     split_baud,
 )
 from forcemap.host.acquire.status import Reporter
-from forcemap.host.cli.common import add_sample_rate, positive, sample_rate
+from forcemap.host.cli.common import (
+    add_boat,
+    add_deprecated,
+    add_duration,
+    add_output,
+    add_quiet,
+    add_sample_rate,
+    add_sync,
+    format_duration,
+    positive,
+    sample_rate,
+)
 from forcemap.host.errors import CliError
 from forcemap.host.log.mcap import McapLog
 
@@ -32,6 +43,7 @@ NMEA_BAUD = 4800
 # how long `--clock sim:PATH` waits for the simulator to write its clock file (it takes about 2 s
 # to start on a busy Pi; the daemon is usually started first)
 CLOCK_WAIT_S = 10.0
+ROTATE_S = 3600.0
 
 EPILOG = """\
 examples:
@@ -41,6 +53,7 @@ examples:
   forcemap run --nmea socket://192.168.4.1:10110 # a multiplexer's TCP server
   forcemap run --mavlink udp:0.0.0.0:14550       # an autopilot (with an echo sounder) only
   forcemap run --bridge /tmp/ports/bridge --clock sim:/tmp/ports/clock   # with `forcemap sim`
+  forcemap run --nmea /dev/ttyUSB0 --boat boat.toml -o /data/logs --rotate-every 30m --quiet
 
 Every source is optional, but at least one is needed. See docs/DAEMON.md.
 """
@@ -80,47 +93,43 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the autopilot, pymavlink-style: /dev/ttyACM0,57600, udp:HOST:PORT, udpin:HOST:PORT, "
         "tcp:HOST:PORT",
     )
-    parser.add_argument(
-        "--config",
-        metavar="BOAT_TOML",
-        help="calibration and config (default: built-in defaults; see host/data/boat.example.toml)",
+    add_boat(
+        parser,
+        "calibration and config (default: built-in defaults; see host/data/boat.example.toml)",
     )
-    parser.add_argument("--out", metavar="DIR", default="logs", help="directory for MCAP files")
+    add_output(
+        parser, "folder for the MCAP files (default logs; created if missing)", force=False,
+        default="logs", metavar="DIR",
+    )  # fmt: skip
+    add_deprecated(parser, "--out", "-o/--output DIR", "output")
     parser.add_argument(
         "--clock",
         default="system",
         metavar="system|sim:PATH",
         help="time source for arrival stamps: the host's clocks, or the simulator's clock file",
     )
-    parser.add_argument(
-        "--clock-wait",
-        type=float,
-        default=CLOCK_WAIT_S,
-        metavar="S",
-        help=f"how long to wait for the simulator's clock file (default {CLOCK_WAIT_S:g} s)",
-    )
-    parser.add_argument(
-        "--quiet",
-        action="store_true",
-        help="no live view: one JSON line per event on stderr (for systemd/journald)",
+    add_duration(
+        parser, "--clock-wait", CLOCK_WAIT_S,
+        f"how long to wait for the simulator's clock file (default {format_duration(CLOCK_WAIT_S)})",
+    )  # fmt: skip
+    add_quiet(
+        parser,
+        "no progress (the live view); only the events, one JSON line each on stderr "
+        "(for systemd/journald)",
     )
     parser.add_argument(
         "--rotate-mb", type=float, default=256.0, metavar="N", help="start a new file after N MiB"
     )
-    parser.add_argument(
-        "--rotate-min",
-        type=float,
-        default=60.0,
-        metavar="N",
-        help="start a new file after N minutes (host time)",
-    )
-    parser.add_argument(
-        "--sync",
-        choices=("interpolate", "approximate"),
-        default=None,
-        help="boat-state matching: interpolate at each sample's time (default), or the paper's "
-        "nearest-neighbour ApproximateTime scheme; overrides sync.mode in the config",
-    )
+    add_duration(
+        parser, "--rotate-every", ROTATE_S,
+        f"start a new file after this long, host time (default {format_duration(ROTATE_S)})",
+        dest="rotate_s",
+    )  # fmt: skip
+    add_deprecated(
+        parser, "--rotate-min", "--rotate-every DURATION (e.g. 60m)", "rotate_s",
+        convert=lambda n: float(n) * 60.0,
+    )  # fmt: skip
+    add_sync(parser)
     add_sample_rate(parser)
     parser.add_argument("--prefix", default="run", help="file name prefix (default: run)")
     parser.add_argument(
@@ -212,8 +221,8 @@ def _record_setup(log: McapLog, args: argparse.Namespace, nmea: list[str], sync:
         },
     )
     # the pipeline records "calibration" and "config" (as parsed); this is the file as written
-    config_text = Path(args.config).read_text(encoding="utf-8") if args.config else ""
-    log.metadata("boat_toml", {"path": args.config or "", "text": config_text})
+    config_text = Path(args.boat).read_text(encoding="utf-8") if args.boat else ""
+    log.metadata("boat_toml", {"path": args.boat or "", "text": config_text})
 
 
 def _stop_on_signals(daemon: Daemon) -> None:
@@ -232,21 +241,21 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.fuse import calibration
 
     rotate_bytes = int(positive("--rotate-mb", args.rotate_mb) * 1024 * 1024)
-    rotate_seconds = positive("--rotate-min", args.rotate_min) * 60.0
+    rotate_seconds = positive("--rotate-every", args.rotate_s)
     positive("--clock-wait", args.clock_wait)
     openers, nmea = _openers(args)
     try:
-        cal = calibration.load(args.config)
+        cal = calibration.load(args.boat)
     except (ValueError, FileNotFoundError) as exc:  # calibration.ConfigError is a ValueError
         raise CliError(str(exc)) from None
     clock = start_clock(args.clock, args.clock_wait)
     sync = args.sync or getattr(cal, "sync", "interpolate")
     absent = [s for s in ("bridge", "mavlink") if s not in openers] + ([] if nmea else ["nmea"])
     try:
-        log = McapLog(args.out, rotate_bytes=rotate_bytes, rotate_seconds=rotate_seconds,
+        log = McapLog(args.output, rotate_bytes=rotate_bytes, rotate_seconds=rotate_seconds,
                       prefix=args.prefix)  # fmt: skip
     except OSError as exc:
-        raise CliError(f"cannot write the log in {args.out}: {exc.strerror or exc}") from None
+        raise CliError(f"cannot write the log in {args.output}: {exc.strerror or exc}") from None
     try:
         _record_setup(log, args, nmea, sync)
         daemon = Daemon(

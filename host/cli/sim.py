@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import argparse
 import math
-import re
 import signal
 import threading
 import time
 from pathlib import Path
 
+from forcemap.host.cli.common import (
+    add_deprecated,
+    add_duration,
+    add_output,
+    add_phenomena,
+    parse_duration,
+)
 from forcemap.host.errors import CliError
 from forcemap.sim_devices import effects as fx
 from forcemap.sim_devices import faults as fl
@@ -20,35 +26,25 @@ EPILOG = """\
 examples:
   forcemap sim --list
   forcemap sim --scenario river --mission lawnmower --duration 30m --speed 50 \\
-               --effects depth_current --faults default --ports /tmp/ports --truth /tmp/truth
+               --phenomena depth_current --faults default --ports /tmp/ports -o /tmp/truth
   forcemap sim --scenario lake --ports /tmp/ports                # real time, no hidden effect
   forcemap sim --scenario my_river.toml --mission my_mission.toml --ports /tmp/ports
-  forcemap sim --mission planned.waypoints --duration 15m --truth /tmp/flown   # offline, seconds
+  forcemap sim --mission planned.waypoints --duration 15m -o /tmp/flown   # offline, seconds
 
 then, in another shell:
   forcemap run --bridge /tmp/ports/bridge --depth /tmp/ports/depth \\
-               --mavlink /tmp/ports/mavlink --clock sim:/tmp/ports/clock --out logs/
+               --mavlink /tmp/ports/mavlink --clock sim:/tmp/ports/clock -o logs/
 
 Ports: DIR/bridge (the real bridge firmware on emulated pins, COBS frames), DIR/depth (NMEA 0183 at
 4800 baud pacing, talker SD), DIR/mavlink (MAVLink 2, ArduPilot Rover rates); open them with pyserial.
 DIR/clock holds the virtual clock's anchor, so the daemon can stamp arrivals at --speed N.
-Effects: name or name:key=value:...  (e.g. wheel_misalignment:wheel=2:angle_deg=15).
+Phenomena: name or name:key=value:...  (e.g. wheel_misalignment:wheel=2:angle_deg=15).
 Faults: a set (default, none) or kind:key=value:... (e.g. pull:source=bridge:at=120:for=5,reset:at=300).
-Truth (--truth DIR): effects.json, fields.npz, samples.csv as in docs/CONVENTIONS.md, and the mission
+Truth (-o DIR): effects.json, fields.npz, samples.csv as in docs/CONVENTIONS.md, and the mission
 flown: mission.waypoints (QGC WPL 110) and mission.json (waypoints and intended lines, lat/lon and local m).
 Without --ports the simulator runs offline as fast as it can and writes only the truth. Ctrl-C stops cleanly.
+A folder that holds an earlier truth is replaced only with --force.
 """
-
-
-def parse_duration(text: str) -> float:
-    """``90``, ``90s``, ``10m``, ``1.5h`` or ``1h30m`` to seconds."""
-    text = text.strip()
-    if re.fullmatch(r"[\d.]+", text):
-        return float(text)
-    parts = re.findall(r"([\d.]+)\s*([hms])", text)
-    if not parts or "".join(a + b for a, b in parts) != text.replace(" ", ""):
-        raise argparse.ArgumentTypeError(f"bad duration {text!r}: use e.g. 600, 90s, 30m, 1h")
-    return sum(float(v) * {"h": 3600, "m": 60, "s": 1}[u] for v, u in parts)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -57,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--list",
         action="store_true",
-        help="list scenarios, missions, effects and faults, then exit",
+        help="list scenarios, missions, phenomena and faults, then exit",
     )
     parser.add_argument(
         "--scenario", default="river", help="built-in name (river, lake) or a scenario TOML path"
@@ -67,26 +63,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="lawnmower",
         help="built-in name, a mission TOML path, or a QGC WPL 110 file (.waypoints)",
     )
-    parser.add_argument(
+    add_duration(
+        parser,
         "--duration",
-        type=parse_duration,
-        default=parse_duration("30m"),
-        help="simulated time (default 30m)",
+        parse_duration("30m"),
+        "simulated time, e.g. 90s, 30m, 2h (default 30m)",
     )
     parser.add_argument(
         "--speed", type=float, default=1.0, help="virtual clock x N (default 1: real time)"
     )
-    parser.add_argument(
-        "--effects",
-        default=None,
-        help="comma-separated effects to switch on (default: the scenario's)",
+    add_phenomena(
+        parser, "comma-separated phenomena to simulate (default: the scenario's; see --list)", None
     )
+    add_deprecated(parser, "--effects", "--phenomena LIST", "phenomena")
     parser.add_argument("--faults", default="none", help="fault set or specs (default none)")
     parser.add_argument(
         "--ports", metavar="DIR", help="directory for the port symlinks and the clock file"
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--truth", metavar="DIR", help="write the ground truth here")
+    add_output(parser, "folder for the ground truth (created if missing)", metavar="DIR")
+    add_deprecated(parser, "--truth", "-o/--output DIR", "output")
 
 
 def print_list() -> None:
@@ -96,7 +92,7 @@ def print_list() -> None:
     print("missions:")
     for n, d in ms.describe_all():
         print(f"  {n:22s} {d}")
-    print("effects:")
+    print("phenomena:")
     for line in fx.lines():
         print(f"  {line}")
     print("faults:")
@@ -111,11 +107,11 @@ def run_offline(args: argparse.Namespace) -> int:
     try:
         scen = sc.load(args.scenario)
         mis = ms.load(args.mission, scen)
-        effects = fx.parse_list(args.effects) if args.effects is not None else None
+        effects = fx.parse_list(args.phenomena) if args.phenomena is not None else None
         faults = fl.parse(args.faults)
     except (ValueError, OSError) as e:
         raise CliError(str(e)) from None
-    Path(args.truth).mkdir(parents=True, exist_ok=True)
+    Path(args.output).mkdir(parents=True, exist_ok=True)
     t_start = time.monotonic()
     print(f"{scen.name} / {mis.name}, {args.duration:.0f} s offline", flush=True)
 
@@ -127,11 +123,11 @@ def run_offline(args: argparse.Namespace) -> int:
             )
 
     sim = Simulation(
-        scen, mis, effects, faults, seed=args.seed, truth_dir=args.truth, instruments=False
+        scen, mis, effects, faults, seed=args.seed, truth_dir=args.output, instruments=False
     )
     sim.run(args.duration, lambda *a: None, progress=progress)
     print(
-        f"done: {sim.t:.1f} s simulated in {time.monotonic() - t_start:.1f} s; truth in {args.truth}"
+        f"done: {sim.t:.1f} s simulated in {time.monotonic() - t_start:.1f} s; truth in {args.output}"
     )
     return 0
 
@@ -142,14 +138,19 @@ def check_arguments(args: argparse.Namespace) -> None:
         raise CliError(
             f"--speed must be a finite number above 0 (1 is real time), not {args.speed:g}"
         )
-    if not args.ports and not args.truth:
+    if not args.ports and not args.output:
         raise CliError(
-            "give --ports DIR (live, behind virtual serial ports) or --truth DIR (offline, as "
-            "fast as it goes), or --list"
+            "give --ports DIR (live, behind virtual serial ports) or -o DIR for the truth "
+            "(offline, as fast as it goes), or --list"
         )
-    for flag, folder in (("--ports", args.ports), ("--truth", args.truth)):
+    for flag, folder in (("--ports", args.ports), ("-o/--output", args.output)):
         if folder and Path(folder).exists() and not Path(folder).is_dir():
             raise CliError(f"{flag} {folder} is a file; give a folder (it is created if missing)")
+    if args.output and (Path(args.output) / "effects.json").exists() and not args.force:
+        raise CliError(
+            f"{args.output} holds an earlier truth; pass --force to replace it, or choose "
+            "another folder"
+        )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -166,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
         # validate everything before any pty appears
         scen = sc.load(args.scenario)
         mis = ms.load(args.mission, scen)
-        effects = fx.parse_list(args.effects) if args.effects is not None else None
+        effects = fx.parse_list(args.phenomena) if args.phenomena is not None else None
         faults = fl.parse(args.faults)
     except (ValueError, OSError) as e:
         raise CliError(str(e)) from None
@@ -177,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
 
     def factory(**kw: object) -> Simulation:
-        return Simulation(scen, mis, effects, faults, seed=args.seed, truth_dir=args.truth, **kw)  # type: ignore[arg-type]
+        return Simulation(scen, mis, effects, faults, seed=args.seed, truth_dir=args.output, **kw)  # type: ignore[arg-type]
 
     for s in SOURCES:
         print(f"{s:8s} {ports.path(s)}")
@@ -203,6 +204,6 @@ def run(args: argparse.Namespace) -> int:
             f"the machine fell behind x{args.speed:g} {ports.reanchors} time(s); the clock waited "
             "for the bytes each time (a lower --speed runs smoother)"
         )
-    if args.truth:
-        print(f"truth in {args.truth}")
+    if args.output:
+        print(f"truth in {args.output}")
     return 0

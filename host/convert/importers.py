@@ -79,7 +79,7 @@ def detect_format(path: str | Path) -> str:
         return "nmea"
     raise ImportFailed(
         f"{p.name}: not a format forcemap recognises (NMEA 0183 text, a MAVLink tlog or an "
-        "ArduPilot .BIN log); if it is one of them, give --format nmea|tlog|dataflash"
+        "ArduPilot .BIN log); if it is one of them, give --from nmea|tlog|dataflash"
     )
 
 
