@@ -60,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     m.add_argument(
         "--frames", type=int, default=0, help="stop after this many frames (0: run until Ctrl-C)"
     )
-    add_quiet(m, "no frame-by-frame output; only the one-second summaries")
+    add_quiet(m, "no progress (the frame-by-frame lines); only the one-second summaries")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -202,7 +202,7 @@ def add_sync(parser: argparse.ArgumentParser) -> None:
         choices=("interpolate", "approximate"),
         default=None,
         help="boat-state matching: interpolate at each sample's time (default), or the paper's "
-        "nearest-neighbour ApproximateTime scheme; overrides sync.mode in the boat TOML",
+        "nearest-neighbour ApproximateTime scheme; overrides the sync.mode of --boat",
     )
 
 

@@ -37,7 +37,9 @@ examples:
   forcemap plan survey.csv --mission survey.waypoints -o planned --upload /dev/ttyACM0,115200
 
 writes PLANNED.waypoints (QGC WPL 110: load it in Mission Planner or QGroundControl), PLANNED.toml
-(`forcemap sim --mission PLANNED.toml`) and PLANNED.json (waypoints, intended lines, the prediction).
+(`forcemap sim --mission PLANNED.toml`) and PLANNED.json (waypoints, intended lines, the prediction);
+-o FOLDER/ (an existing folder) names them FOLDER/MISSION-planned.*. With --json - stdout carries only
+the JSON (the table goes to stderr).
 """
 
 MARGIN_M = 120.0
@@ -52,7 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="QGC WPL 110 file (.waypoints), simulator mission TOML, or a built-in mission name",
     )
     add_output(
-        parser, "PLANNED: writes PLANNED.waypoints, PLANNED.toml, PLANNED.json", required=True,
+        parser, "PLANNED: writes PLANNED.waypoints, PLANNED.toml, PLANNED.json; an existing folder "
+        "gets them named like the mission (MISSION-planned.*)", required=True,
         type=Path, metavar="PLANNED",
     )  # fmt: skip
     add_boat(parser, "TOML overriding the boat and controller model", old_config=False)
@@ -115,6 +118,8 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.workbench.table import load_survey
 
     progress = not args.quiet
+    if args.output.is_dir():  # a folder: the three files named like the mission
+        args.output = args.output / f"{Path(args.mission).stem}-planned"
     for path in output_paths(args.output):
         check_output(path, [args.table, args.mission], args.force)
     check_json_output(args, [args.table, args.mission])
