@@ -7,6 +7,7 @@ written waypoint files, with another seed, and scored with the true track on the
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -102,7 +103,11 @@ def test_plan_command_and_report_section(work: Path, capsys) -> None:  # type: i
     out.parent.mkdir()
     args = ["plan", str(table), "--mission", "lawnmower", "-o", str(out), "--json", "-", "--quiet"]
     assert main(args) == 0
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["planned"][
+        "lines"
+    ]  # with --json -, stdout holds nothing but the JSON
+    text = captured.err  # the table goes to stderr
     assert "per intended line" in text and "higher-discharge day" in text
     for suffix in (".waypoints", ".toml", ".json"):
         assert out.with_name("planned" + suffix).exists()
