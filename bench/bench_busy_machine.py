@@ -37,7 +37,7 @@ def survey(d: Path, duration: float, speed: float, hogs: int) -> dict[str, float
             forcemap(
                 "run", "--bridge", str(ports / "bridge"), "--depth", str(ports / "depth"),
                 "--mavlink", f"{ports / 'mavlink'},115200", "--clock", f"sim:{ports / 'clock'}",
-                "--out", str(logs), "--quiet",
+                "-o", str(logs), "--quiet",
             ),
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )  # fmt: skip

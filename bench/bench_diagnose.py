@@ -9,8 +9,10 @@ first round of `diagnose`, and that round's calibration (null and identifiabilit
 evaluations, which are what the diagnosis cost before the calibration. The last case runs every round
 (two hidden effects; --rounds, default 3) on a 20-minute survey of about 4,800 samples.
 
-    python bench/bench_diagnose.py [--seeds 1,2] [--duration 1200] [--effects gusts,none]
-                                   [--out /tmp/forcemap-bench-diagnose] [--rounds 3]
+    python bench/bench_diagnose.py [--seeds 1,2] [--duration 1200] [--phenomena gusts,none]
+                                   [-o /tmp/forcemap-bench-diagnose] [--rounds 3]
+
+(--effects and --out, the spellings of earlier runs in bench/RESULTS.md, still work.)
 """
 
 from __future__ import annotations
@@ -48,11 +50,13 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2")
     ap.add_argument("--duration", type=float, default=1200.0)
     ap.add_argument(
+        "--phenomena",
         "--effects",
+        dest="effects",
         default="",
         help="only these cases (comma-separated; two effects at once as depth_current+dam_release; default all)",
     )
-    ap.add_argument("--out", default="/tmp/forcemap-bench-diagnose")
+    ap.add_argument("-o", "--output", "--out", dest="out", default="/tmp/forcemap-bench-diagnose")
     ap.add_argument("--rounds", type=int, default=3, help="rounds for the two-effect case")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]

@@ -5,7 +5,7 @@ instruments: VWR, HDM, VHW, VTG/RMC, DBT, MTW; see ../shared/data/real/nmea/PROV
 is the `forcemap` command a user types, run in this process through `forcemap.host.cli.main`; times are
 printed as ratios to the import, the baseline measured in the same run.
 
-    python bench/bench_field_logs.py [--capture PATH] [--out /tmp/forcemap-bench-field]
+    python bench/bench_field_logs.py [--capture PATH] [-o /tmp/forcemap-bench-field]
 """
 
 from __future__ import annotations
@@ -53,7 +53,9 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--capture", type=Path, default=DEFAULT)
-    ap.add_argument("--out", type=Path, default=Path("/tmp/forcemap-bench-field"))
+    ap.add_argument(
+        "-o", "--output", "--out", dest="out", type=Path, default=Path("/tmp/forcemap-bench-field")
+    )
     args = ap.parse_args()
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
