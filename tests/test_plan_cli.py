@@ -100,3 +100,16 @@ def test_plan_refuses_a_bad_mission(tmp_path: Path, capsys) -> None:  # type: ig
     code = main(["plan", str(table), "--mission", str(bad), "-o", str(tmp_path / "p")])
     err = capsys.readouterr().err
     assert code == 2 and "cannot read the mission" in err and len(err.strip().splitlines()) == 1
+
+
+def test_plan_output_folder_names_the_files_like_the_mission(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """-o FOLDER (an existing folder) writes FOLDER/MISSION-planned.*; they too need --force."""
+    table = tmp_path / "t.csv"
+    table.write_text("t,lat,lon\n")
+    folder = tmp_path / "plans"
+    folder.mkdir()
+    (folder / "lawnmower-planned.waypoints").write_text("keep me\n")
+    assert main(["plan", str(table), "--mission", "lawnmower", "-o", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert "lawnmower-planned.waypoints exists; pass --force" in err
+    assert (folder / "lawnmower-planned.waypoints").read_text() == "keep me\n"
