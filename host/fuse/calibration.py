@@ -276,4 +276,4 @@ def loads(text: str, source: str = "boat.toml") -> Calibration:
 
 def example_path() -> Path:
     """The shipped example ``boat.toml``."""
-    return Path(__file__).with_name("data") / "boat.example.toml"
+    return Path(__file__).parents[1] / "data" / "boat.example.toml"
