@@ -72,7 +72,7 @@ def summary(res: Any) -> list[str]:
     c = res.counters
     out = [f"{res.path}: {res.records} {_UNITS[res.format]} ({res.format})"]
     if res.format == "nmea":
-        n = c["depth"]
+        n = c["nmea"]
         out.append(
             f"  NMEA: {n['accepted']} accepted {dict(sorted(n['accepted_by_type'].items()))}"
         )
@@ -97,7 +97,7 @@ def check_found(res: Any) -> None:
     """Refuse an import that found nothing it could read (random bytes, the wrong --from)."""
     c = res.counters
     name = Path(res.path).name
-    if res.format == "nmea" and not c.get("depth", {}).get("accepted", 1):
+    if res.format == "nmea" and not c.get("nmea", {}).get("accepted", 1):
         raise CliError(f"{name}: no valid NMEA 0183 sentence in its {res.records} lines")
     if res.format == "tlog" and not c.get("mavlink", {}).get("messages", 1):
         raise CliError(f"{name}: no MAVLink packet with a valid checksum in it")

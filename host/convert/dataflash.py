@@ -17,7 +17,8 @@ from forcemap.host.log.messages import DataflashMessage
 from pymavlink import DFReader
 
 if TYPE_CHECKING:
-    from forcemap.host.fuse.pipeline import Pipeline
+    from forcemap.host.fuse.feed import FeedContext
+    from forcemap.host.fuse.mavlink_feed import MavDecoder
 
 FORMAT_SCALED = set("cCeEL")  # DFReader applies these formats' own scale
 GPS_FIX_2D = 2  # GPS.Status: 0 no GPS, 1 no fix, 2 2-D fix, 3 3-D fix, more with corrections
@@ -27,8 +28,9 @@ RFND_DOWNWARD = 25
 class DataflashDecoder:
     """DataFlash records to the MAVLink decoder's SI values (``MavDecoder.values``)."""
 
-    def __init__(self, pipe: Pipeline) -> None:
+    def __init__(self, pipe: FeedContext, mav: MavDecoder) -> None:
         self.pipe = pipe
+        self.mav = mav  # its SI values go where the autopilot's would
         self.mults: dict[str, str] = {}  # message name -> FMTU MultIds
         self.records = 0
         self.used: dict[str, int] = {}
@@ -60,7 +62,7 @@ class DataflashDecoder:
         values = self._values(ty, m)
         if values is not None:
             self.used[ty] = self.used.get(ty, 0) + 1
-            pipe.mav.values(values[0], values[1], t, label="dataflash " + ty)
+            self.mav.values(values[0], values[1], t, label="dataflash " + ty)
         pipe.advance(t)
 
     def value(self, m: Any, field: str) -> float:

@@ -189,7 +189,7 @@ def import_nmea(
     pipe = _pipeline(path, "nmea", how, sink, calibration, sync, sample_rate_hz)
     for line, t in zip(lines, times, strict=True):
         ns = int(t * 1e9)
-        pipe.feed("depth", ns, ns, line + b"\n")
+        pipe.feed("nmea", ns, ns, line + b"\n")
     pipe.close()
     res = ImportResult(str(path), "nmea", len(lines), pipe.counters(), [how])
     _check_errors(pipe, res)
@@ -207,7 +207,7 @@ def import_dataflash(
     pipe = _pipeline(
         path, "dataflash", "the log's own clock", sink, calibration, sync, sample_rate_hz
     )
-    reader = DataflashDecoder(pipe)
+    reader = DataflashDecoder(pipe, pipe.mav)
     try:
         reader.read(str(path))
     except Exception as e:  # DFReader on a file that is not DataFlash

@@ -33,6 +33,7 @@ SPECS: dict[str, tuple[int, int, tuple[str, ...]]] = {
     ),
     "VTG": (8, 9, ("f", "=T", "f", "=M", "f", "=N", "f", "=K", "=ADENSMFRP")),
     "HDT": (2, 2, ("f", "=T")),
+    "ROT": (2, 2, ("f", "=AV")),
     "HDM": (2, 2, ("f", "=M")),
     "HDG": (5, 5, ("f", "f", "=EW", "f", "=EW")),
     "VHW": (8, 8, ("f", "=T", "f", "=M", "f", "=N", "f", "=K")),
@@ -156,6 +157,12 @@ def _hdt(d: list[str]) -> dict[str, Any]:
     return {"heading": _f(d[0])}
 
 
+def _rot(d: list[str]) -> dict[str, Any]:
+    """Rate of turn: degrees per minute, negative to port; here deg/s."""
+    r = _f(d[0])
+    return {"yaw_rate": None if r is None else r / 60.0, "status": d[1].upper() or None}
+
+
 def _hdm(d: list[str]) -> dict[str, Any]:
     return {"heading_mag": _f(d[0])}
 
@@ -215,6 +222,7 @@ EXTRACTORS = {
     "GLL": _gll,
     "VTG": _vtg,
     "HDT": _hdt,
+    "ROT": _rot,
     "HDM": _hdm,
     "HDG": _hdg,
     "VHW": _vhw,

@@ -12,13 +12,13 @@ from forcemap.host.log.messages import ApparentWind, BridgeFrame, BridgeHello, B
 from forcemap.protocol import wire
 
 if TYPE_CHECKING:
-    from forcemap.host.fuse.pipeline import Pipeline
+    from forcemap.host.fuse.feed import FeedContext
 
 
 class BridgeDecoder:
     """Frames from the bridge's bytes; each SAMPLE goes to the assembler as one row."""
 
-    def __init__(self, pipe: Pipeline, rate_window_s: float) -> None:
+    def __init__(self, pipe: FeedContext, rate_window_s: float) -> None:
         self.pipe = pipe
         cal = pipe.cal
         self.ppm = [w.pulses_per_m for w in cal.wheels]
@@ -37,14 +37,15 @@ class BridgeDecoder:
         self.n_frames = 0
         self.n_samples = 0
 
-    def feed(self, mono: float, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
+    def feed(self, source: str, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
+        mono = t_mono_ns * 1e-9
         for fr in self.frames.feed(data):
             try:
                 self._frame(fr, mono, t_mono_ns, t_wall_ns)
             except Exception:  # a bug on one frame must not lose the rest of the read
                 self.pipe.internal("bridge")
 
-    def gap(self) -> None:
+    def gap(self, source: str = "bridge") -> None:
         """A fresh frame decoder (the partial frame is dropped) that keeps the counters."""
         old, new = self.frames, wire.StreamDecoder()
         new.rejects, new.frames, new.bytes_in = old.rejects, old.frames, old.bytes_in
@@ -79,7 +80,7 @@ class BridgeDecoder:
             self._check_hello(fr.fields)
             pipe.write("/bridge/hello", t, BridgeHello(fr.boot_id, fr.fields, t_mono_ns, t_wall_ns))
             hello = {"boot_id": str(fr.boot_id), **{k: str(v) for k, v in fr.fields.items()}}
-            pipe.sink.metadata("hello", hello)
+            pipe.metadata("hello", hello)
         elif fr.msg_type == wire.STATUS:
             msg = BridgeStatus(fr.boot_id, fr.fields, t_mono_ns, t_wall_ns)
             pipe.write("/bridge/status", t, msg)

@@ -57,6 +57,9 @@ class Calibration:
     magnetic_variation_deg: float | None = None
     sync: str = "interpolate"
     max_state_gap_s: float = 2.0
+    # [sources]: per quantity, substrings of source names in order of preference; silence timeouts
+    source_priorities: dict[str, list[str]] = field(default_factory=dict)
+    source_timeouts: dict[str, float] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def as_metadata(self) -> dict[str, str]:
@@ -229,11 +232,41 @@ def _depth_compass_sync(d: dict, m: dict, s: dict) -> dict[str, Any]:
     return kw
 
 
+def _sources(t: dict) -> dict[str, Any]:
+    """``[sources]``: ``QUANTITY = ["substring", ...]`` and ``timeout_s`` (a number or a table)."""
+    from forcemap.host.fuse.sources import QUANTITIES
+
+    _known(t, "sources.", set(QUANTITIES) | {"timeout_s"})
+    prio: dict[str, list[str]] = {}
+    for q in QUANTITIES:
+        if q not in t:
+            continue
+        v = t[q]
+        if isinstance(v, str):
+            v = [v]
+        if not isinstance(v, list) or not all(isinstance(x, str) and x.strip() for x in v):
+            raise ConfigError(
+                f'sources.{q}: expected a list of source names, e.g. ["GPRMC", "IIRMC"], '
+                f"got {_show(v)}"
+            )
+        prio[q] = [x.strip() for x in v]
+    timeouts: dict[str, float] = {}
+    to = t.get("timeout_s", {})
+    if isinstance(to, dict):
+        _known(to, "sources.timeout_s.", set(QUANTITIES))
+        for q, v in to.items():
+            timeouts[q] = _num(v, f"sources.timeout_s.{q}", positive=True, hi=3600)
+    else:
+        x = _num(to, "sources.timeout_s", positive=True, hi=3600)
+        timeouts = dict.fromkeys(QUANTITIES, x)
+    return {"source_priorities": prio, "source_timeouts": timeouts}
+
+
 def from_dict(doc: dict) -> Calibration:
     """Validate a parsed ``boat.toml`` document and build the Calibration."""
     if not isinstance(doc, dict):
         raise ConfigError("boat.toml: expected a table at the top level")
-    top = {"boat", "anemometer", "vane", "wheels", "current", "depth", "compass", "sync"}
+    top = {"boat", "anemometer", "vane", "wheels", "current", "depth", "compass", "sync", "sources"}
     _known(doc, "", top)
     kw: dict[str, Any] = {}
     kw.update(_anemometer(_table(doc, "anemometer")))
@@ -244,6 +277,7 @@ def from_dict(doc: dict) -> Calibration:
     kw.update(
         _depth_compass_sync(_table(doc, "depth"), _table(doc, "compass"), _table(doc, "sync"))
     )
+    kw.update(_sources(_table(doc, "sources")))
     kw["extra"] = {"boat": dict(_table(doc, "boat"))}
     return Calibration(**kw)
 

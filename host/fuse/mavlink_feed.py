@@ -16,35 +16,41 @@ from forcemap.host.fuse.timesync import SourceClock
 from forcemap.host.log.messages import BoatState, ClockMapping, Depth, RawMessage, TrueWind
 
 if TYPE_CHECKING:
-    from forcemap.host.fuse.pipeline import Pipeline
+    from forcemap.host.fuse.feed import FeedContext
 
 
 class MavDecoder:
     """MAVLink bytes to messages, timed by the autopilot's boot clock and GPS UTC."""
 
-    def __init__(self, pipe: Pipeline) -> None:
+    def __init__(self, pipe: FeedContext) -> None:
         self.pipe = pipe
         self.packets = mav.MavlinkDecoder()
         self.clock = SourceClock("mavlink")
         self.vehicle: tuple[int, int] | None = None
         self.gpi = 0
+        self.unknown = 0  # messages pymavlink cannot name: corrupt frames that passed, not topics
 
-    def feed(self, mono: float, data: bytes) -> None:
+    def feed(self, source: str, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
+        mono = t_mono_ns * 1e-9
         for m in self.packets.feed(data):
             try:
                 self._message(m, mono)
             except Exception:
                 self.pipe.internal("mavlink")
 
-    def gap(self) -> None:
+    def gap(self, source: str = "mavlink") -> None:
         self.packets.reset()
 
     def counters(self) -> dict[str, Any]:
-        return {**self.packets.counters(), "vehicle": list(self.vehicle) if self.vehicle else None}
+        vehicle = list(self.vehicle) if self.vehicle else None
+        return {**self.packets.counters(), "unknown_messages": self.unknown, "vehicle": vehicle}
 
     def _message(self, m: Any, mono: float) -> None:
         pipe = self.pipe
         ty = m.get_type()
+        if ty.startswith("UNKNOWN"):
+            self.unknown += 1
+            return
         if self.vehicle is None and ty == "HEARTBEAT":
             self.vehicle = mav.vehicle_of(m)
         vehicle = mav.is_vehicle(m, self.vehicle)
@@ -74,12 +80,17 @@ class MavDecoder:
         label = label or "mavlink " + ty
         if ty == "ATTITUDE":
             pipe.take_nav()
-            st.add_heading(t, d["heading"], d["yaw_rate"])
-            asm.nav["heading"] = label
+            if d["yaw_rate"] is not None:
+                pipe.source_reading("yaw_rate", label, t, (d["yaw_rate"],))
+            if pipe.source_reading("heading", label, t, (d["heading"],)):
+                st.add_heading(t, d["heading"], d["yaw_rate"])
+                asm.nav["heading"] = label
         elif ty == "GLOBAL_POSITION_INT":
             if d["lat"] == 0.0 and d["lon"] == 0.0:
                 return  # no position yet
             pipe.take_nav()
+            if not pipe.source_reading("position", label, t, (d["lat"], d["lon"], None, None)):
+                return
             self.gpi += 1
             st.add_position(t, d["lat"], d["lon"], d["v_east"], d["v_north"])
             asm.nav["position"] = asm.nav["velocity"] = label
@@ -88,7 +99,8 @@ class MavDecoder:
                 "/boat/state", t, BoatState(**st.at(t, edge=True).as_message(), source="mavlink")
             )
         elif ty == "GPS_RAW_INT":
-            if d["fix_type"] >= 2 and self.gpi == 0:
+            fix = (d["lat"], d["lon"], d["sog"], d["cog"])
+            if d["fix_type"] >= 2 and pipe.source_reading("position", label, t, fix):
                 pipe.take_nav()
                 st.add_position_sog_cog(t, d["lat"], d["lon"], d["sog"], d["cog"])
                 asm.nav["position"] = asm.nav["velocity"] = label
@@ -103,7 +115,8 @@ class MavDecoder:
 
     def _wind(self, t: float, speed: float, direction: float, label: str) -> None:
         pipe = self.pipe
-        pipe.assembler.reading("true", t, (speed, direction), label)
+        if pipe.source_reading("wind_true", label, t, (speed, direction)):
+            pipe.assembler.reading("true", t, (speed, direction), label)
         e, n = comp.velocity(speed, direction)
         msg = TrueWind(pipe.utc_s(t), speed, direction, -e, -n, source="mavlink")
         msg.route, msg.sentence = "instrument", "WIND"
@@ -116,8 +129,9 @@ class MavDecoder:
             return
         pipe = self.pipe
         depth = d["distance"] + pipe.cal.depth_offset_m
-        pipe.assembler.reading("depth", t, (depth,), label)
+        if pipe.source_reading("depth", label, t, (depth,)):
+            pipe.assembler.reading("depth", t, (depth,), label)
         temp = d.get("temperature")
-        if temp is not None:
+        if temp is not None and pipe.source_reading("water_temp", label, t, (temp,)):
             pipe.assembler.reading("temp", t, (temp,), label)
         pipe.write("/depth", t, Depth(pipe.utc_s(t), depth, temp, ty, "mavlink"))

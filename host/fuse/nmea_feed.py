@@ -1,9 +1,11 @@
 """NMEA 0183 instruments: sentences logged, navigation to the boat state, readings to the assembler.
 
 One line splitter per port, one strict parser for all. Navigation: RMC, GGA, GLL (position), VTG
-(ground velocity), HDT, HDG/HDM with variation, VHW's true heading (heading); ignored once an
-autopilot gives navigation. Readings: MWV R and VWR (apparent wind), MWV T and MWD (the
-instrument's true wind), VHW (speed through water), DPT, DBT, DBS (depth), MTW (water temperature).
+(ground velocity), HDT, HDG/HDM with variation, VHW's true heading (heading), ROT (yaw rate);
+ignored once an autopilot gives navigation. Readings: MWV R and VWR (apparent wind), MWV T and MWD
+(the instrument's true wind), VHW (speed through water), DPT, DBT, DBS (depth), MTW (water
+temperature). Each reading is named by its source (port, talker, sentence and, for positions, a
+fingerprint: forcemap.host.fuse.sources) and only the chosen source of each quantity is used.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
 from forcemap.host.fuse import compensation as comp
+from forcemap.host.fuse.sources import message_of, nmea_fingerprint, source_name
 from forcemap.host.log.messages import (
     ApparentWind,
     BoatState,
@@ -23,20 +26,21 @@ from forcemap.host.log.messages import (
 )
 
 if TYPE_CHECKING:
-    from forcemap.host.fuse.pipeline import Pipeline
+    from forcemap.host.fuse.feed import FeedContext
 
-DPT_PRIORITY_S = 5.0  # DBT and DBS count only when no DPT came this long
+# which quantity each assembler reading is (forcemap.host.fuse.sources.QUANTITIES)
+QUANTITY = {"app": "wind", "true": "wind_true", "stw": "stw", "depth": "depth", "temp": "water_temp"}
 
 
 class NmeaDecoder:
     """Lines from any number of NMEA ports; values to the pipeline's state and assembler."""
 
-    def __init__(self, pipe: Pipeline) -> None:
+    def __init__(self, pipe: FeedContext) -> None:
         self.pipe = pipe
         self.splitters: dict[str, LineSplitter] = {}
         self.parser = NmeaParser()
         self.variation: float | None = pipe.cal.magnetic_variation_deg
-        self.dpt_t = -math.inf
+        self.conn = "nmea"  # the port of the line being handled
         self.bytes = 0
         self.handlers = {
             "DPT": self._depth,
@@ -48,6 +52,7 @@ class NmeaDecoder:
             "GLL": self._gll,
             "VTG": self._vtg,
             "HDT": self._hdt,
+            "ROT": self._rot,
             "HDM": self._hdm,
             "HDG": self._hdm,
             "VHW": self._vhw,
@@ -56,7 +61,8 @@ class NmeaDecoder:
             "MWD": self._mwd,
         }
 
-    def feed(self, source: str, wall: float, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
+    def feed(self, source: str, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
+        wall = t_wall_ns * 1e-9
         self.bytes += len(data)
         splitter = self.splitters.get(source)
         if splitter is None:
@@ -65,7 +71,7 @@ class NmeaDecoder:
             try:
                 self.line(line, source, wall, t_mono_ns, t_wall_ns)
             except Exception:
-                self.pipe.internal("depth")
+                self.pipe.internal("nmea")
 
     def gap(self, source: str) -> None:
         self.splitters.pop(source, None)
@@ -91,14 +97,21 @@ class NmeaDecoder:
         if s.valid and s.data:
             handler = self.handlers.get(s.type)
             if handler is not None:
+                self.conn = source
                 handler(s, t)
+
+    def name(self, s: Sentence) -> str:
+        """The source of sentence ``s`` on the current port."""
+        fp = nmea_fingerprint(s.text, s.type) if s.type in ("RMC", "GGA", "GLL") else ""
+        return source_name(self.conn, s.talker, s.type, fp)
 
     # --- readings -----------------------------------------------------------------------------------
 
     def _reading(self, kind: str, t: float, value: tuple, s: Sentence) -> None:
         ref = s.data.get("reference") if s.type == "MWV" else None
-        label = f"nmea {s.type} {ref}" if ref else f"nmea {s.type}"
-        self.pipe.assembler.reading(kind, t, value, label)
+        name = self.name(s) + (f" {ref}" if ref else "")
+        if self.pipe.source_reading(QUANTITY[kind], name, t, value):
+            self.pipe.assembler.reading(kind, t, value, name)
 
     def _depth(self, s: Sentence, t: float) -> None:
         if s.type == "DBS":
@@ -107,11 +120,8 @@ class NmeaDecoder:
             depth = depth_below_surface(s, self.pipe.cal.depth_offset_m)
         if depth is None:
             return
-        # DPT says where its transducer is; DBT and DBS count only when no DPT came lately
-        if s.type == "DPT":
-            self.dpt_t = t
-        if s.type == "DPT" or t - self.dpt_t > DPT_PRIORITY_S:
-            self._reading("depth", t, (depth,), s)
+        # DPT says where its transducer is: it ranks before DBT and DBS (sources.SENTENCE_ORDER)
+        self._reading("depth", t, (depth,), s)
         msg = Depth(self.pipe.utc_s(t), depth, None, s.type, "nmea")
         self.pipe.write("/depth", t, msg)
 
@@ -202,13 +212,19 @@ class NmeaDecoder:
         if not self._nav_ok(s) or d["sog"] is None or not state.position.v:
             return
         sog, cog = d["sog"], d["cog"]
+        # ground velocity for a position source that has none of its own (GGA, GLL)
+        chosen = self.pipe.selector.chosen.get("position", "")
+        if message_of(chosen) in ("RMC", "GLOBAL_POSITION_INT", "GPS_RAW_INT"):
+            return
+        if not self.pipe.source_reading("velocity", self.name(s), t, (sog, cog)):
+            return
         last = state.position.v[-1]
         if cog is not None:
             ve, vn = comp.velocity(sog, cog)
         else:
             ve, vn = (0.0, 0.0) if sog == 0 else (None, None)
         state.add_position(t, last[0], last[1], ve, vn)
-        self.pipe.assembler.nav["velocity"] = "nmea VTG"
+        self.pipe.assembler.nav["velocity"] = self.name(s)
 
     def _hdt(self, s: Sentence, t: float) -> None:
         if self._nav_ok(s) and s.data["heading"] is not None:
@@ -218,13 +234,24 @@ class NmeaDecoder:
         d = s.data
         if self._nav_ok(s) and d["heading_mag"] is not None and self.variation is not None:
             true = d["heading_mag"] + (d.get("deviation") or 0.0) + self.variation
-            self._heading(t, true, s, f"nmea {s.type}+variation")
+            self._heading(t, true, s, " +variation")
 
-    def _heading(self, t: float, heading: float, s: Sentence, label: str = "") -> None:
+    def _rot(self, s: Sentence, t: float) -> None:
+        d = s.data
+        if not self._nav_ok(s) or d["yaw_rate"] is None or d["status"] == "V":
+            return
+        name = self.name(s)
+        if self.pipe.source_reading("yaw_rate", name, t, (d["yaw_rate"],)):
+            self.pipe.assembler.state.add_yaw_rate(t, d["yaw_rate"])
+            self.pipe.assembler.nav["yaw_rate"] = name
+
+    def _heading(self, t: float, heading: float, s: Sentence, suffix: str = "") -> None:
         if self.pipe.mav_nav:
             return
-        self.pipe.assembler.state.add_heading(t, heading)
-        self.pipe.assembler.nav["heading"] = label or f"nmea {s.type}"
+        name = self.name(s) + suffix
+        if self.pipe.source_reading("heading", name, t, (comp.wrap360(heading),)):
+            self.pipe.assembler.state.add_heading(t, heading)
+            self.pipe.assembler.nav["heading"] = name
 
     def _fix(
         self,
@@ -238,13 +265,16 @@ class NmeaDecoder:
     ) -> None:
         asm = self.pipe.assembler
         state = asm.state
+        name = self.name(s)
+        if not self.pipe.source_reading("position", name, t, (lat, lon, sog, cog)):
+            return
         if sog is not None:
             state.add_position_sog_cog(t, lat, lon, sog, cog)
-            asm.nav["velocity"] = f"nmea {s.type}"
+            asm.nav["velocity"] = name
         else:
             last = state.position.v[-1] if state.position.v else None
             state.add_position(t, lat, lon, last[2] if last else None, last[3] if last else None)
-        asm.nav["position"] = f"nmea {s.type}"
+        asm.nav["position"] = name
         self.pipe.fix(t, lat, lon, alt, None)
-        msg = BoatState(**state.at(t, edge=True).as_message(), source="nmea")
+        msg = BoatState(**state.at(t, edge=True).as_message(), source=name)
         self.pipe.write("/boat/state", t, msg)

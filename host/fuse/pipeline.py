@@ -1,7 +1,7 @@
 """Bytes from the instruments in, timed and compensated messages out: the daemon's core.
 
     pipe = Pipeline(calibration, sink)            # sink: .write(topic, log_time_ns, record), .metadata(name, data)
-    pipe.feed("bridge", t_mono_ns, t_wall_ns, chunk)   # "bridge", "nmea..." or "depth" (NMEA), "mavlink"
+    pipe.feed("bridge", t_mono_ns, t_wall_ns, chunk)   # "bridge", "nmea..." (or "depth"), "mavlink"
     pipe.gap("bridge", t_wall_ns, "port closed")
     pipe.flush(); pipe.close()
 
@@ -14,8 +14,10 @@ raw ``/bridge/frame``, ``/bridge/hello``, ``/bridge/status``, ``/nmea/sentence``
 derived ``/boat/state``, ``/wind/apparent``, ``/wind/true`` (computed and instrument routes),
 ``/current`` (paddle wheels, both estimators), ``/current/stw`` (set and drift), ``/water/speed``,
 ``/depth`` (also water temperature), ``/fix`` (foxglove.LocationFix), ``/timesync``,
+``/source/reading`` (every source's readings of each quantity, used or not: sources.py),
 ``/diagnostics`` and ``/samples`` (samples-table rows, docs/CONVENTIONS.md). Metadata:
-``calibration``, ``config``, ``hello``, ``columns`` (which source fed each column).
+``calibration``, ``config``, ``hello``, ``columns`` (which source fed each column), ``sources``
+(per quantity: the sources, the one used and why, their disagreement and latency; at close).
 """
 
 from __future__ import annotations
@@ -30,8 +32,17 @@ from forcemap.host.fuse.bridge_feed import BridgeDecoder
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.fuse.mavlink_feed import MavDecoder
 from forcemap.host.fuse.nmea_feed import NmeaDecoder
+from forcemap.host.fuse.source_stats import sources_metadata
+from forcemap.host.fuse.sources import SourceSelector
 from forcemap.host.fuse.timesync import ClockMap, UtcFix, WallClock
-from forcemap.host.log.messages import ClockMapping, Diagnostics, LocationFix, Record, as_json
+from forcemap.host.log.messages import (
+    ClockMapping,
+    Diagnostics,
+    LocationFix,
+    Record,
+    SourceReading,
+    as_json,
+)
 
 # longest a sample waits for the navigation streams before it goes out with what is known
 HOLD_S = 3.0
@@ -75,7 +86,8 @@ class ListSink:
 
 
 def source_kind(source: str) -> str:
-    """Which decoder reads a source: ``bridge``, ``mavlink`` or ``nmea`` (``depth`` is NMEA)."""
+    """Which decoder reads a connection: ``bridge``, ``mavlink`` or ``nmea`` (``nmea``, ``nmea2``,
+    ... and, for the sounder's port of old, ``depth``)."""
     if source == "bridge" or source.startswith("mavlink"):
         return "mavlink" if source.startswith("mavlink") else "bridge"
     if source.startswith(("nmea", "depth")):
@@ -116,9 +128,11 @@ class Pipeline:
         self.utc = UtcFix()
         self.wall = WallClock()
         self.mav_nav = False
+        self.selector = SourceSelector(cal.source_priorities, cal.source_timeouts)
         self.bridge = BridgeDecoder(self, rate_window_s)
         self.nmea = NmeaDecoder(self)
         self.mav = MavDecoder(self)
+        self.decoders = {"bridge": self.bridge, "nmea": self.nmea, "mavlink": self.mav}
         self.last_fix: dict[str, Any] | None = None
         self.now = 0.0  # latest host wall time seen on any source
         self.counts: Counter[str] = Counter()
@@ -147,17 +161,13 @@ class Pipeline:
             self.wall.observe(mono, wall)
             if wall > self.now:
                 self.now = wall
-            kind = source_kind(source)
-            if kind == "bridge":
-                self.counts["bridge_bytes"] += len(data)
-                self.bridge.feed(mono, t_mono_ns, t_wall_ns, data)
-            elif kind == "nmea":
-                self.nmea.feed(source, wall, t_mono_ns, t_wall_ns, data)
-            elif kind == "mavlink":
-                self.mav.feed(mono, data)
-            else:
+            decoder = self.decoders.get(source_kind(source))
+            if decoder is None:
                 self.errors["unknown_source"] += 1
                 return
+            if decoder is self.bridge:
+                self.counts["bridge_bytes"] += len(data)
+            decoder.feed(source, t_mono_ns, t_wall_ns, data)
             self.assembler.drain(self.now, final=False)
             self._maybe_diagnostics()
         except Exception:
@@ -175,12 +185,9 @@ class Pipeline:
         try:
             t = t_wall_ns * 1e-9
             kind = source_kind(source)
-            if kind == "bridge":
-                self.bridge.gap()
-            elif kind == "nmea":
-                self.nmea.gap(source)
-            elif kind == "mavlink":
-                self.mav.gap()
+            decoder = self.decoders.get(kind)
+            if decoder is not None:
+                decoder.gap(source)
             event = {"t": t, "source": source, "reason": str(reason)}
             self.gaps.append(event)
             self.counts[(kind or source) + "_gaps"] += 1
@@ -200,9 +207,9 @@ class Pipeline:
                 "rate_hz": self.rates.get("bridge", 0.0),
                 "gaps": self.counts["bridge_gaps"],
             },
-            "depth": {
+            "nmea": {
                 **self.nmea.counters(),
-                "rate_hz": self.rates.get("depth", 0.0),
+                "rate_hz": self.rates.get("nmea", 0.0),
                 "gaps": self.counts["nmea_gaps"],
             },
             "mavlink": {
@@ -216,6 +223,10 @@ class Pipeline:
                 "without_state": asm.counts["samples_without_state"],
                 "without_position": asm.counts["ticks_without_position"],
                 "paced_by": "bridge" if asm.bridge else (asm.pace or ""),
+            },
+            "sources": {
+                q: {"chosen": v["chosen"], "switches": v["switches"], "n": len(v["sources"])}
+                for q, v in self.selector.summary().items()
             },
             "last_fix": self.last_fix,
             "timesync": {
@@ -242,6 +253,8 @@ class Pipeline:
             self.nmea.flush(self.now)
             self.assembler.drain(self.now, final=True)
             self._diagnostics(self.now)
+            if self.selector.chosen:
+                self.sink.metadata("sources", sources_metadata(self.selector))
         except Exception:
             self.internal("close")
 
@@ -265,6 +278,12 @@ class Pipeline:
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         self.sink.metadata(name, data)
+
+    def source_reading(self, quantity: str, source: str, t: float, value: tuple) -> bool:
+        """Log a reading of ``quantity`` from ``source``; True if it is the chosen source's."""
+        used = self.selector.accept(quantity, source, t, value)
+        self.write("/source/reading", t, SourceReading(quantity, source, list(value), used))
+        return used
 
     def emit_mapping(self, mapping: ClockMap | None) -> None:
         if mapping is not None:
@@ -294,7 +313,7 @@ class Pipeline:
     def _totals(self) -> dict[str, int]:
         return {
             "bridge": self.bridge.n_frames,
-            "depth": self.nmea.parser.lines,
+            "nmea": self.nmea.parser.lines,
             "mavlink": sum(self.mav.packets.messages.values()),
         }
 

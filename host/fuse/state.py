@@ -19,6 +19,9 @@ from typing import Any
 from forcemap.host.fuse.compensation import to_direction, velocity, wrap180, wrap360
 
 SYNC_MODES = ("interpolate", "approximate")
+# without a rate-of-turn source, the yaw rate is the least-squares slope of one heading source over
+# this window: a two-point difference of a 10 Hz fluxgate with 2 deg noise swings by 30 deg/s
+YAW_WINDOW_S = 2.0
 
 
 @dataclass(slots=True)
@@ -145,6 +148,7 @@ class StateEstimator:
         self.max_gap_s = max_gap_s
         self.position = Series(keep_s)  # (lat, lon, v_east, v_north)
         self.heading = Series(keep_s, circular=(0,))  # (heading_deg, yaw_rate_deg_s)
+        self.yaw = Series(keep_s)  # (deg/s,) from a rate-of-turn sensor (ROT)
         self.throttle = Series(keep_s)  # (percent,)
 
     def add_position(
@@ -170,11 +174,31 @@ class StateEstimator:
 
     def add_heading(self, t: float, heading: float, yaw_rate: float | None = None) -> None:
         if yaw_rate is None:
-            prev = self.heading.v[-1] if self.heading.v else None
-            pt = self.heading.last_t
-            if prev is not None and pt is not None and 0 < t - pt <= self.max_gap_s:
-                yaw_rate = wrap180(heading - prev[0]) / (t - pt)
+            yaw_rate = self._slope(t, heading)
         self.heading.add(t, (wrap360(heading), yaw_rate))
+
+    def _slope(self, t: float, heading: float) -> float | None:
+        """Least-squares slope (deg/s) of the heading over the last ``YAW_WINDOW_S``, ``t`` included."""
+        ts, vs = self.heading.t, self.heading.v
+        pts = [(t, heading)]
+        i = len(ts) - 1
+        while i >= 0 and 0 <= t - ts[i] <= YAW_WINDOW_S and pts[-1][0] - ts[i] <= self.max_gap_s:
+            prev_h = pts[-1][1]
+            pts.append((ts[i], prev_h + wrap180(vs[i][0] - prev_h)))
+            i -= 1
+        if len(pts) < 2:
+            return None
+        n = len(pts)
+        mt = sum(p[0] for p in pts) / n
+        mh = sum(p[1] for p in pts) / n
+        stt = sum((p[0] - mt) ** 2 for p in pts)
+        if stt <= 0:
+            return None
+        return sum((p[0] - mt) * (p[1] - mh) for p in pts) / stt
+
+    def add_yaw_rate(self, t: float, rate: float) -> None:
+        """A rate-of-turn reading (deg/s): it replaces the heading's derivative where it covers."""
+        self.yaw.add(t, (rate,))
 
     def add_throttle(self, t: float, throttle: float) -> None:
         self.throttle.add(t, (throttle,))
@@ -191,6 +215,7 @@ class StateEstimator:
     def reset(self) -> None:
         self.position.clear()
         self.heading.clear()
+        self.yaw.clear()
         self.throttle.clear()
 
     def at(self, t: float, edge: bool = False) -> BoatState:
@@ -217,4 +242,10 @@ class StateEstimator:
             st.heading, st.yaw_rate = h
         if th is not None:
             st.throttle = th[0]
+        if self.yaw.t:
+            y = self.yaw.interpolate(t, self.max_gap_s) if interp else None
+            if y is None:
+                y = self.yaw.nearest(t, self.max_gap_s if edge or not interp else self.max_gap_s / 2)
+            if y is not None:
+                st.yaw_rate = y[0]
         return st

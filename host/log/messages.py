@@ -68,6 +68,17 @@ class NmeaSentence(Record):
 
 
 @dataclass(slots=True)
+class SourceReading(Record):
+    """One reading of a quantity (position, heading, ...) from one source, used or not."""
+
+    NAME = "forcemap.SourceReading"
+    quantity: str
+    source: str
+    value: list[float | None]
+    used: bool
+
+
+@dataclass(slots=True)
 class RawMessage(Record):
     """A decoded MAVLink or DataFlash message, fields as pymavlink names them (flat)."""
 
@@ -333,6 +344,7 @@ TOPIC_TYPES: dict[str, type[Record]] = {
     "/bridge/hello": BridgeHello,
     "/bridge/status": BridgeStatus,
     "/nmea/sentence": NmeaSentence,
+    "/source/reading": SourceReading,
     "/boat/state": BoatState,
     "/wind/apparent": ApparentWind,
     "/wind/true": TrueWind,

@@ -1,0 +1,259 @@
+"""How the sources of one quantity compare: rate, share of the time, disagreement, lag and latency.
+
+For every source of a quantity, against the chosen one: the median (signed) and p95 (absolute) of
+their difference at the same instants, and the lag that best aligns them by cross-correlation of
+a signal that does not depend on a constant offset (the velocity for positions, the rate of turn
+for headings, the mean-removed value otherwise). Its latency is the same lag against the position
+source: positions by their velocity, headings by the course over ground's rate of turn, speed
+through water by the speed over ground. A positive lag or latency: the source is late.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+GRID_S = 0.2
+MAX_LAG_S = 30.0
+MAX_GAP_S = 5.0  # no interpolation across a longer silence
+MIN_OVERLAP = 50  # grid points in common for a lag to mean anything
+MIN_SOG = 0.5  # m/s: below, the course over ground is noise
+EARTH_R = 6_371_000.0
+ANGULAR = {"heading"}
+UNITS = {
+    "position": "m",
+    "heading": "deg",
+    "yaw_rate": "deg/s",
+    "stw": "m/s",
+    "depth": "m",
+    "wind": "m/s",
+    "wind_true": "m/s",
+    "water_temp": "degC",
+    "velocity": "m/s",
+}
+
+
+class Track:
+    """One source's readings of one quantity: times (s) and value tuples, in time order."""
+
+    def __init__(self, name: str, t: Iterable[float], v: Iterable[Sequence[Any]], used: int = 0):
+        order = np.argsort(np.asarray(list(t), dtype=float), kind="stable")
+        tt = np.asarray(list(t), dtype=float)
+        vals = list(v)
+        self.name = name
+        self.t = tt[order]
+        width = max((len(x) for x in vals), default=1)
+        arr = np.full((len(vals), width), np.nan)
+        for i, x in enumerate(vals):
+            arr[i, : len(x)] = [np.nan if y is None else float(y) for y in x]
+        self.v = arr[order] if len(vals) else np.zeros((0, 1))
+        self.used = used
+
+    def rate_hz(self) -> float:
+        if len(self.t) < 2 or self.t[-1] <= self.t[0]:
+            return 0.0
+        return (len(self.t) - 1) / (self.t[-1] - self.t[0])
+
+    def covered_s(self) -> float:
+        """Seconds of the log this source speaks in: its intervals, a silence counting 3 of them."""
+        if len(self.t) < 2:
+            return 0.0
+        dt = np.diff(self.t)
+        typical = float(np.median(dt))
+        return float(np.minimum(dt, 3.0 * max(typical, 1e-3)).sum())
+
+
+def _metres(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> np.ndarray:
+    x = np.radians(lon - lon0) * EARTH_R * math.cos(math.radians(lat0))
+    y = np.radians(lat - lat0) * EARTH_R
+    return np.stack([x, y], axis=1)
+
+
+def _on_grid(t: np.ndarray, y: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """``y`` at ``grid`` by linear interpolation, NaN in silences longer than MAX_GAP_S."""
+    ok = np.isfinite(y)
+    t, y = t[ok], y[ok]
+    if len(t) < 2:
+        return np.full(len(grid), np.nan)
+    out = np.interp(grid, t, y, left=np.nan, right=np.nan)
+    i = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
+    out[(t[i] - t[i - 1]) > MAX_GAP_S] = np.nan
+    return out
+
+
+def signal(quantity: str, tr: Track, grid: np.ndarray, origin: tuple[float, float]) -> np.ndarray:
+    """The offset-free signal of a source on ``grid``: shape (n, k)."""
+    if quantity == "position":
+        xy = _metres(tr.v[:, 0], tr.v[:, 1], *origin)
+        cols = [_on_grid(tr.t, xy[:, j], grid) for j in (0, 1)]
+        return np.stack([np.gradient(c, GRID_S) for c in cols], axis=1)
+    if quantity in ANGULAR:
+        h = _on_grid(tr.t, np.degrees(np.unwrap(np.radians(tr.v[:, 0]))), grid)
+        return np.gradient(h, GRID_S)[:, None]
+    y = _on_grid(tr.t, tr.v[:, 0], grid)
+    return (y - np.nanmean(y))[:, None] if np.isfinite(y).any() else y[:, None]
+
+
+def best_lag(ref: np.ndarray, sig: np.ndarray, max_lag_s: float = MAX_LAG_S) -> float | None:
+    """The lag (s) of ``sig`` behind ``ref`` that maximises their correlation; None if unknown."""
+    kmax = int(max_lag_s / GRID_S)
+    n = len(ref)
+    scores = []
+    for k in range(-kmax, kmax + 1):
+        a = ref[max(0, -k) : n - max(0, k)]
+        b = sig[max(0, k) : n - max(0, -k)]
+        ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+        if ok.sum() < MIN_OVERLAP:
+            scores.append(np.nan)
+            continue
+        a0, b0 = a[ok] - a[ok].mean(axis=0), b[ok] - b[ok].mean(axis=0)
+        den = math.sqrt(float((a0 * a0).sum()) * float((b0 * b0).sum()))
+        scores.append(float((a0 * b0).sum()) / den if den > 0 else np.nan)
+    sc = np.asarray(scores)
+    if not np.isfinite(sc).any():
+        return None
+    i = int(np.nanargmax(sc))
+    shift = 0.0
+    if 0 < i < len(sc) - 1 and np.isfinite(sc[i - 1]) and np.isfinite(sc[i + 1]):
+        d = sc[i - 1] - 2 * sc[i] + sc[i + 1]
+        shift = 0.5 * (sc[i - 1] - sc[i + 1]) / d if d < 0 else 0.0
+    return (i - kmax + shift) * GRID_S
+
+
+def difference(quantity: str, tr: Track, ref: Track) -> np.ndarray:
+    """``tr`` minus ``ref`` at ``tr``'s readings (``ref`` interpolated; metres for positions)."""
+    if len(ref.t) < 2 or len(tr.t) == 0:
+        return np.zeros(0)
+    if quantity == "position":
+        lat0, lon0 = float(ref.v[0, 0]), float(ref.v[0, 1])
+        a = _metres(tr.v[:, 0], tr.v[:, 1], lat0, lon0)
+        b = _metres(ref.v[:, 0], ref.v[:, 1], lat0, lon0)
+        bx, by = _on_grid(ref.t, b[:, 0], tr.t), _on_grid(ref.t, b[:, 1], tr.t)
+        d = np.hypot(a[:, 0] - bx, a[:, 1] - by)
+    elif quantity in ANGULAR:
+        r = np.degrees(np.unwrap(np.radians(ref.v[:, 0])))
+        d = (tr.v[:, 0] - _on_grid(ref.t, r, tr.t) + 180.0) % 360.0 - 180.0
+    else:
+        d = tr.v[:, 0] - _on_grid(ref.t, ref.v[:, 0], tr.t)
+    return d[np.isfinite(d)]
+
+
+def _course_rate(pos: Track, grid: np.ndarray) -> np.ndarray:
+    """The rate of turn of the course over ground (deg/s) from positions, NaN when slow."""
+    xy = _metres(pos.v[:, 0], pos.v[:, 1], float(pos.v[0, 0]), float(pos.v[0, 1]))
+    vx = np.gradient(_on_grid(pos.t, xy[:, 0], grid), GRID_S)
+    vy = np.gradient(_on_grid(pos.t, xy[:, 1], grid), GRID_S)
+    cog = np.degrees(np.unwrap(np.arctan2(np.nan_to_num(vx), np.nan_to_num(vy))))
+    rate = np.gradient(cog, GRID_S)
+    rate[~(np.hypot(vx, vy) > MIN_SOG)] = np.nan
+    return rate[:, None]
+
+
+def _sog(pos: Track, grid: np.ndarray) -> np.ndarray:
+    xy = _metres(pos.v[:, 0], pos.v[:, 1], float(pos.v[0, 0]), float(pos.v[0, 1]))
+    vx = np.gradient(_on_grid(pos.t, xy[:, 0], grid), GRID_S)
+    vy = np.gradient(_on_grid(pos.t, xy[:, 1], grid), GRID_S)
+    s = np.hypot(vx, vy)
+    return (s - np.nanmean(s))[:, None] if np.isfinite(s).any() else s[:, None]
+
+
+def _origin(tr: Track) -> tuple[float, float]:
+    """The first position of a position track (any other track: unused)."""
+    return (float(tr.v[0, 0]), float(tr.v[0, 1])) if tr.v.shape[1] > 1 else (0.0, 0.0)
+
+
+def _grid(*tracks: Track) -> np.ndarray:
+    t0 = max(float(tr.t[0]) for tr in tracks)
+    t1 = min(float(tr.t[-1]) for tr in tracks)
+    if t1 - t0 < MIN_OVERLAP * GRID_S:
+        return np.zeros(0)
+    return np.arange(t0, t1, GRID_S)
+
+
+def latency(quantity: str, tr: Track, pos: Track | None) -> float | None:
+    """``tr``'s lag behind the position source (positions, headings, speed through water)."""
+    if pos is None or len(pos.t) < 2 or len(tr.t) < 2:
+        return None
+    grid = _grid(tr, pos)
+    if not len(grid):
+        return None
+    origin = _origin(pos)
+    if quantity == "position":
+        ref = signal("position", pos, grid, origin)
+    elif quantity in ANGULAR:
+        ref = _course_rate(pos, grid)
+    elif quantity in ("stw", "velocity"):
+        ref = _sog(pos, grid)
+    else:
+        return None
+    return best_lag(ref, signal(quantity, tr, grid, origin))
+
+
+def _stat(x: np.ndarray, fn: Any) -> float | None:
+    return round(float(fn(x)), 3) if len(x) else None
+
+
+def compare(
+    quantity: str, tracks: dict[str, Track], chosen: str, position: Track | None, span_s: float
+) -> dict[str, Any]:
+    """Every source of ``quantity`` against ``chosen``, and each one's latency."""
+    ref = tracks.get(chosen)
+    out: dict[str, Any] = {"chosen": chosen, "unit": UNITS.get(quantity, ""), "sources": {}}
+    for name, tr in tracks.items():
+        row: dict[str, Any] = {
+            "readings": len(tr.t),
+            "rate_hz": round(tr.rate_hz(), 3),
+            "share": round(min(1.0, tr.covered_s() / span_s), 3) if span_s > 0 else None,
+            "used": tr.used,
+        }
+        if ref is not None and name != chosen:
+            d = difference(quantity, tr, ref)
+            row["diff_median"] = _stat(d, np.median)
+            row["diff_p95"] = _stat(np.abs(d), lambda x: np.percentile(x, 95))
+            grid = _grid(tr, ref)
+            lag = None
+            if len(grid):
+                origin = _origin(ref)
+                lag = best_lag(signal(quantity, ref, grid, origin), signal(quantity, tr, grid, origin))
+            row["lag_s"] = None if lag is None else round(lag, 2)
+        lat = latency(quantity, tr, position) if tr is not position else 0.0
+        row["latency_s"] = None if lat is None else round(lat, 2)
+        out["sources"][name] = row
+    return out
+
+
+def analyse(
+    tracks: dict[str, dict[str, Track]], chosen: dict[str, str], why: dict[str, str] | None = None
+) -> dict[str, Any]:
+    """Per quantity: ``compare`` of its sources, with why the chosen one was used."""
+    times = [tr.t for q in tracks.values() for tr in q.values() if len(tr.t)]
+    span = float(max(t[-1] for t in times) - min(t[0] for t in times)) if times else 0.0
+    pos = tracks.get("position", {}).get(chosen.get("position", ""))
+    out: dict[str, Any] = {}
+    for q, srcs in tracks.items():
+        if not srcs:
+            continue
+        c = chosen.get(q) or max(srcs, key=lambda n: (srcs[n].used, len(srcs[n].t)))
+        out[q] = compare(q, srcs, c, pos, span)
+        out[q]["why"] = (why or {}).get(q, "")
+    return out
+
+
+def sources_metadata(selector: Any) -> dict[str, str]:
+    """The ``sources`` MCAP metadata record from a SourceSelector: one JSON text per quantity."""
+    tracks = {
+        q: {n: Track(n, tr.t, tr.v, tr.used) for n, tr in srcs.items() if tr.t}
+        for q, srcs in selector.tracks.items()
+    }
+    why = {q: selector.reason(q) for q in selector.tracks}
+    result = analyse(tracks, dict(selector.chosen), why)
+    for q, s in selector.summary().items():
+        if q in result:
+            result[q]["switches"] = s["switches"]
+            for n, row in result[q]["sources"].items():
+                row["readings"] = s["sources"][n]["readings"]
+    return {q: json.dumps(v, sort_keys=True) for q, v in result.items()}

@@ -1,0 +1,204 @@
+"""One source per quantity: who gave each reading, and which of them the samples use.
+
+A source is the connection, the talker and the sentence (``nmea GPRMC``) or the message
+(``mavlink GLOBAL_POSITION_INT``); position sentences add a fingerprint (their time field's format
+and the decimals of their minutes, ``[hhmmss.ss 5dp]``), which tells apart two receivers that share
+a talker. Every reading goes to ``/source/reading``; only the chosen source's readings reach the
+boat state and the assembler, so two receivers or two compasses are never interleaved.
+
+The choice follows the boat file's ``[sources]`` priorities (substrings of a source's name, first
+preferred), then the default quality order (``default_rank``). A source that has been silent for
+longer than ``timeout`` (or three of its own intervals, if longer) gives way to the next one; it is
+taken back as soon as it speaks again.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from dataclasses import dataclass, field
+from typing import Any
+
+QUANTITIES = (
+    "position",
+    "heading",
+    "yaw_rate",
+    "stw",
+    "depth",
+    "wind",
+    "wind_true",
+    "water_temp",
+    "velocity",  # VTG, for a position source without its own (GGA, GLL)
+)
+DEFAULT_TIMEOUT_S = 5.0
+KEEP_EVERY_S = 0.2  # readings kept for the disagreement analysis: at most one per 0.2 s
+KEEP_MAX = 40_000  # per source: over two hours at 5 Hz
+# talkers that re-send what another instrument measured: after the instrument itself
+RELAY_TALKERS = ("II", "IN", "AI", "EC", "EI", "CD")
+AUTOPILOT_CONNECTIONS = ("mavlink", "dataflash")
+SENTENCE_ORDER = {
+    "position": ("GLOBAL_POSITION_INT", "GPS_RAW_INT", "RMC", "GNS", "GGA", "GLL"),
+    "heading": ("HDT", "ATTITUDE", "HDG", "HDM", "VHW"),
+    "yaw_rate": ("ROT", "ATTITUDE", "derivative"),
+    "depth": ("DPT", "WATER_DEPTH", "RANGEFINDER", "DISTANCE_SENSOR", "DBT", "DBS"),
+}
+WHY = {
+    "priority": "listed first in the boat file's [sources]",
+    "quality": "best by the default quality order",
+    "only": "the only source",
+    "fallback": "the preferred source was silent",
+}
+
+
+def nmea_fingerprint(text: str, stype: str) -> str:
+    """``hhmmss.ss 5dp``: the time field's format and the decimals of the latitude's minutes."""
+    star = text.rfind("*")
+    fields = text[1 : star if star > 0 else len(text)].split(",")
+    where = {"RMC": (1, 3), "GGA": (1, 2), "GNS": (1, 2), "GLL": (5, 1)}.get(stype)
+    if where is None:
+        return ""
+    ti, li = where
+    tf = fields[ti] if ti < len(fields) else ""
+    lf = fields[li] if li < len(fields) else ""
+    tfmt = "hhmmss" + ("." + "s" * len(tf.split(".", 1)[1]) if "." in tf else "")
+    dp = len(lf.split(".", 1)[1]) if "." in lf else 0
+    return f"{tfmt} {dp}dp"
+
+
+def source_name(connection: str, talker: str, kind: str, fingerprint: str = "") -> str:
+    """``nmea GPRMC [hhmmss.ss 5dp]``, ``mavlink ATTITUDE``."""
+    name = f"{connection} {talker}{kind}"
+    return f"{name} [{fingerprint}]" if fingerprint else name
+
+
+def split_name(name: str) -> tuple[str, str, str]:
+    """(connection, talker, sentence or message) of a source name."""
+    parts = name.split(" ")
+    ident = parts[1] if len(parts) > 1 else ""
+    if parts[0] in AUTOPILOT_CONNECTIONS or len(ident) != 5:
+        return parts[0], "", ident
+    return parts[0], ident[:2], ident[2:]
+
+
+def message_of(name: str) -> str:
+    """The sentence or message of a source name (``RMC`` of ``nmea GPRMC [hhmmss.ss 5dp]``)."""
+    return split_name(name)[2] if name else ""
+
+
+def default_rank(quantity: str, name: str) -> tuple:
+    """The default quality order (lower first): the autopilot first (it fuses everything), then
+    instruments before relays, more decimals, and the order of ``SENTENCE_ORDER`` (true heading
+    before magnetic, ROT before the autopilot's gyro before a heading's derivative)."""
+    conn, talker, kind = split_name(name)
+    autopilot = conn in AUTOPILOT_CONNECTIONS
+    relay = talker in RELAY_TALKERS
+    dp = 0
+    if "dp]" in name:
+        dp = int(name.rsplit(" ", 1)[1].rstrip("dp]") or 0)
+    order = SENTENCE_ORDER.get(quantity, ())
+    pos = order.index(kind) if kind in order else len(order)
+    return (not autopilot, relay, -dp, pos)
+
+
+@dataclass
+class SourceTrack:
+    """One source of one quantity: its readings (thinned), count, last time and interval."""
+
+    name: str
+    rank: tuple
+    n: int = 0
+    used: int = 0
+    last_t: float = -math.inf
+    interval: float = 0.0
+    t: deque = field(default_factory=lambda: deque(maxlen=KEEP_MAX))
+    v: deque = field(default_factory=lambda: deque(maxlen=KEEP_MAX))
+
+    def observe(self, t: float, value: tuple) -> None:
+        if self.n and 0 < t - self.last_t < 60:
+            dt = t - self.last_t
+            self.interval = dt if not self.interval else 0.9 * self.interval + 0.1 * dt
+        self.n += 1
+        self.last_t = max(self.last_t, t)
+        if not self.t or t - self.t[-1] >= KEEP_EVERY_S:
+            self.t.append(t)
+            self.v.append(value)
+
+    def silent(self, t: float, timeout: float) -> bool:
+        return t - self.last_t > max(timeout, 3.0 * self.interval)
+
+
+class SourceSelector:
+    """Chooses one source per quantity; ``accept`` says whether a reading is the chosen one's."""
+
+    def __init__(
+        self,
+        priorities: dict[str, list[str]] | None = None,
+        timeouts: dict[str, float] | None = None,
+    ) -> None:
+        self.priorities = {q: [p.lower() for p in v] for q, v in (priorities or {}).items()}
+        self.timeouts = timeouts or {}
+        self.tracks: dict[str, dict[str, SourceTrack]] = {q: {} for q in QUANTITIES}
+        self.chosen: dict[str, str] = {}
+        self.switches: Counter[str] = Counter()
+
+    def rank(self, quantity: str, name: str) -> tuple:
+        low = name.lower()
+        prio = self.priorities.get(quantity, [])
+        listed = next((i for i, p in enumerate(prio) if p in low), len(prio))
+        return (listed, *default_rank(quantity, name))
+
+    def accept(self, quantity: str, name: str, t: float, value: tuple) -> bool:
+        """Record a reading of ``quantity`` from ``name`` at ``t``; True if it is the one to use."""
+        tracks = self.tracks[quantity]
+        tr = tracks.get(name)
+        if tr is None:
+            tr = tracks[name] = SourceTrack(name, self.rank(quantity, name))
+        tr.observe(t, value)
+        cur = self.chosen.get(quantity)
+        timeout = self.timeouts.get(quantity, DEFAULT_TIMEOUT_S)
+        if cur != name:
+            ct = tracks.get(cur) if cur else None
+            if ct is None or ct.silent(t, timeout) or tr.rank < ct.rank:
+                self._choose(quantity, tr, ct, t, timeout)
+        ok = self.chosen.get(quantity) == name
+        if ok:
+            tr.used += 1
+        return ok
+
+    def _choose(
+        self, quantity: str, tr: SourceTrack, old: SourceTrack | None, t: float, timeout: float
+    ) -> None:
+        if old is not None:
+            self.switches[quantity] += 1
+        self.chosen[quantity] = tr.name
+
+    def reason(self, quantity: str) -> str:
+        """Why the chosen source of ``quantity`` is the one in use."""
+        tracks = self.tracks[quantity]
+        tr = tracks.get(self.chosen.get(quantity, ""))
+        if tr is None:
+            return ""
+        if any(o.rank < tr.rank for o in tracks.values()):
+            return WHY["fallback"]
+        if len(tracks) == 1:
+            return WHY["only"]
+        if tr.rank[0] < len(self.priorities.get(quantity, [])):
+            return WHY["priority"]
+        return WHY["quality"]
+
+    def summary(self) -> dict[str, Any]:
+        """Per quantity: the chosen source, why, switches, and every source's count and use."""
+        out: dict[str, Any] = {}
+        for q, tracks in self.tracks.items():
+            if not tracks:
+                continue
+            out[q] = {
+                "chosen": self.chosen.get(q, ""),
+                "why": self.reason(q),
+                "switches": self.switches[q],
+                "sources": {
+                    n: {"readings": tr.n, "used": tr.used, "rank": list(tr.rank)}
+                    for n, tr in tracks.items()
+                },
+            }
+        return out
