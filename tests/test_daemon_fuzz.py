@@ -143,7 +143,7 @@ def test_fuzzed_ports_no_crash_and_counters_match(tmp_path):
     for name in ports:
         assert status["sources"][name]["disconnects"] == 0
     print("bridge", c["bridge"]["frames"], c["bridge"]["rejected"])
-    print("depth", c["depth"]["accepted"], c["depth"]["rejected_by_reason"])
+    print("nmea", c["nmea"]["accepted"], c["nmea"]["rejected_by_reason"])
     print(
         "mavlink",
         c["mavlink"]["messages"],
@@ -152,8 +152,8 @@ def test_fuzzed_ports_no_crash_and_counters_match(tmp_path):
     )
     assert c["bridge"]["frames"] == bridge_good
     assert c["bridge"]["rejected"]["total"] == bridge_bad
-    assert c["depth"]["accepted"] == nmea_good
-    assert c["depth"]["rejected"] == nmea_bad
+    assert c["nmea"]["accepted"] == nmea_good
+    assert c["nmea"]["rejected"] == nmea_bad
     assert c["mavlink"]["messages"] == mav_good
     assert c["mavlink"]["bad_crc"] == mav_bad
     assert c["mavlink"]["junk_bytes"] == mav_junk
@@ -195,7 +195,7 @@ def test_random_bytes_then_valid_traffic(tmp_path):
     status = last_status(tmp_path / "out")
     c = status["pipeline"]
     assert c["bridge"]["frames"] >= 10
-    assert c["depth"]["accepted_by_type"].get("DPT", 0) >= 10
+    assert c["nmea"]["accepted_by_type"].get("DPT", 0) >= 10
     assert c["mavlink"]["messages"] >= 10
     assert c["bridge"]["rejected"]["total"] > 0 and c["mavlink"]["junk_bytes"] > 0
     assert not c["errors"] and not status["errors"]

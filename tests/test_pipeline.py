@@ -47,15 +47,15 @@ def test_topics_metadata_and_counts(survey):
         "/samples",
     ):
         assert t in topics, t
-    assert {n for n, _ in sink.meta} == {"calibration", "config", "hello", "columns"}
+    assert {n for n, _ in sink.meta} == {"calibration", "config", "hello", "columns", "sources"}
     columns = [m for n, m in sink.meta if n == "columns"][-1]
     assert columns["wind_speed"].startswith("bridge anemometer+vane + mavlink ATTITUDE")
     assert columns["current_speed"].startswith("bridge paddle wheels")
-    assert columns["depth"] == "nmea DPT" and columns["lat"] == "mavlink GLOBAL_POSITION_INT"
+    assert columns["depth"] == "depth SDDPT" and columns["lat"] == "mavlink GLOBAL_POSITION_INT"
     c = pipe.counters()
     assert c["bridge"]["samples"] == 240 * 4 == len(sink.topic("/samples"))
     assert c["bridge"]["rejected"]["total"] == 0 and c["bridge"]["lost_frames"] == 0
-    assert c["depth"]["accepted"] == 3 * 240 and c["depth"]["rejected"] == 0
+    assert c["nmea"]["accepted"] == 3 * 240 and c["nmea"]["rejected"] == 0
     assert c["mavlink"]["bad_crc"] == 0 and c["mavlink"]["vehicle"] == [1, 1]
     assert c["samples"]["pending"] == 0 and c["samples"]["without_state"] <= 1
     assert c["last_fix"] is not None and not c["errors"]
@@ -178,7 +178,7 @@ def test_garbage_on_every_port_is_counted_never_raised():
     c = pipe.counters()
     assert noise > 20
     assert c["bridge"]["rejected"]["total"] > 0
-    assert c["depth"]["rejected"] > 0
+    assert c["nmea"]["rejected"] > 0
     assert c["mavlink"]["junk_bytes"] > 0 or c["mavlink"]["bad_crc"] > 0
     assert c["errors"] == {"unknown_source": 1}
     assert c["bridge"]["samples"] >= 70  # frames hit by junk are lost, the rest decode
@@ -199,7 +199,7 @@ def test_gap_drops_partial_frames_and_is_logged():
     events = [m["event"] for m in sink.topic("/diagnostics") if "event" in m]
     assert [e["source"] for e in events] == ["bridge", "depth", "mavlink"]
     c = pipe.counters()
-    assert c["bridge"]["gaps"] == 1 and c["depth"]["rejected"] == 1 and not c["errors"]
+    assert c["bridge"]["gaps"] == 1 and c["nmea"]["rejected"] == 1 and not c["errors"]
 
 
 def test_samples_wait_for_the_autopilot():

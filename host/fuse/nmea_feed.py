@@ -15,7 +15,12 @@ from typing import TYPE_CHECKING, Any
 
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
 from forcemap.host.fuse import compensation as comp
-from forcemap.host.fuse.sources import message_of, nmea_fingerprint, source_name
+from forcemap.host.fuse.sources import (
+    nmea_fingerprint,
+    receiver_name,
+    source_name,
+    split_name,
+)
 from forcemap.host.log.messages import (
     ApparentWind,
     BoatState,
@@ -212,11 +217,13 @@ class NmeaDecoder:
         if not self._nav_ok(s) or d["sog"] is None or not state.position.v:
             return
         sog, cog = d["sog"], d["cog"]
-        # ground velocity for a position source that has none of its own (GGA, GLL)
-        chosen = self.pipe.selector.chosen.get("position", "")
-        if message_of(chosen) in ("RMC", "GLOBAL_POSITION_INT", "GPS_RAW_INT"):
-            return
-        if not self.pipe.source_reading("velocity", self.name(s), t, (sog, cog)):
+        # the ground velocity of the receiver that gives the position (between its fixes), or of
+        # one VTG source for a position source without velocity of its own (GGA, GLL)
+        chosen = self.pipe.selector.member.get("position", "")
+        conn, talker, kind = split_name(chosen) if chosen else ("", "", "")
+        same = (conn, talker) == (self.conn, s.talker)
+        used = self.pipe.source_reading("velocity", self.name(s), t, (sog, cog))
+        if not same and (kind in ("RMC", "GLOBAL_POSITION_INT", "GPS_RAW_INT") or not used):
             return
         last = state.position.v[-1]
         if cog is not None:
@@ -266,7 +273,8 @@ class NmeaDecoder:
         asm = self.pipe.assembler
         state = asm.state
         name = self.name(s)
-        if not self.pipe.source_reading("position", name, t, (lat, lon, sog, cog)):
+        receiver = receiver_name(self.conn, s.talker, nmea_fingerprint(s.text, s.type))
+        if not self.pipe.source_reading("position", name, t, (lat, lon, sog, cog), receiver):
             return
         if sog is not None:
             state.add_position_sog_cog(t, lat, lon, sog, cog)

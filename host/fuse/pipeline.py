@@ -279,10 +279,16 @@ class Pipeline:
     def metadata(self, name: str, data: dict[str, str]) -> None:
         self.sink.metadata(name, data)
 
-    def source_reading(self, quantity: str, source: str, t: float, value: tuple) -> bool:
-        """Log a reading of ``quantity`` from ``source``; True if it is the chosen source's."""
-        used = self.selector.accept(quantity, source, t, value)
+    def source_reading(
+        self, quantity: str, source: str, t: float, value: tuple, group: str | None = None
+    ) -> bool:
+        """Log a reading of ``quantity`` from ``source``; True if it is the chosen source's
+        (``group``: the instrument it belongs to, see SourceSelector.accept)."""
+        sel = self.selector
+        used = sel.accept(quantity, source, t, value, group)
         self.write("/source/reading", t, SourceReading(quantity, source, list(value), used))
+        if used and quantity in ("position", "heading"):
+            self.assembler.state.source_interval(quantity, sel.tracks[quantity][source].interval)
         return used
 
     def emit_mapping(self, mapping: ClockMap | None) -> None:

@@ -100,8 +100,10 @@ def signal(quantity: str, tr: Track, grid: np.ndarray, origin: tuple[float, floa
 
 def best_lag(ref: np.ndarray, sig: np.ndarray, max_lag_s: float = MAX_LAG_S) -> float | None:
     """The lag (s) of ``sig`` behind ``ref`` that maximises their correlation; None if unknown."""
-    kmax = int(max_lag_s / GRID_S)
     n = len(ref)
+    kmax = min(int(max_lag_s / GRID_S), n - MIN_OVERLAP)
+    if kmax < 0:
+        return None
     scores = []
     for k in range(-kmax, kmax + 1):
         a = ref[max(0, -k) : n - max(0, k)]
@@ -250,7 +252,7 @@ def sources_metadata(selector: Any) -> dict[str, str]:
         for q, srcs in selector.tracks.items()
     }
     why = {q: selector.reason(q) for q in selector.tracks}
-    result = analyse(tracks, dict(selector.chosen), why)
+    result = analyse(tracks, {q: selector.chosen_track(q) for q in selector.chosen}, why)
     for q, s in selector.summary().items():
         if q in result:
             result[q]["switches"] = s["switches"]

@@ -50,6 +50,11 @@ WHY = {
 }
 
 
+def receiver_name(connection: str, talker: str, fingerprint: str) -> str:
+    """The group of one receiver's position sentences: ``nmea GP* [hhmmss.ss 5dp]``."""
+    return f"{connection} {talker}* [{fingerprint}]"
+
+
 def nmea_fingerprint(text: str, stype: str) -> str:
     """``hhmmss.ss 5dp``: the time field's format and the decimals of the latitude's minutes."""
     star = text.rfind("*")
@@ -138,7 +143,9 @@ class SourceSelector:
         self.priorities = {q: [p.lower() for p in v] for q, v in (priorities or {}).items()}
         self.timeouts = timeouts or {}
         self.tracks: dict[str, dict[str, SourceTrack]] = {q: {} for q in QUANTITIES}
-        self.chosen: dict[str, str] = {}
+        self.groups: dict[str, dict[str, SourceTrack]] = {}
+        self.chosen: dict[str, str] = {}  # quantity -> the chosen group
+        self.member: dict[str, str] = {}  # quantity -> the source of its last reading used
         self.switches: Counter[str] = Counter()
 
     def rank(self, quantity: str, name: str) -> tuple:
@@ -147,44 +154,67 @@ class SourceSelector:
         listed = next((i for i, p in enumerate(prio) if p in low), len(prio))
         return (listed, *default_rank(quantity, name))
 
-    def accept(self, quantity: str, name: str, t: float, value: tuple) -> bool:
-        """Record a reading of ``quantity`` from ``name`` at ``t``; True if it is the one to use."""
+    def accept(
+        self, quantity: str, name: str, t: float, value: tuple, group: str | None = None
+    ) -> bool:
+        """Record a reading of ``quantity`` from ``name`` at ``t``; True if it is the one to use.
+
+        ``group``: the instrument ``name`` belongs to (one receiver's RMC, GGA and GLL carry the
+        same fix); the choice is between groups, each ranked by its best sentence.
+        """
         tracks = self.tracks[quantity]
         tr = tracks.get(name)
         if tr is None:
             tr = tracks[name] = SourceTrack(name, self.rank(quantity, name))
         tr.observe(t, value)
+        key = group or name
+        groups = self.groups.setdefault(quantity, {})
+        g = groups.get(key)
+        if g is None:
+            g = groups[key] = SourceTrack(key, tr.rank)
+        g.rank = min(g.rank, tr.rank)
+        g.last_t = max(g.last_t, t)
+        g.interval = max(g.interval, tr.interval)
         cur = self.chosen.get(quantity)
         timeout = self.timeouts.get(quantity, DEFAULT_TIMEOUT_S)
-        if cur != name:
-            ct = tracks.get(cur) if cur else None
-            if ct is None or ct.silent(t, timeout) or tr.rank < ct.rank:
-                self._choose(quantity, tr, ct, t, timeout)
-        ok = self.chosen.get(quantity) == name
+        if cur != key:
+            ct = groups.get(cur) if cur else None
+            if ct is None or ct.silent(t, timeout) or g.rank < ct.rank:
+                if ct is not None:
+                    self.switches[quantity] += 1
+                self.chosen[quantity] = key
+        ok = self.chosen.get(quantity) == key
         if ok:
             tr.used += 1
+            self.member[quantity] = name
         return ok
-
-    def _choose(
-        self, quantity: str, tr: SourceTrack, old: SourceTrack | None, t: float, timeout: float
-    ) -> None:
-        if old is not None:
-            self.switches[quantity] += 1
-        self.chosen[quantity] = tr.name
 
     def reason(self, quantity: str) -> str:
         """Why the chosen source of ``quantity`` is the one in use."""
-        tracks = self.tracks[quantity]
-        tr = tracks.get(self.chosen.get(quantity, ""))
-        if tr is None:
+        groups = self.groups.get(quantity, {})
+        g = groups.get(self.chosen.get(quantity, ""))
+        if g is None:
             return ""
-        if any(o.rank < tr.rank for o in tracks.values()):
+        if any(o.rank < g.rank for o in groups.values()):
             return WHY["fallback"]
-        if len(tracks) == 1:
+        if len(groups) == 1:
             return WHY["only"]
-        if tr.rank[0] < len(self.priorities.get(quantity, [])):
+        if g.rank[0] < len(self.priorities.get(quantity, [])):
             return WHY["priority"]
         return WHY["quality"]
+
+    def chosen_track(self, quantity: str) -> str:
+        """The source (sentence) of the chosen group with the most readings used."""
+        members = [tr for tr in self.tracks[quantity].values() if tr.used]
+        key = self.chosen.get(quantity, "")
+        stem, _, fp = key.partition("*")
+        inside = [
+            tr
+            for tr in members
+            if tr.name == key or (fp and tr.name.startswith(stem) and tr.name.endswith(fp))
+        ]
+        best = max(inside or members, key=lambda tr: tr.used, default=None)
+        return best.name if best else ""
 
     def summary(self) -> dict[str, Any]:
         """Per quantity: the chosen source, why, switches, and every source's count and use."""
@@ -193,7 +223,8 @@ class SourceSelector:
             if not tracks:
                 continue
             out[q] = {
-                "chosen": self.chosen.get(q, ""),
+                "chosen": self.chosen_track(q),
+                "group": self.chosen.get(q, ""),
                 "why": self.reason(q),
                 "switches": self.switches[q],
                 "sources": {

@@ -146,6 +146,8 @@ class StateEstimator:
             raise ValueError(f"sync must be one of {SYNC_MODES}, got {sync!r}")
         self.sync = sync
         self.max_gap_s = max_gap_s
+        # per series: a source slower than max_gap_s (a GNSS fixing every 4 s) widens its own
+        self.gaps = {"position": max_gap_s, "heading": max_gap_s, "throttle": max_gap_s}
         self.position = Series(keep_s)  # (lat, lon, v_east, v_north)
         self.heading = Series(keep_s, circular=(0,))  # (heading_deg, yaw_rate_deg_s)
         self.yaw = Series(keep_s)  # (deg/s,) from a rate-of-turn sensor (ROT)
@@ -196,6 +198,10 @@ class StateEstimator:
             return None
         return sum((p[0] - mt) * (p[1] - mh) for p in pts) / stt
 
+    def source_interval(self, series: str, interval_s: float) -> None:
+        """The chosen source of ``series`` speaks every ``interval_s``: bridge its own gaps."""
+        self.gaps[series] = max(self.max_gap_s, 1.6 * interval_s)
+
     def add_yaw_rate(self, t: float, rate: float) -> None:
         """A rate-of-turn reading (deg/s): it replaces the heading's derivative where it covers."""
         self.yaw.add(t, (rate,))
@@ -227,13 +233,18 @@ class StateEstimator:
         interp = self.sync == "interpolate"
         st = BoatState(t)
         vals = []
-        for series in (self.position, self.heading, self.throttle):
+        for name, series in (
+            ("position", self.position),
+            ("heading", self.heading),
+            ("throttle", self.throttle),
+        ):
+            gap = self.gaps[name]
             if interp:
-                v = series.interpolate(t, self.max_gap_s)
+                v = series.interpolate(t, gap)
                 if v is None and edge:
-                    v = series.nearest(t, self.max_gap_s)
+                    v = series.nearest(t, gap)
             else:
-                v = series.nearest(t, self.max_gap_s / 2)
+                v = series.nearest(t, gap / 2)
             vals.append(v)
         p, h, th = vals
         if p is not None:
