@@ -1,7 +1,7 @@
 """The core loop: world, boat, autopilot and instruments stepped in virtual time, bytes out to a sink.
 
     sim = Simulation(scenario="river", mission="lawnmower", effects=["depth_current"], seed=0)
-    sim.run(600.0, sink)     # sink(source, t_ns, data) with source in bridge, depth, mavlink
+    sim.run(600.0, sink)     # sink(source, t_ns, data) with source in bridge, depth, mavlink, nmea
 
 ``t_ns`` is the virtual UNIX time in ns at which the bytes leave the instrument; calls come in
 non-decreasing ``t_ns`` order. No transport and no host clock: offline it runs as fast as it can.
@@ -30,6 +30,7 @@ from .fields import World
 from .geo import Geo
 from .instruments import InstrumentConfig, Readings, Sensors
 from .machine_emu import PWRON_RESET
+from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
 from .truth import samples_table, track_arrays, write_all, write_pulses
 
@@ -58,6 +59,7 @@ class Simulation:
         bridge_writable: Callable[[], bool] | None = None,
         events: Events | None = None,
         instruments: bool = True,
+        nmea_bus: bool = False,
     ) -> None:
         self.scenario = sc.load(scenario)
         self.mission = ms.load(mission or "lawnmower", self.scenario)
@@ -68,6 +70,9 @@ class Simulation:
         self.bridge_writable = bridge_writable
         self.events = events
         self.instruments = instruments  # False: world, boat and truth only (fast, no bytes)
+        # the NMEA-only boat's bus (nmea_bus.py) on the "nmea" port: on request or with its faults
+        self.bus_faults = {f.kind for f in self.faults if f.kind in fl.BUS_KINDS}
+        self.nmea_bus = nmea_bus or bool(self.bus_faults)
         self.geo = Geo(self.scenario.lat0, self.scenario.lon0)
         self.t0_ns = int(round(self.scenario.t0 * 1e9))
         self.world: World | None = None
@@ -133,9 +138,18 @@ class Simulation:
         off = self._effect("clock_offset")
         self.mav_latency_ns = int(float(off["offset_s"]) * 1e9) if off else 0
         snd = tables.get("sounder", {})
+        echoes = [f.rate for f in self.faults if f.kind == "false_echoes"]
         self.sounder = Sounder(
-            self.seed * 1000 + 7, float(snd.get("offset_m", 0.2)), float(snd.get("noise_m", 0.03))
+            self.seed * 1000 + 7,
+            float(snd.get("offset_m", 0.2)),
+            float(snd.get("noise_m", 0.03)),
+            false_echo_rate=float(snd.get("false_echo_rate", max(echoes, default=0.0))),
         )
+        self.bus: NmeaBus | None = None
+        if self.nmea_bus:
+            var = self.scenario.magnetic_variation_deg
+            self.bus = NmeaBus(self.geo, self.seed * 1000 + 13, var, self.bus_faults)
+        self.uart_nmea = Uart(BUS_BYTES_PER_S, chunk=64)
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)
         self.uart_mav = Uart(MAVLINK_BYTES_PER_S, chunk=64)
@@ -152,7 +166,7 @@ class Simulation:
         self.extra: list[tuple[float, ...]] = []
         self.throttle = 0.0
         self.psi_d, self.xte = psi, 0.0
-        self.stats = {"bridge": 0, "depth": 0, "mavlink": 0}
+        self.stats = dict.fromkeys(fl.SOURCES, 0)
         self._update_point()
 
     def _schedule_faults(self) -> None:
@@ -320,11 +334,23 @@ class Simulation:
             data = "".join(x + "\r\n" for x in lines).encode("ascii", "replace")
             for t_ns, piece in self.uart_depth.send(self._ns(t_new), data):
                 self._push(t_ns, "depth", piece)
+        if self.bus is not None:
+            self._bus(t_new, heading_deg)
         msgs = self.autopilot.messages(self._nav_state(t_new, heading_deg))
         msgs += self.autopilot.uplink_due(t_new)
         if msgs:
             for t_ns, piece in self.uart_mav.send(self._ns(t_new), b"".join(msgs)):
                 self._push(t_ns + self.mav_latency_ns, "mavlink", piece)
+
+    def _bus(self, t: float, heading_deg: float) -> None:
+        """The NMEA bus's sentences for this step, paced at its baud rate."""
+        s = self.boat.s
+        m = Motion(self.scenario.t0 + t, s.x, s.y, heading_deg, math.degrees(s.r), s.ve, s.vn, s.u)
+        lines = self.bus.step(m)  # type: ignore[union-attr]
+        if lines:
+            data = "".join(x + "\r\n" for x in lines).encode("ascii")
+            for t_ns, piece in self.uart_nmea.send(self._ns(t), data):
+                self._push(t_ns, "nmea", piece)
 
     def _nav_state(self, t: float, heading_deg: float) -> NavState:
         s, nav = self.boat.s, self.nav
@@ -416,5 +442,8 @@ class Simulation:
                 "bridge_clock_ppm": self.ppm,
                 "mavlink_latency_s": self.mav_latency_ns * 1e-9,
                 "sounder_offset_m": self.sounder.offset,
+                "sounder_noise_m": self.sounder.noise,
+                "false_echoes": self.sounder.false_echoes,
+                "nmea_bus": sorted(self.bus_faults) if self.nmea_bus else None,
             },
         }

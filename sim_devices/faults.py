@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-SOURCES = ("bridge", "depth", "mavlink")
+SOURCES = ("bridge", "depth", "mavlink", "nmea")
+# faults that are instruments: they put the NMEA bus (nmea_bus.py) on the "nmea" port
+BUS_KINDS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
 
 KINDS: dict[str, str] = {
     "corrupt": "bytes replaced by random values at `rate` per byte (source=all|bridge|depth|mavlink)",
@@ -18,6 +20,13 @@ KINDS: dict[str, str] = {
     "gps_loss": "the autopilot loses GPS for `for` s: no fix, the position coasts",
     "nmea_garbage": "the sounder line gets spliced sentences, bad checksum digits and junk lines at `rate` per sentence",
     "clock_jump": "the autopilot's clocks (time_boot_ms, UNIX time) step by `jump` s at `at`",
+    "second_gnss": "NMEA bus: a second GP receiver, antenna 2 m to starboard, hhmmss and 3 decimals "
+    "every 2 s, 1 s late",
+    "relay_position": "NMEA bus: the instrument bus re-sends the GNSS fix as IIRMC at 3 decimals",
+    "second_compass": "NMEA bus: a damped IIHDT (2 s time constant, 1 Hz) beside the HCHDG fluxgate",
+    "rate_of_turn": "NMEA bus: a rate gyro's TIROT at 2 Hz",
+    "false_echoes": "the sounder returns 3-20 m at `rate` per sounding in water deeper than 70 m "
+    "(a share of it from 40 m)",
 }
 
 
@@ -73,7 +82,12 @@ def default_set() -> list[Fault]:
     ]
 
 
-SETS = {"default": default_set, "none": list}
+def sources_set() -> list[Fault]:
+    """The `sources` set: two of everything on an NMEA bus, and false echoes (issue 20)."""
+    return [Fault(k, "nmea") for k in BUS_KINDS] + [Fault("false_echoes", "depth", rate=0.1)]
+
+
+SETS = {"default": default_set, "none": list, "sources": sources_set}
 
 
 def parse_one(spec: str) -> Fault:
@@ -88,6 +102,8 @@ def parse_one(spec: str) -> Fault:
             "gps_loss": "mavlink",
             "clock_jump": "mavlink",
             "nmea_garbage": "depth",
+            "false_echoes": "depth",
+            **dict.fromkeys(BUS_KINDS, "nmea"),
         }.get(kind, "all"),
     )
     for kv in kvs:
@@ -145,6 +161,7 @@ def lines() -> list[str]:
             for f in default_set()
         )
     )
+    out.append(f"{'sources':14s} set: " + ", ".join(f.kind for f in sources_set()))
     return out
 
 

@@ -26,16 +26,32 @@ class Sounder:
     """A single-beam sounder: depth below the transducer (DPT with offset, DBT) and water temperature."""
 
     def __init__(
-        self, seed: int = 0, offset_m: float = 0.2, noise_m: float = 0.03, max_range: float = 100.0
+        self,
+        seed: int = 0,
+        offset_m: float = 0.2,
+        noise_m: float = 0.03,
+        max_range: float = 100.0,
+        false_echo_rate: float = 0.0,
     ) -> None:
         self.rng = random.Random(seed)
         self.offset = offset_m
         self.noise = noise_m
         self.max_range = max_range
+        self.false_echo_rate = false_echo_rate
+        self.false_echoes = 0
+
+    def _false_echo(self, depth: float) -> bool:
+        """In deep water a weak bottom return loses to a school of fish or the thermocline:
+        ``false_echo_rate`` from 70 m, a share of it from 40 m."""
+        p = self.false_echo_rate * min(max((depth - 40.0) / 30.0, 0.0), 1.0)
+        return p > 0 and self.rng.random() < p
 
     def sentences(self, depth: float, temp: float) -> list[str]:
         """DPT, DBT and MTW for the true depth below the surface and the water temperature."""
         d = max(depth - self.offset + self.rng.gauss(0.0, self.noise), 0.1)
+        if self._false_echo(depth):
+            self.false_echoes += 1
+            d = self.rng.uniform(3.0, 20.0)
         return [
             sentence("SD", "DPT", (f"{d:.2f}", f"{self.offset:.2f}", f"{self.max_range:.1f}")),
             sentence(

@@ -28,13 +28,21 @@ def run_to_mcap(
     *,
     seed: int = 0,
     progress: Callable[[float, float], object] | None = None,
+    ports: tuple[str, ...] | None = None,
+    boat: calibration.Calibration | None = None,
 ) -> list[Path]:
-    """Run ``sim`` for ``duration_s`` through the real pipeline into MCAP files in ``log_dir``."""
+    """Run ``sim`` for ``duration_s`` through the real pipeline into MCAP files in ``log_dir``.
+
+    ``ports``: only these of the simulator's ports reach the pipeline (an NMEA-only boat:
+    ``("nmea", "depth")``); ``boat``: the boat file (default: the defaults).
+    """
     rng = random.Random(seed)
     log = McapLog(log_dir)
-    pipe = Pipeline(calibration.load(None), log)
+    pipe = Pipeline(boat if boat is not None else calibration.load(None), log)
 
     def sink(source: str, t_ns: int, data: bytes) -> None:
+        if ports is not None and source not in ports:
+            return
         # USB-CDC and UART reads reach the host 0.2-3 ms after the device sends them
         arrival = t_ns + int(rng.uniform(0.2e6, 3e6))
         pipe.feed(source, arrival, arrival, data)

@@ -13,7 +13,7 @@ from . import clockfile
 from .engine import Simulation
 from .usb_cdc import HOST_BUFFER, UsbCdc
 
-SOURCES = ("bridge", "depth", "mavlink")
+SOURCES = ("bridge", "depth", "mavlink", "nmea")
 
 
 class PortSet:

@@ -34,7 +34,13 @@ if TYPE_CHECKING:
     from forcemap.host.fuse.feed import FeedContext
 
 # which quantity each assembler reading is (forcemap.host.fuse.sources.QUANTITIES)
-QUANTITY = {"app": "wind", "true": "wind_true", "stw": "stw", "depth": "depth", "temp": "water_temp"}
+QUANTITY = {
+    "app": "wind",
+    "true": "wind_true",
+    "stw": "stw",
+    "depth": "depth",
+    "temp": "water_temp",
+}
 
 
 class NmeaDecoder:

@@ -40,7 +40,14 @@ UNITS = {
 class Track:
     """One source's readings of one quantity: times (s) and value tuples, in time order."""
 
-    def __init__(self, name: str, t: Iterable[float], v: Iterable[Sequence[Any]], used: int = 0):
+    def __init__(
+        self,
+        name: str,
+        t: Iterable[float],
+        v: Iterable[Sequence[Any]],
+        used: int = 0,
+        readings: int | None = None,
+    ) -> None:
         order = np.argsort(np.asarray(list(t), dtype=float), kind="stable")
         tt = np.asarray(list(t), dtype=float)
         vals = list(v)
@@ -52,11 +59,12 @@ class Track:
             arr[i, : len(x)] = [np.nan if y is None else float(y) for y in x]
         self.v = arr[order] if len(vals) else np.zeros((0, 1))
         self.used = used
+        self.readings = len(self.t) if readings is None else readings  # before thinning
 
     def rate_hz(self) -> float:
         if len(self.t) < 2 or self.t[-1] <= self.t[0]:
             return 0.0
-        return (len(self.t) - 1) / (self.t[-1] - self.t[0])
+        return (self.readings - 1) / (self.t[-1] - self.t[0])
 
     def covered_s(self) -> float:
         """Seconds of the log this source speaks in: its intervals, a silence counting 3 of them."""
@@ -207,7 +215,7 @@ def compare(
     out: dict[str, Any] = {"chosen": chosen, "unit": UNITS.get(quantity, ""), "sources": {}}
     for name, tr in tracks.items():
         row: dict[str, Any] = {
-            "readings": len(tr.t),
+            "readings": tr.readings,
             "rate_hz": round(tr.rate_hz(), 3),
             "share": round(min(1.0, tr.covered_s() / span_s), 3) if span_s > 0 else None,
             "used": tr.used,
@@ -220,9 +228,14 @@ def compare(
             lag = None
             if len(grid):
                 origin = _origin(ref)
-                lag = best_lag(signal(quantity, ref, grid, origin), signal(quantity, tr, grid, origin))
+                lag = best_lag(
+                    signal(quantity, ref, grid, origin), signal(quantity, tr, grid, origin)
+                )
             row["lag_s"] = None if lag is None else round(lag, 2)
         lat = latency(quantity, tr, position) if tr is not position else 0.0
+        if lat is not None and abs(lat) >= MAX_LAG_S - GRID_S:
+            row["latency_note"] = f"at the edge of the search (+-{MAX_LAG_S:g} s): not a latency"
+            lat = None
         row["latency_s"] = None if lat is None else round(lat, 2)
         out["sources"][name] = row
     return out
@@ -248,7 +261,7 @@ def analyse(
 def sources_metadata(selector: Any) -> dict[str, str]:
     """The ``sources`` MCAP metadata record from a SourceSelector: one JSON text per quantity."""
     tracks = {
-        q: {n: Track(n, tr.t, tr.v, tr.used) for n, tr in srcs.items() if tr.t}
+        q: {n: Track(n, tr.t, tr.v, tr.used, tr.n) for n, tr in srcs.items() if tr.t}
         for q, srcs in selector.tracks.items()
     }
     why = {q: selector.reason(q) for q in selector.tracks}
@@ -256,6 +269,4 @@ def sources_metadata(selector: Any) -> dict[str, str]:
     for q, s in selector.summary().items():
         if q in result:
             result[q]["switches"] = s["switches"]
-            for n, row in result[q]["sources"].items():
-                row["readings"] = s["sources"][n]["readings"]
     return {q: json.dumps(v, sort_keys=True) for q, v in result.items()}

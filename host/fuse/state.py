@@ -256,7 +256,9 @@ class StateEstimator:
         if self.yaw.t:
             y = self.yaw.interpolate(t, self.max_gap_s) if interp else None
             if y is None:
-                y = self.yaw.nearest(t, self.max_gap_s if edge or not interp else self.max_gap_s / 2)
+                y = self.yaw.nearest(
+                    t, self.max_gap_s if edge or not interp else self.max_gap_s / 2
+                )
             if y is not None:
                 st.yaw_rate = y[0]
         return st

@@ -1,0 +1,204 @@
+"""An NMEA-only boat's instrument bus (38400 baud): GNSS, compass, speed log, and the faults of issue 20.
+
+Always on the bus when it is enabled: a GNSS (``GPRMC`` and ``GPGGA``, ``hhmmss.ss``, 5-decimal
+minutes, 1 Hz, a slowly wandering position error), a fluxgate compass (``HCHDG``, magnetic with its
+variation, 5 Hz, 1 deg noise) and a speed log (``VWVHW``, 1 Hz). The source faults add:
+
+- ``second_gnss``: a second receiver on the same ``GP`` talker, its antenna 2 m to starboard,
+  whole seconds and 3-decimal minutes every 2 s, its sentences 1 s late;
+- ``relay_position``: the instrument bus re-sends the first GNSS's fix as ``IIRMC`` at 3 decimals;
+- ``second_compass``: the instrument bus's damped true heading, ``IIHDT`` at 1 Hz (2 s time constant);
+- ``rate_of_turn``: a rate gyro's ``TIROT`` at 2 Hz.
+
+Every device's readings are the boat's true motion at the moment they describe (the truth table).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+from collections import deque
+from dataclasses import dataclass
+
+from .geo import Geo
+from .nmea_sounder import sentence
+
+BUS_BYTES_PER_S = 3840.0  # 38400 baud, NMEA 0183-HS
+KNOT = 1852.0 / 3600.0
+FAULTS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
+
+
+@dataclass
+class Motion:
+    """The boat at one instant: local metres, heading (deg), yaw rate (deg/s), velocities (m/s)."""
+
+    t: float  # UNIX seconds
+    x: float
+    y: float
+    heading: float
+    yaw_rate: float
+    ve: float
+    vn: float
+    stw: float
+
+
+def _hhmmss(t: float, decimals: int) -> str:
+    tm = time.gmtime(math.floor(t))
+    base = f"{tm.tm_hour:02d}{tm.tm_min:02d}{tm.tm_sec:02d}"
+    if decimals == 0:
+        return base
+    frac = t - math.floor(t)
+    return base + f"{frac:.{decimals}f}"[1:]
+
+
+def _ddmmyy(t: float) -> str:
+    tm = time.gmtime(math.floor(t))
+    return f"{tm.tm_mday:02d}{tm.tm_mon:02d}{tm.tm_year % 100:02d}"
+
+
+def _angle(value: float, deg_digits: int, decimals: int, hemis: str) -> tuple[str, str]:
+    a = abs(value)
+    d = int(a)
+    m = round((a - d) * 60.0, decimals)
+    if m >= 60.0:
+        d, m = d + 1, 0.0
+    return f"{d:0{deg_digits}d}{m:0{3 + decimals}.{decimals}f}", hemis[0] if value >= 0 else hemis[
+        1
+    ]
+
+
+class Gnss:
+    """One receiver: its own fingerprint (time decimals, minute decimals), rate, lag and antenna."""
+
+    def __init__(
+        self,
+        geo: Geo,
+        rng: random.Random,
+        *,
+        talker: str = "GP",
+        period_s: float = 1.0,
+        time_decimals: int = 2,
+        minute_decimals: int = 5,
+        late_s: float = 0.0,
+        antenna_m: tuple[float, float] = (0.0, 0.0),  # (forward, starboard)
+        gga: bool = True,
+    ) -> None:
+        self.geo, self.rng = geo, rng
+        self.talker, self.period = talker, period_s
+        self.td, self.md = time_decimals, minute_decimals
+        self.late, self.antenna, self.gga = late_s, antenna_m, gga
+        self.next_t: float | None = None
+        self.err = [0.0, 0.0]  # a wandering error (m): tau 60 s, 0.5 m
+
+    def fix(self, m: Motion) -> tuple[float, float, float, float]:
+        """(lat, lon, sog kn, cog deg) of the antenna at ``m``."""
+        a = 1.0 - math.exp(-self.period / 60.0)
+        for i in (0, 1):
+            self.err[i] += a * (self.rng.gauss(0.0, 0.5) * math.sqrt(2.0 / a) - self.err[i])
+        h = math.radians(m.heading)
+        f, s = self.antenna
+        x = m.x + f * math.sin(h) + s * math.cos(h) + self.err[0]
+        y = m.y + f * math.cos(h) - s * math.sin(h) + self.err[1]
+        lat, lon = self.geo.to_latlon(x, y)
+        ve, vn = m.ve + self.rng.gauss(0.0, 0.03), m.vn + self.rng.gauss(0.0, 0.03)
+        return (
+            float(lat),
+            float(lon),
+            math.hypot(ve, vn) / KNOT,
+            math.degrees(math.atan2(ve, vn)) % 360,
+        )
+
+    def sentences(self, m: Motion, fix: tuple[float, float, float, float]) -> list[str]:
+        lat, lon, sog, cog = fix
+        la, ns = _angle(lat, 2, self.md, "NS")
+        lo, ew = _angle(lon, 3, self.md, "EW")
+        hms = _hhmmss(m.t, self.td)
+        out = [
+            sentence(
+                self.talker,
+                "RMC",
+                (hms, "A", la, ns, lo, ew, f"{sog:.1f}", f"{cog:.1f}", _ddmmyy(m.t), "", "", "A"),
+            )
+        ]
+        if self.gga:
+            gga = (hms, la, ns, lo, ew, "1", "09", "0.9", "12.0", "M", "0.0", "M", "", "")
+            out.append(sentence(self.talker, "GGA", gga))
+        return out
+
+
+class NmeaBus:
+    """Sentences due at each step; ``step`` gets the boat's true motion, returns (delay s, text)."""
+
+    def __init__(self, geo: Geo, seed: int, variation_deg: float, faults: set[str]) -> None:
+        # one random stream per device: a fault added leaves the other devices' noise as it was
+        self.rng = {k: random.Random(seed * 10 + i) for i, k in enumerate(("hdg", "rot", "vhw"))}
+        self.variation = variation_deg
+        self.faults = set(faults)
+        self.history: deque[Motion] = deque(maxlen=200)
+        self.gnss = Gnss(geo, random.Random(seed * 10 + 3))
+        self.gnss2 = Gnss(
+            geo,
+            random.Random(seed * 10 + 4),
+            period_s=2.0,
+            time_decimals=0,
+            minute_decimals=3,
+            late_s=1.0,
+            antenna_m=(0.0, 2.0),
+            gga=False,
+        )
+        self.relay_md = 3
+        self.next = {"gnss": 0.0, "gnss2": 0.0, "hdg": 0.0, "hdt": 0.0, "rot": 0.0, "vhw": 0.0}
+        self.period = {"gnss": 1.0, "gnss2": 2.0, "hdg": 0.2, "hdt": 1.0, "rot": 0.5, "vhw": 1.0}
+        self.damped: float | None = None
+        self.t_prev: float | None = None
+        self.last_fix: tuple[Motion, tuple[float, float, float, float]] | None = None
+
+    def _due(self, key: str, t: float) -> bool:
+        if t + 1e-9 < self.next[key]:
+            return False
+        self.next[key] = max(self.next[key] + self.period[key], t)
+        return True
+
+    def _damp(self, m: Motion) -> None:
+        if self.damped is None or self.t_prev is None:
+            self.damped = m.heading
+        else:
+            a = 1.0 - math.exp(-(m.t - self.t_prev) / 2.0)
+            d = (m.heading - self.damped + 180.0) % 360.0 - 180.0
+            self.damped = (self.damped + a * d) % 360.0
+        self.t_prev = m.t
+
+    def step(self, m: Motion) -> list[str]:
+        """Every sentence the bus sends at ``m.t`` (the second GNSS's describe 1 s earlier)."""
+        self.history.append(m)
+        self._damp(m)
+        out: list[str] = []
+        t = m.t
+        if self._due("gnss", t):
+            fix = self.gnss.fix(m)
+            out += self.gnss.sentences(m, fix)
+            self.last_fix = (m, fix)
+            if "relay_position" in self.faults:
+                lat, lon, sog, cog = fix
+                la, ns = _angle(lat, 2, self.relay_md, "NS")
+                lo, ew = _angle(lon, 3, self.relay_md, "EW")
+                f = (_hhmmss(t, 0), "A", la, ns, lo, ew, f"{sog:.1f}", f"{cog:.1f}", _ddmmyy(t))
+                out.append(sentence("II", "RMC", f + ("", "", "A")))
+        if "second_gnss" in self.faults and self._due("gnss2", t):
+            past = next((h for h in reversed(self.history) if h.t <= t - self.gnss2.late), None)
+            if past is not None:
+                out += self.gnss2.sentences(past, self.gnss2.fix(past))
+        if self._due("hdg", t):
+            mag = (m.heading - self.variation + self.rng["hdg"].gauss(0.0, 1.0)) % 360.0
+            var = f"{abs(self.variation):.1f}", "E" if self.variation >= 0 else "W"
+            out.append(sentence("HC", "HDG", (f"{mag:.1f}", "", "", *var)))
+        if "second_compass" in self.faults and self._due("hdt", t):
+            out.append(sentence("II", "HDT", (f"{self.damped:.1f}", "T")))
+        if "rate_of_turn" in self.faults and self._due("rot", t):
+            rot = m.yaw_rate * 60.0 + self.rng["rot"].gauss(0.0, 3.0)
+            out.append(sentence("TI", "ROT", (f"{rot:.1f}", "A")))
+        if self._due("vhw", t):
+            stw = max(m.stw + self.rng["vhw"].gauss(0.0, 0.02), 0.0) / KNOT
+            out.append(sentence("VW", "VHW", ("", "T", "", "M", f"{stw:.2f}", "N", "", "K")))
+        return out
