@@ -16,6 +16,7 @@ from typing import Any, TextIO
 from forcemap.host.acquire.status import flatten
 from forcemap.host.cli.common import add_force, add_json, add_output, write_json
 from forcemap.host.errors import CliError
+from forcemap.host.convert.sources_info import SourceCollector
 from forcemap.host.log.mcap import CHUNK_SIZE, LIBRARY, FileScan, iter_records
 from mcap.records import Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
@@ -81,6 +82,7 @@ class LogInfo:
     last_status: dict[str, Any] | None = None
     columns: dict[str, str] = field(default_factory=dict)
     winds: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
+    sources: SourceCollector = field(default_factory=SourceCollector)
 
     @property
     def start_ns(self) -> int:
@@ -168,7 +170,9 @@ def scan_file(path: str | os.PathLike[str]) -> LogInfo:
             ti.first_ns = min(ti.first_ns, record.log_time)
             ti.last_ns = max(ti.last_ns, record.log_time)
             ti.times.append(record.log_time)
-            if channel.topic == "/wind/true":
+            if channel.topic == "/source/reading":
+                info.sources.add(record.log_time, record.data)
+            elif channel.topic == "/wind/true":
                 _add_wind(info, record.data)
             elif channel.topic in ("/diagnostics", "/daemon/status", "/daemon/event"):
                 try:
@@ -185,6 +189,8 @@ def scan_file(path: str | os.PathLike[str]) -> LogInfo:
             info.metadata.append(record.name)
             if record.name == "columns":
                 info.columns = dict(record.metadata)
+            elif record.name == "sources":
+                info.sources.metadata(dict(record.metadata))
     info.complete = scan.complete and not scan.truncated
     info.truncated = scan.truncated
     info.error = scan.error
@@ -283,6 +289,8 @@ def print_info(info: LogInfo, out: TextIO | None = None) -> None:
         if len(gaps) > 50:
             w(f"    ... {len(gaps) - 50} more\n")
     _print_columns_and_winds(info, w)
+    for line in info.sources.lines():
+        w(line + "\n")
     errors = info.error_counters()
     if errors:
         w("\n  errors, rejections and gaps (last recorded counters):\n")
@@ -315,6 +323,7 @@ def info_json(info: LogInfo) -> dict[str, Any]:
         "errors": info.error_counters(),
         "columns": info.columns,
         "true_wind_routes": wind_routes(info),
+        "sources": info.sources.result(),
     }
 
 

@@ -89,7 +89,7 @@ class SampleAssembler:
         self.stw = _Reading(MAX_AGE_S["stw"])
         self.depth = _Reading(MAX_AGE_S["depth"])
         self.temp = _Reading(MAX_AGE_S["temp"])
-        self.nav: dict[str, str] = {}  # "position", "velocity", "heading", "throttle" -> label
+        self.nav: dict[str, str] = {}  # position, velocity, heading, yaw_rate, throttle -> source
         self.bridge = False
         self.stream_counts: Counter[str] = Counter()
         self.pace: str | None = None
@@ -273,7 +273,7 @@ class SampleAssembler:
         nav = self.nav
         pos, vel, hdg = nav.get("position", ""), nav.get("velocity", ""), nav.get("heading", "")
         fed: dict[str, str] = {"lat": pos, "lon": pos, "sog": vel, "cog": vel, "heading": hdg}
-        fed["yaw_rate"] = hdg
+        fed["yaw_rate"] = nav.get("yaw_rate") or hdg  # a rate-of-turn sensor, else the heading's slope
         fed["throttle"] = nav.get("throttle", "")
         for kind, cols in (
             ("depth", ("depth",)),
