@@ -273,7 +273,9 @@ class SampleAssembler:
         nav = self.nav
         pos, vel, hdg = nav.get("position", ""), nav.get("velocity", ""), nav.get("heading", "")
         fed: dict[str, str] = {"lat": pos, "lon": pos, "sog": vel, "cog": vel, "heading": hdg}
-        fed["yaw_rate"] = nav.get("yaw_rate") or hdg  # a rate-of-turn sensor, else the heading's slope
+        fed["yaw_rate"] = (
+            nav.get("yaw_rate") or hdg
+        )  # a rate-of-turn sensor, else the heading's slope
         fed["throttle"] = nav.get("throttle", "")
         for kind, cols in (
             ("depth", ("depth",)),
