@@ -6,6 +6,8 @@ tests hold on a busy machine.
 
 from __future__ import annotations
 
+import json
+import os
 import signal
 import socket
 import time
@@ -137,6 +139,17 @@ def test_nmea_only_boat_with_two_instruments_on_ptys(tmp_path):
         m.message for m in read_messages(path, "/daemon/event") if m.message["event"] == "start"
     )
     assert start["sources"] == ["depth", "nmea"] and set(start["absent"]) == {"bridge", "mavlink"}
+    # the sources metadata (issue 20): the one used per quantity, written at the end of the run
+    sources = _metadata(path, "sources")
+    assert json.loads(sources["position"])["chosen"] == "nmea GPRMC [hhmmss.ss 3dp]"
+    assert json.loads(sources["depth"])["chosen"] == "depth SDDPT"
+
+
+def _metadata(path: Path, name: str) -> dict[str, str]:
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        return [dict(m.metadata) for m in make_reader(f).iter_metadata() if m.name == name][-1]
 
 
 def test_nmea_over_udp_like_a_multiplexer(tmp_path):
@@ -194,7 +207,13 @@ def test_nmea_connection_strings():
             nmea_opener(bad)
 
 
-REAL_NMEA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "nmea"
+REAL_NMEA = (
+    Path(
+        os.environ.get("FORCEMAP_REAL_DATA")
+        or Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+    )
+    / "nmea"
+)
 
 
 def independent_counts(lines: list[bytes]) -> Counter:

@@ -187,6 +187,9 @@ def start_clock(spec: str, wait_s: float) -> Clock:
     return clock
 
 
+SOURCES_PERIOD_S = 600.0  # the sources' comparison and latency, into the log's metadata
+
+
 def _pipeline_factory(
     cal: Any, sync: str, speed: float, sample_rate_hz: float | None = None
 ) -> Callable[[Any], Any]:
@@ -198,7 +201,14 @@ def _pipeline_factory(
         # how long a sample waits for the autopilot is host time: a busy machine's stall is
         # `speed` times longer on an accelerated simulator's clock
         hold_s = pipeline.HOLD_S * max(1.0, speed)
-        return pipeline.Pipeline(cal, sink, sync=sync, hold_s=hold_s, sample_rate_hz=sample_rate_hz)
+        return pipeline.Pipeline(
+            cal,
+            sink,
+            sync=sync,
+            hold_s=hold_s,
+            sample_rate_hz=sample_rate_hz,
+            sources_period_s=SOURCES_PERIOD_S,
+        )
 
     return make
 

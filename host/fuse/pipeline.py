@@ -110,6 +110,7 @@ class Pipeline:
         rate_lag: bool = True,
         hold_s: float = HOLD_S,
         sample_rate_hz: float | None = None,
+        sources_period_s: float | None = None,
     ) -> None:
         self.cal = cal = calibration if calibration is not None else Calibration()
         self.hold_s = hold_s
@@ -143,6 +144,9 @@ class Pipeline:
         self._rate_ref: tuple[float, dict[str, int]] | None = None
         self.rates: dict[str, float] = {}
         self.diag_period_s = diagnostics_period_s
+        # a long run records its sources every period (each rotated file gets the latest)
+        self.sources_period_s = sources_period_s
+        self._sources_t: float | None = None
         self.closed = False
 
         self.sink.metadata("calibration", cal.as_metadata())
@@ -253,8 +257,7 @@ class Pipeline:
             self.nmea.flush(self.now)
             self.assembler.drain(self.now, final=True)
             self._diagnostics(self.now)
-            if self.selector.chosen:
-                self.sink.metadata("sources", sources_metadata(self.selector))
+            self._sources()
         except Exception:
             self.internal("close")
 
@@ -332,3 +335,14 @@ class Pipeline:
         self._rate_ref = (t, tot)
         self._diag_t = t
         self.write("/diagnostics", t, Diagnostics(t, self.counters()))
+        if self.sources_period_s is not None:
+            if self._sources_t is None:
+                self._sources_t = t
+            elif t - self._sources_t >= self.sources_period_s:
+                self._sources_t = t
+                self._sources()
+
+    def _sources(self) -> None:
+        """The ``sources`` metadata: each source's disagreement with the one used, and latency."""
+        if self.selector.chosen:
+            self.sink.metadata("sources", sources_metadata(self.selector))
