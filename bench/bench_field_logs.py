@@ -6,6 +6,10 @@ is the `forcemap` command a user types, run in this process through `forcemap.ho
 printed as ratios to the import, the baseline measured in the same run.
 
     python bench/bench_field_logs.py [--capture PATH] [-o /tmp/forcemap-bench-field]
+    python bench/bench_field_logs.py --sources-only    # the source and latency figures alone
+
+Then, for every real NMEA capture, the sources per quantity, their disagreement and latency, and
+the speed from positions against SOG (bench/field_sources.py, issue 20).
 """
 
 from __future__ import annotations
@@ -21,6 +25,8 @@ import time
 from pathlib import Path
 
 from forcemap.host.cli import main as forcemap
+
+from bench.field_sources import report as sources_report
 
 DEFAULT = Path(__file__).resolve().parents[2] / "shared/data/real/nmea/PacCupStartNMEA.txt"
 TARGETS = ("current_speed", "wind_speed", "depth")
@@ -56,7 +62,11 @@ def main() -> None:
     ap.add_argument(
         "-o", "--output", "--out", dest="out", type=Path, default=Path("/tmp/forcemap-bench-field")
     )
+    ap.add_argument("--sources-only", action="store_true", help="only the sources' figures")
     args = ap.parse_args()
+    if args.sources_only:
+        print("\n".join(sources_report(args.capture.parent)))
+        return
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
     mcap, table = args.out / "survey.mcap", args.out / "survey.csv"
@@ -91,6 +101,8 @@ def main() -> None:
         print(f"  {c['covariate']:<20} gain {100 * c['improvement']:+5.1f} %{extra}")
     if d.get("advice"):
         print(f"advice: {d['advice']}")
+    print("\nsources of every real NMEA capture (issue 20):")
+    print("\n".join(sources_report(args.capture.parent)))
 
 
 if __name__ == "__main__":

@@ -300,6 +300,8 @@ def test_ports_river_10_minutes(tmp_path: Path) -> None:
     )
     for s in SOURCES:
         assert b"".join(d for _, d in streams[s]) == b"".join(d for _, d in ref[s])
+        if not ref[s]:
+            continue  # the NMEA bus's port is silent without its faults (issue 20)
         sent_end = np.cumsum([len(d) for _, d in ref[s]])
         got_end = np.cumsum([len(d) for _, d in streams[s]])
         sent_t = np.array([t for t, _ in ref[s]], dtype=np.int64)

@@ -5,7 +5,9 @@ their difference at the same instants, and the lag that best aligns them by cros
 a signal that does not depend on a constant offset (the velocity for positions, the rate of turn
 for headings, the mean-removed value otherwise). Its latency is the same lag against the position
 source: positions by their velocity, headings by the course over ground's rate of turn, speed
-through water by the speed over ground. A positive lag or latency: the source is late.
+through water by the speed over ground (their accelerations). A positive lag or latency: the source is
+late. An NMEA capture has no receive times (the import spreads its lines between the sentences' UTC
+stamps), so there the figures are only as good as that spread.
 """
 
 from __future__ import annotations
@@ -197,7 +199,10 @@ def latency(quantity: str, tr: Track, pos: Track | None) -> float | None:
     elif quantity in ANGULAR:
         ref = _course_rate(pos, grid)
     elif quantity in ("stw", "velocity"):
-        ref = _sog(pos, grid)
+        # accelerations: the current between them drifts slowly, their changes are the boat's
+        ref = np.gradient(_sog(pos, grid), GRID_S, axis=0)
+        sig = np.gradient(signal(quantity, tr, grid, origin), GRID_S, axis=0)
+        return best_lag(ref, sig)
     else:
         return None
     return best_lag(ref, signal(quantity, tr, grid, origin))

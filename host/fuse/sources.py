@@ -204,7 +204,7 @@ class SourceSelector:
         return WHY["quality"]
 
     def chosen_track(self, quantity: str) -> str:
-        """The source (sentence) of the chosen group with the most readings used."""
+        """The best-ranked source (sentence) of the chosen group: RMC of a receiver's RMC and GGA."""
         members = [tr for tr in self.tracks[quantity].values() if tr.used]
         key = self.chosen.get(quantity, "")
         stem, _, fp = key.partition("*")
@@ -213,7 +213,7 @@ class SourceSelector:
             for tr in members
             if tr.name == key or (fp and tr.name.startswith(stem) and tr.name.endswith(fp))
         ]
-        best = max(inside or members, key=lambda tr: tr.used, default=None)
+        best = min(inside or members, key=lambda tr: (tr.rank, -tr.used), default=None)
         return best.name if best else ""
 
     def summary(self) -> dict[str, Any]:
