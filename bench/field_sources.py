@@ -81,7 +81,11 @@ def report(real_nmea: Path) -> list[str]:
                 f"  {q:<10} used {d['chosen']} ({d['why']}), {len(d['sources'])} source(s)"
             )
             for name, r in d["sources"].items():
-                if name == d["chosen"] and r.get("latency_s") in (None, 0.0):
+                if (
+                    name == d["chosen"]
+                    and r.get("latency_s") in (None, 0.0)
+                    and not r.get("latency_note")
+                ):
                     continue
                 lines.append(
                     f"    {name:<30} {r['rate_hz']:5.2f} Hz share {100 * (r['share'] or 0):3.0f} %"

@@ -24,6 +24,7 @@ MAX_LAG_S = 30.0
 MAX_GAP_S = 5.0  # no interpolation across a longer silence
 MIN_OVERLAP = 50  # grid points in common for a lag to mean anything
 MIN_SOG = 0.5  # m/s: below, the course over ground is noise
+MIN_CORR = 0.3  # a correlation peak below this is not a lag: reported as none, with its value
 EARTH_R = 6_371_000.0
 ANGULAR = {"heading"}
 UNITS = {
@@ -108,12 +109,16 @@ def signal(quantity: str, tr: Track, grid: np.ndarray, origin: tuple[float, floa
     return (y - np.nanmean(y))[:, None] if np.isfinite(y).any() else y[:, None]
 
 
-def best_lag(ref: np.ndarray, sig: np.ndarray, max_lag_s: float = MAX_LAG_S) -> float | None:
-    """The lag (s) of ``sig`` behind ``ref`` that maximises their correlation; None if unknown."""
+Lag = tuple[float | None, float | None]  # (lag s or None, the peak correlation or None)
+
+
+def best_lag(ref: np.ndarray, sig: np.ndarray, max_lag_s: float = MAX_LAG_S) -> Lag:
+    """The lag (s) of ``sig`` behind ``ref`` that maximises their correlation, and that peak;
+    the lag is None if unknown or if the peak is below MIN_CORR."""
     n = len(ref)
     kmax = min(int(max_lag_s / GRID_S), n - MIN_OVERLAP)
     if kmax < 0:
-        return None
+        return None, None
     scores = []
     for k in range(-kmax, kmax + 1):
         a = ref[max(0, -k) : n - max(0, k)]
@@ -127,13 +132,16 @@ def best_lag(ref: np.ndarray, sig: np.ndarray, max_lag_s: float = MAX_LAG_S) -> 
         scores.append(float((a0 * b0).sum()) / den if den > 0 else np.nan)
     sc = np.asarray(scores)
     if not np.isfinite(sc).any():
-        return None
+        return None, None
     i = int(np.nanargmax(sc))
+    peak = float(sc[i])
+    if peak < MIN_CORR:
+        return None, peak
     shift = 0.0
     if 0 < i < len(sc) - 1 and np.isfinite(sc[i - 1]) and np.isfinite(sc[i + 1]):
         d = sc[i - 1] - 2 * sc[i] + sc[i + 1]
         shift = 0.5 * (sc[i - 1] - sc[i + 1]) / d if d < 0 else 0.0
-    return (i - kmax + shift) * GRID_S
+    return (i - kmax + shift) * GRID_S, peak
 
 
 def difference(quantity: str, tr: Track, ref: Track) -> np.ndarray:
@@ -186,13 +194,13 @@ def _grid(*tracks: Track) -> np.ndarray:
     return np.arange(t0, t1, GRID_S)
 
 
-def latency(quantity: str, tr: Track, pos: Track | None) -> float | None:
+def latency(quantity: str, tr: Track, pos: Track | None) -> Lag:
     """``tr``'s lag behind the position source (positions, headings, speed through water)."""
     if pos is None or len(pos.t) < 2 or len(tr.t) < 2:
-        return None
+        return None, None
     grid = _grid(tr, pos)
     if not len(grid):
-        return None
+        return None, None
     origin = _origin(pos)
     if quantity == "position":
         ref = signal("position", pos, grid, origin)
@@ -204,7 +212,7 @@ def latency(quantity: str, tr: Track, pos: Track | None) -> float | None:
         sig = np.gradient(signal(quantity, tr, grid, origin), GRID_S, axis=0)
         return best_lag(ref, sig)
     else:
-        return None
+        return None, None
     return best_lag(ref, signal(quantity, tr, grid, origin))
 
 
@@ -230,14 +238,16 @@ def compare(
             row["diff_median"] = _stat(d, np.median)
             row["diff_p95"] = _stat(np.abs(d), lambda x: np.percentile(x, 95))
             grid = _grid(tr, ref)
-            lag = None
+            lag, peak = None, None
             if len(grid):
                 origin = _origin(ref)
-                lag = best_lag(
-                    signal(quantity, ref, grid, origin), signal(quantity, tr, grid, origin)
-                )
+                sig = signal(quantity, tr, grid, origin)
+                lag, peak = best_lag(signal(quantity, ref, grid, origin), sig)
             row["lag_s"] = None if lag is None else round(lag, 2)
-        lat = latency(quantity, tr, position) if tr is not position else 0.0
+            row["lag_r"] = None if peak is None else round(peak, 2)
+        lat, peak = latency(quantity, tr, position) if tr is not position else (0.0, 1.0)
+        if lat is None and peak is not None:
+            row["latency_note"] = f"no clear correlation peak (r = {peak:.2f})"
         if lat is not None and abs(lat) >= MAX_LAG_S - GRID_S:
             row["latency_note"] = f"at the edge of the search (+-{MAX_LAG_S:g} s): not a latency"
             lat = None
