@@ -24,6 +24,7 @@ MAX_LAG_S = 30.0
 MAX_GAP_S = 5.0  # no interpolation across a longer silence
 MIN_OVERLAP = 50  # grid points in common for a lag to mean anything
 MIN_SOG = 0.5  # m/s: below, the course over ground is noise
+NEAR_S = 3.0
 MIN_CORR = 0.3  # a correlation peak below this is not a lag: reported as none, with its value
 EARTH_R = 6_371_000.0
 ANGULAR = {"heading"}
@@ -112,36 +113,81 @@ def signal(quantity: str, tr: Track, grid: np.ndarray, origin: tuple[float, floa
 Lag = tuple[float | None, float | None]  # (lag s or None, the peak correlation or None)
 
 
+def _score(ref: np.ndarray, sig: np.ndarray, k: int) -> float:
+    """The correlation of ``sig`` shifted ``k`` grid steps later against ``ref`` (NaN if short)."""
+    n = len(ref)
+    a = ref[max(0, -k) : n - max(0, k)]
+    b = sig[max(0, k) : n - max(0, -k)]
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    if ok.sum() < MIN_OVERLAP:
+        return math.nan
+    a0, b0 = a[ok] - a[ok].mean(axis=0), b[ok] - b[ok].mean(axis=0)
+    den = math.sqrt(float((a0 * a0).sum()) * float((b0 * b0).sum()))
+    return float((a0 * b0).sum()) / den if den > 0 else math.nan
+
+
+def _coarse(ref: np.ndarray, sig: np.ndarray, kmax: int) -> np.ndarray:
+    """Approximate correlations at lags -kmax..kmax by FFT (gaps as zeros, scaled by overlap)."""
+    n = len(ref)
+    ma = np.isfinite(ref).all(axis=1)
+    mb = np.isfinite(sig).all(axis=1)
+    a = np.where(ma[:, None], ref - np.nanmean(ref[ma], axis=0), 0.0) if ma.any() else ref * 0
+    b = np.where(mb[:, None], sig - np.nanmean(sig[mb], axis=0), 0.0) if mb.any() else sig * 0
+    size = 1 << (2 * n - 1).bit_length()
+
+    def xcorr(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        c = np.fft.irfft(
+            np.conj(np.fft.rfft(x, size, axis=0)) * np.fft.rfft(y, size, axis=0), size, axis=0
+        )
+        c = c.sum(axis=1) if c.ndim > 1 else c
+        return np.concatenate([c[size - kmax :], c[: kmax + 1]])
+
+    num = xcorr(a, b)
+    overlap = xcorr(ma.astype(float), mb.astype(float))
+    den = math.sqrt(float((a * a).sum()) * float((b * b).sum()))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = num / den * (min(ma.sum(), mb.sum()) / overlap)
+    out[overlap < max(MIN_OVERLAP, 0.5 * float(overlap.max()))] = np.nan
+    return out
+
+
 def best_lag(ref: np.ndarray, sig: np.ndarray, max_lag_s: float = MAX_LAG_S) -> Lag:
     """The lag (s) of ``sig`` behind ``ref`` that maximises their correlation, and that peak;
-    the lag is None if unknown or if the peak is below MIN_CORR."""
+    the lag is None if unknown or if the peak is below MIN_CORR. The peak is found by FFT, then
+    scored exactly with its neighbours (which refine it to a fraction of a grid step)."""
     n = len(ref)
     kmax = min(int(max_lag_s / GRID_S), n - MIN_OVERLAP)
-    if kmax < 0:
+    if kmax < 0 or den_zero(ref) or den_zero(sig):
         return None, None
-    scores = []
-    for k in range(-kmax, kmax + 1):
-        a = ref[max(0, -k) : n - max(0, k)]
-        b = sig[max(0, k) : n - max(0, -k)]
-        ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
-        if ok.sum() < MIN_OVERLAP:
-            scores.append(np.nan)
-            continue
-        a0, b0 = a[ok] - a[ok].mean(axis=0), b[ok] - b[ok].mean(axis=0)
-        den = math.sqrt(float((a0 * a0).sum()) * float((b0 * b0).sum()))
-        scores.append(float((a0 * b0).sum()) / den if den > 0 else np.nan)
-    sc = np.asarray(scores)
-    if not np.isfinite(sc).any():
+    coarse = _coarse(ref, sig, kmax)
+    if not np.isfinite(coarse).any():
         return None, None
-    i = int(np.nanargmax(sc))
-    peak = float(sc[i])
+    # scored exactly: the five best coarse lags with their neighbours, and every lag within
+    # NEAR_S of zero (where latencies are; the FFT's gap handling is rough on sparse sources)
+    top = np.argsort(np.nan_to_num(coarse, nan=-np.inf))[::-1][:5] - kmax
+    ks = {k for k0 in top for k in range(max(-kmax, k0 - 2), min(kmax, k0 + 2) + 1)}
+    near = min(kmax, int(NEAR_S / GRID_S))
+    ks |= set(range(-near, near + 1))
+    exact = {k: _score(ref, sig, k) for k in sorted(ks)}
+    finite = {k: v for k, v in exact.items() if math.isfinite(v)}
+    if not finite:
+        return None, None
+    k = max(finite, key=finite.__getitem__)
+    peak = finite[k]
     if peak < MIN_CORR:
         return None, peak
     shift = 0.0
-    if 0 < i < len(sc) - 1 and np.isfinite(sc[i - 1]) and np.isfinite(sc[i + 1]):
-        d = sc[i - 1] - 2 * sc[i] + sc[i + 1]
-        shift = 0.5 * (sc[i - 1] - sc[i + 1]) / d if d < 0 else 0.0
-    return (i - kmax + shift) * GRID_S, peak
+    lo, hi = exact.get(k - 1, math.nan), exact.get(k + 1, math.nan)  # neighbours are in ks
+    if math.isfinite(lo) and math.isfinite(hi):
+        d = lo - 2 * peak + hi
+        shift = 0.5 * (lo - hi) / d if d < 0 else 0.0
+    return (k + shift) * GRID_S, peak
+
+
+def den_zero(x: np.ndarray) -> bool:
+    """True when ``x`` has no finite row, or no variation (nothing to correlate)."""
+    ok = np.isfinite(x).all(axis=1)
+    return not ok.any() or float(np.ptp(x[ok], axis=0).max()) == 0.0
 
 
 def difference(quantity: str, tr: Track, ref: Track) -> np.ndarray:
