@@ -14,6 +14,7 @@ An import that gives no samples says why in one line (no position, no time, no m
 
 from __future__ import annotations
 
+import json
 import struct
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -261,7 +262,24 @@ def import_tlog(
     return res
 
 
+def source_notes(report: dict[str, str]) -> list[str]:
+    """One line per quantity with several sources: the one used, and each other one's latency."""
+    out = []
+    for q, text in report.items():
+        d = json.loads(text)
+        others = [(n, r) for n, r in d["sources"].items() if n != d["chosen"]]
+        if not others:
+            continue
+        late = [
+            f"{n} (latency {r['latency_s']:+.2f} s)" if r.get("latency_s") is not None else n
+            for n, r in others
+        ]
+        out.append(f"{q}: used {d['chosen']} ({d['why']}); also {', '.join(late)}")
+    return out
+
+
 def _check_errors(pipe: Pipeline, res: ImportResult) -> None:
+    res.notes.extend(source_notes(pipe.sources_report))
     if pipe.errors:
         res.notes.append(
             f"internal errors: {dict(pipe.errors)}; last: {pipe.last_error.strip().splitlines()[-1]}"

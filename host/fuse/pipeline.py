@@ -147,6 +147,7 @@ class Pipeline:
         # a long run records its sources every period (each rotated file gets the latest)
         self.sources_period_s = sources_period_s
         self._sources_t: float | None = None
+        self.sources_report: dict[str, str] = {}  # the last ``sources`` metadata written
         self.closed = False
 
         self.sink.metadata("calibration", cal.as_metadata())
@@ -345,4 +346,5 @@ class Pipeline:
     def _sources(self) -> None:
         """The ``sources`` metadata: each source's disagreement with the one used, and latency."""
         if self.selector.chosen:
-            self.sink.metadata("sources", sources_metadata(self.selector))
+            self.sources_report = sources_metadata(self.selector)
+            self.sink.metadata("sources", self.sources_report)

@@ -45,7 +45,7 @@ SENTENCE_ORDER = {
 WHY = {
     "priority": "listed first in the boat file's [sources]",
     "quality": "best by the default quality order",
-    "only": "the only source",
+    "only": "the only instrument",
     "fallback": "the preferred source was silent",
 }
 
