@@ -95,7 +95,7 @@ def test_log_info_shows_two_receivers_and_two_compasses(faulty, capsys):
     ):
         assert name in section, name
     assert "best by the default quality order" in section and "lag +1." in section
-    assert main(["log", "info", "--json", path]) == 0
+    assert main(["log", "info", path, "--json", "-"]) == 0
     (info,) = json.loads(capsys.readouterr().out)
     hdt = info["sources"]["heading"]["sources"]["nmea IIHDT"]
     assert hdt["diff_p95"] > 2.0 and hdt["used"] == 0

@@ -15,8 +15,8 @@ from typing import Any, TextIO
 
 from forcemap.host.acquire.status import flatten
 from forcemap.host.cli.common import add_force, add_json, add_output, write_json
-from forcemap.host.errors import CliError
 from forcemap.host.convert.sources_info import SourceCollector
+from forcemap.host.errors import CliError
 from forcemap.host.log.mcap import CHUNK_SIZE, LIBRARY, FileScan, iter_records
 from mcap.records import Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
