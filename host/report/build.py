@@ -17,12 +17,11 @@ import numpy as np
 from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
 from forcemap.host.report.mission_section import mission_section
-from forcemap.host.workbench import clock_offset, plots
+from forcemap.host.workbench import plots
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
-from forcemap.host.workbench.fitting import refit_or_restore
-from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.fitting import latest_terms, map_terms, refit_or_restore
 from forcemap.host.workbench.table import Survey
 from forcemap.host.workbench.targets import SurveyModel
 from forcemap.host.workbench.workspace import load_diagnoses, load_history, workspace_dir
@@ -72,29 +71,6 @@ def img(fig, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
-def _latest_terms(history: list[dict], target: str) -> list[str]:
-    for h in reversed(history):
-        if h["target"] == target:
-            return h["terms"]
-    return list(BASELINE)
-
-
-def _map_terms(survey: Survey, history: list[dict], target: str) -> list[str]:
-    """The target's latest terms; a clock offset fitted for any aspect of the same vector (wind_dir, say)
-    corrects the whole vector, so the map of its speed uses it too."""
-    terms = _latest_terms(history, target)
-    vt = survey.vector_target(target)
-    if vt is None or clock_offset.split_terms(terms)[1] is not None:
-        return terms
-    for h in reversed(history):
-        other = survey.vector_target(h["target"])
-        if other is not None and other.prefix == vt.prefix:
-            offset = [t for t in h["terms"] if clock_offset.split_terms([t])[1] is not None]
-            if offset:
-                return terms + offset
-    return terms
-
-
 def header_section(ctx: ReportContext) -> list[str]:
     survey = ctx.survey
     dur = float(survey.trel.max()) / 60.0
@@ -129,7 +105,7 @@ def maps_section(ctx: ReportContext) -> list[str]:
     grid = np.column_stack([X.ravel(), Y.ravel()])
     for target, label, arrows in MAPPED:
         try:
-            terms = _map_terms(survey, ctx.history, target)
+            terms = map_terms(survey, ctx.history, target)
             note(f"report: mapping {target} ({' + '.join(terms)}) ...", ctx.progress)
             pred = ctx.model(target, terms).predict_grid(grid)
         except WorkbenchError as exc:
@@ -161,7 +137,7 @@ def residuals_section(ctx: ReportContext) -> list[str]:
 def _target_residuals(ctx: ReportContext, target: str) -> list[str]:
     survey = ctx.survey
     try:
-        terms = _latest_terms(ctx.history, target)
+        terms = latest_terms(ctx.history, target)
         note(f"report: residuals of {target} ...", ctx.progress)
         sm = ctx.model(target, terms)
         cv = sm.cv(blocked_folds(survey.xy)[0])

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.progress import note
+from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, random_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
@@ -140,6 +141,30 @@ def refit_or_restore(
         except WorkbenchError:
             break
     return SurveyModel(survey, target, terms).fit()
+
+
+def latest_terms(history: list[dict], target: str) -> list[str]:
+    """The terms of the history's latest fit of `target` (the paper's baseline if there is none)."""
+    for h in reversed(history):
+        if h["target"] == target:
+            return h["terms"]
+    return list(BASELINE)
+
+
+def map_terms(survey: Survey, history: list[dict], target: str) -> list[str]:
+    """The target's latest terms; a clock offset fitted for any aspect of the same vector (wind_dir, say)
+    corrects the whole vector, so the map of its speed uses it too."""
+    terms = latest_terms(history, target)
+    vt = survey.vector_target(target)
+    if vt is None or clock_offset.split_terms(terms)[1] is not None:
+        return terms
+    for h in reversed(history):
+        other = survey.vector_target(h["target"])
+        if other is not None and other.prefix == vt.prefix:
+            offset = [t for t in h["terms"] if clock_offset.split_terms([t])[1] is not None]
+            if offset:
+                return terms + offset
+    return terms
 
 
 def save_residual_plots(table: Path, result: FitResult, fit_no: int) -> list[Path]:

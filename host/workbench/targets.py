@@ -290,4 +290,7 @@ class SurveyModel:
             "north": north,
             "speed": np.hypot(east, north),
             "speed_std": np.sqrt(sa**2 + sc**2),
+            # the along and across components are independent: rotate their variances
+            "east_std": np.sqrt((sa * ue) ** 2 + (sc * un) ** 2),
+            "north_std": np.sqrt((sa * un) ** 2 + (sc * ue) ** 2),
         }

@@ -1,0 +1,212 @@
+"""The Python API (`import forcemap`): read a survey, fit a target, grid it, write it for GIS.
+
+Thin on purpose: each call is the code a command runs (`load_survey`, `fit_target`, `diagnose`, the
+workspace's latest-fit rule of `report` and `plan`, `host.gis`). `Fit` follows scikit-learn's conventions:
+`__init__` stores its arguments, `fit(survey)` returns the fit, fitted state ends in `_` (`cv_rmse` and
+the other summaries are read-only views of it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.spec import BASELINE, check_terms, split_effects
+from forcemap.host.workbench.table import Survey as _Table
+from forcemap.host.workbench.table import load_survey
+
+DEFAULT_RESOLUTION_M = 5.0
+
+
+def read_survey(path: str | Path) -> Survey:
+    """A samples table (CSV, Parquet, or an MCAP log from `forcemap run`), validated, as a `Survey`."""
+    return Survey(load_survey(path))
+
+
+class Survey:
+    """A survey: its samples in SI units (`table`, the workbench's `Survey`) and its workspace beside it."""
+
+    def __init__(self, table: _Table) -> None:
+        self.table = table
+
+    @property
+    def path(self) -> Path:
+        return Path(self.table.source)
+
+    @property
+    def n(self) -> int:
+        return self.table.n
+
+    @property
+    def columns(self) -> list[str]:
+        return list(self.table.columns)
+
+    @property
+    def notes(self) -> list[str]:
+        return list(self.table.notes)
+
+    def __repr__(self) -> str:
+        return f"Survey({str(self.path)!r}, n={self.n})"
+
+    def fit(
+        self,
+        target: str,
+        effects: Iterable[str] | str = (),
+        terms: Sequence[str] | None = None,
+        folds: str = "blocked",
+        record: bool = False,
+        progress: bool = False,
+    ) -> Fit:
+        """Fit `target` with the baseline plus `effects` (or exactly `terms`); `record` saves it in the
+        workspace as `forcemap fit` does."""
+        return Fit(target, effects, terms, folds).fit(self, record=record, progress=progress)
+
+    def latest_fit(self, target: str, progress: bool = False) -> Fit:
+        """The workspace's latest fit of `target` (the rule of `report` and `plan`): its terms, rebuilt
+        from its saved hyperparameters when they fit this table; the baseline if there is no fit."""
+        from forcemap.host.workbench.fitting import map_terms, refit_or_restore
+        from forcemap.host.workbench.workspace import load_history, workspace_dir
+
+        ws = workspace_dir(self.path, create=False)
+        history = load_history(ws) if ws.is_dir() else []
+        terms = map_terms(self.table, history, target)
+        check_terms(terms)
+        fit = Fit(target, terms=terms)
+        fit.model_ = refit_or_restore(ws, history, self.table, target, terms, progress)
+        fit.survey_, fit.result_ = self, None
+        return fit
+
+    def grid(
+        self,
+        fits: Iterable[Fit],
+        resolution: float = DEFAULT_RESOLUTION_M,
+        max_distance: float | None = None,
+    ):
+        """The fits' maps on one grid in the survey's UTM zone (`host.gis.grid.MapGrid`)."""
+        from forcemap.host.gis import need_gis
+        from forcemap.host.gis.grid import evaluate, make_grid
+
+        need_gis()
+        fits = list(fits)
+        prefixes = [f.model_.vector.prefix for f in fits if f.model_.secondary is not None]
+        if len(set(prefixes)) < len(prefixes):
+            raise WorkbenchError(
+                "two targets map the same vector (say current_speed and current_dir); give one of them"
+            )
+        grid = make_grid(self.table, resolution, max_distance)
+        for f in fits:
+            grid.layers[f.target] = evaluate(grid, f.model_)
+        return grid
+
+
+class Fit:
+    """A model of one target on one survey: `Fit(target, effects).fit(survey)`."""
+
+    def __init__(
+        self,
+        target: str,
+        effects: Iterable[str] | str = (),
+        terms: Sequence[str] | None = None,
+        folds: str = "blocked",
+    ) -> None:
+        self.target = target
+        self.effects = effects
+        self.terms = terms
+        self.folds = folds
+
+    def get_params(self, deep: bool = True) -> dict:
+        return {k: getattr(self, k) for k in ("target", "effects", "terms", "folds")}
+
+    def _terms(self) -> list[str]:
+        if self.terms is not None:
+            return list(self.terms)
+        effects = split_effects(self.effects) if isinstance(self.effects, str) else self.effects
+        return list(BASELINE) + [e for e in effects if e not in BASELINE]
+
+    def fit(self, survey: Survey, record: bool = False, progress: bool = False) -> Fit:
+        """Fit and cross-validate (spatially blocked folds) on `survey`; returns self."""
+        from forcemap.host.workbench import fitting
+        from forcemap.host.workbench.model import small_blas
+
+        terms = self._terms()
+        check_terms(terms)
+        with small_blas():
+            self.result_ = fitting.fit_target(survey.table, self.target, terms, self.folds, progress)
+        self.model_, self.survey_ = self.result_.model, survey
+        self.entry_ = fitting.record(survey.path, self.result_) if record else None
+        return self
+
+    def _fitted(self):
+        if not hasattr(self, "model_"):
+            from forcemap.host.workbench.model import NotFittedError
+
+            raise NotFittedError("this Fit is not fitted yet: call fit(survey) first")
+        return self.model_
+
+    def _cv(self):
+        self._fitted()
+        if self.result_ is None:  # restored from the workspace: cross-validate on first use
+            from forcemap.host.workbench.fitting import make_folds
+
+            self.cv_ = self.model_.cv(make_folds(self.model_.survey, self.folds))
+            return self.cv_
+        return self.result_.cv
+
+    @property
+    def cv_rmse(self) -> float:
+        """Cross-validated RMSE (blocked folds)."""
+        return float(self._cv().rmse)
+
+    @property
+    def cv_mae(self) -> float:
+        return float(self._cv().mae)
+
+    @property
+    def coverage95(self) -> float:
+        return float(self._cv().coverage95)
+
+    def __repr__(self) -> str:
+        terms = " + ".join(self.model_.terms) if hasattr(self, "model_") else "not fitted"
+        return f"Fit({self.target!r}: {terms})"
+
+    def predict(self, lat, lon) -> dict[str, np.ndarray]:
+        """The model at positions (degrees): `mean` and `std` (and east/north/speed for a vector)."""
+        from forcemap.host.workbench.cleaning import local_frame
+
+        model = self._fitted()
+        s = model.survey
+        x, y = local_frame(np.atleast_1d(lat), np.atleast_1d(lon), s.lat0, s.lon0)
+        return model.predict_grid(np.column_stack([x, y]))
+
+    def diagnose(self, rounds: int = 1, progress: bool = False):
+        """Which physical effect this model is missing (`forcemap diagnose`): a `Diagnosis`."""
+        from forcemap.host.workbench.diagnose.rounds import diagnose
+        from forcemap.host.workbench.model import small_blas
+
+        model = self._fitted()
+        with small_blas():
+            return diagnose(self.survey_.table, self.target, model.terms, rounds, progress=progress)
+
+    def grid(self, resolution: float = DEFAULT_RESOLUTION_M, max_distance: float | None = None):
+        """This fit's map on a grid in the survey's UTM zone (`MapGrid`)."""
+        self._fitted()
+        return self.survey_.grid([self], resolution, max_distance)
+
+    def to_xarray(self, resolution: float = DEFAULT_RESOLUTION_M, max_distance: float | None = None):
+        """The map as a CF-1.8 `xarray.Dataset` (what `forcemap grid -o maps.nc` writes)."""
+        from forcemap.host.gis.netcdf import to_dataset
+
+        return to_dataset(self.grid(resolution, max_distance))
+
+    def to_geotiff(
+        self, path: str | Path, resolution: float = DEFAULT_RESOLUTION_M, force: bool = False
+    ) -> Path:
+        """Write the map as a Cloud Optimized GeoTIFF (an existing file only with `force`)."""
+        from forcemap.host.gis.geotiff import write_geotiff
+        from forcemap.host.outputs import check_output
+
+        out = check_output(path, [self.survey_.path], force=force)
+        grid = self.grid(resolution)
+        return write_geotiff(grid, grid.layers[self.target], out)

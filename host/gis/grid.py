@@ -1,0 +1,223 @@
+"""Maps on a regular grid in the survey's UTM zone: the cells, their lat/lon, the mask, and the model's values.
+
+The chain from a cell to a value: the cell centre (UTM easting, northing) -> lat/lon (pyproj, WGS 84) -> the
+survey's local frame (`cleaning.local_frame`, metres east/north of its centre, where the models were fitted)
+-> the model's prediction. Cells farther than `max_distance` from every sample are masked (NaN): a map is
+only as good as where the boat went.
+
+The zone is the one holding the survey's centre (EPSG's own areas, so Norway's and Svalbard's exceptions
+hold). A survey that spans a zone boundary is gridded in its centre's zone, with a note: a transverse
+Mercator projection stays conformal and within 1e-3 of scale a few degrees past its zone's edge, far more
+than any boat survey. Beyond UTM's limits (north of 84 N, south of 80 S) the survey is refused in one line,
+never projected wrongly.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.table import Survey
+from scipy.spatial import cKDTree
+
+UTM_NORTH_LIMIT, UTM_SOUTH_LIMIT = 84.0, -80.0
+MAX_CELLS = 20_000_000
+# at least this far around every sample is mapped, however dense the survey (see `default_max_distance`)
+MIN_MAX_DISTANCE_M = 10.0
+
+
+@dataclass
+class Layer:
+    """One target's maps on the grid: band name -> (ny, nx) array, NaN in masked cells."""
+
+    target: str
+    terms: list[str]
+    bands: dict[str, np.ndarray]
+    vector: str | None = None  # "current" or "wind" for a vector target, with east/north/speed/dir bands
+    prefix: str | None = None  # the vector's column prefix: "current", "wind", "current_paper"
+
+
+@dataclass
+class MapGrid:
+    """A north-up grid of cell centres in a UTM zone, with the layers evaluated on it."""
+
+    epsg: int
+    x0: float  # west edge (m, easting)
+    y1: float  # north edge (m, northing)
+    resolution: float
+    nx: int
+    ny: int
+    lat: np.ndarray  # (ny, nx) cell centres
+    lon: np.ndarray
+    mask: np.ndarray  # (ny, nx) True where mapped
+    max_distance: float
+    time_span: tuple[float, float]  # unix seconds of the survey's first and last samples
+    layers: dict[str, Layer] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    local_xy: np.ndarray = field(default=None, repr=False)  # (ny*nx, 2) cell centres in the survey frame
+
+    @property
+    def easting(self) -> np.ndarray:
+        return self.x0 + self.resolution * (np.arange(self.nx) + 0.5)
+
+    @property
+    def northing(self) -> np.ndarray:
+        return self.y1 - self.resolution * (np.arange(self.ny) + 0.5)
+
+    def time_coverage(self) -> tuple[str, str]:
+        """The survey's first and last sample times, ISO 8601 UTC."""
+        return tuple(time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(t)) for t in self.time_span)
+
+    @property
+    def zone_name(self) -> str:
+        return f"UTM zone {self.epsg % 100}{'N' if self.epsg < 32700 else 'S'}"
+
+
+def utm_epsg(lat: np.ndarray, lon: np.ndarray) -> tuple[int, list[str]]:
+    """EPSG code of the WGS 84 UTM zone for a survey's positions, and notes; a one-line refusal where UTM
+    cannot map it (polar, or a track across the antimeridian that the local frame cannot hold)."""
+    from pyproj.aoi import AreaOfInterest
+    from pyproj.database import query_utm_crs_info
+
+    lat_lo, lat_hi = float(np.min(lat)), float(np.max(lat))
+    lon_lo, lon_hi = float(np.min(lon)), float(np.max(lon))
+    if lat_hi > UTM_NORTH_LIMIT or lat_lo < UTM_SOUTH_LIMIT:
+        raise WorkbenchError(
+            f"the survey reaches latitude {lat_hi if lat_hi > UTM_NORTH_LIMIT else lat_lo:.4f}, beyond "
+            "UTM's limits (80 S to 84 N); forcemap does not grid polar surveys"
+        )
+    if lon_hi - lon_lo > 180.0:
+        raise WorkbenchError(
+            f"the survey's longitudes run from {lon_lo:.4f} to {lon_hi:.4f}: it crosses the antimeridian, "
+            "which forcemap's local frame does not wrap; it cannot be gridded"
+        )
+    lat0, lon0 = 0.5 * (lat_lo + lat_hi), 0.5 * (lon_lo + lon_hi)
+    hemi = "N" if lat0 >= 0.0 else "S"
+    infos = [
+        i
+        for i in query_utm_crs_info(
+            datum_name="WGS 84", area_of_interest=AreaOfInterest(lon0, lat0, lon0, lat0)
+        )
+        if i.name.endswith(hemi) and i.auth_name == "EPSG"
+    ]
+    if not infos:  # pragma: no cover - every point within UTM's limits is in some zone
+        raise WorkbenchError(f"no UTM zone found for {lat0:.4f}, {lon0:.4f}")
+    # on a zone's edge (a centre at exactly 6 E) both zones hold it: take the one it is east of the edge of
+    info = max(infos, key=lambda i: i.area_of_use.west)
+    epsg = int(info.code)
+    notes = []
+    whole = query_utm_crs_info(
+        datum_name="WGS 84",
+        area_of_interest=AreaOfInterest(lon_lo, lat_lo, lon_hi, lat_hi),
+        contains=True,
+    )
+    if not any(int(i.code) == epsg for i in whole):
+        notes.append(
+            f"the survey spans more than one UTM zone ({lon_lo:.4f} to {lon_hi:.4f} E); it is gridded "
+            f"in zone {epsg % 100}{hemi}, its centre's"
+        )
+    return epsg, notes
+
+
+def default_max_distance(survey: Survey) -> float:
+    """How far from a sample a cell is still mapped: 8 % of the survey's larger side, at least 10 m."""
+    span = float(np.ptp(survey.xy, axis=0).max())
+    return max(MIN_MAX_DISTANCE_M, 0.08 * span)
+
+
+def make_grid(survey: Survey, resolution: float, max_distance: float | None = None) -> MapGrid:
+    """The grid over the survey's samples, in its UTM zone, edges on multiples of `resolution`."""
+    from pyproj import Transformer
+
+    if not (math.isfinite(resolution) and resolution > 0):
+        raise WorkbenchError(f"the resolution must be a number of metres above 0, not {resolution}")
+    max_distance = default_max_distance(survey) if max_distance is None else float(max_distance)
+    if not (math.isfinite(max_distance) and max_distance > 0):
+        raise WorkbenchError(f"the mask distance must be above 0 m, not {max_distance}")
+    lat, lon = survey.columns["lat"], survey.columns["lon"]
+    epsg, notes = utm_epsg(lat, lon)
+    to_utm = Transformer.from_crs(4326, epsg, always_xy=True)
+    e, n = to_utm.transform(lon, lat)
+    x0 = math.floor(float(np.min(e)) / resolution) * resolution
+    y0 = math.floor(float(np.min(n)) / resolution) * resolution
+    nx = int(math.floor((float(np.max(e)) - x0) / resolution)) + 1
+    ny = int(math.floor((float(np.max(n)) - y0) / resolution)) + 1
+    if nx * ny > MAX_CELLS:
+        raise WorkbenchError(
+            f"a {resolution:g} m grid over this survey has {nx * ny:,} cells (at most {MAX_CELLS:,}); "
+            "give a coarser --resolution"
+        )
+    y1 = y0 + ny * resolution
+    ee, nn = np.meshgrid(x0 + resolution * (np.arange(nx) + 0.5), y1 - resolution * (np.arange(ny) + 0.5))
+    glon, glat = Transformer.from_crs(epsg, 4326, always_xy=True).transform(ee, nn)
+    lx, ly = local_frame(glat, glon, survey.lat0, survey.lon0)
+    local_xy = np.column_stack([lx.ravel(), ly.ravel()])
+    dist, _ = cKDTree(survey.xy).query(local_xy, distance_upper_bound=max_distance)
+    mask = (dist <= max_distance).reshape(ny, nx)
+    t = survey.columns["t"]
+    span = (float(np.min(t)), float(np.max(t)))
+    return MapGrid(
+        epsg, x0, y1, resolution, nx, ny, glat, glon, mask, max_distance, span, notes=notes,
+        local_xy=local_xy,
+    )  # fmt: skip
+
+
+def cell_of(grid: MapGrid, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(row, col) of the cells holding positions (lat/lon): the inverse of the grid's geotransform."""
+    from pyproj import Transformer
+
+    e, n = Transformer.from_crs(4326, grid.epsg, always_xy=True).transform(lon, lat)
+    col = np.floor((np.asarray(e) - grid.x0) / grid.resolution).astype(int)
+    row = np.floor((grid.y1 - np.asarray(n)) / grid.resolution).astype(int)
+    return row, col
+
+
+def true_north(grid: MapGrid) -> float:
+    """Angle (deg, clockwise from grid north) of true north at the grid's centre."""
+    from pyproj import Transformer
+
+    r, c = grid.ny // 2, grid.nx // 2
+    lat, lon = float(grid.lat[r, c]), float(grid.lon[r, c])
+    to_utm = Transformer.from_crs(4326, grid.epsg, always_xy=True)
+    (e0, e1), (n0, n1) = to_utm.transform([lon, lon], [lat, lat + 1e-4])
+    return math.degrees(math.atan2(e1 - e0, n1 - n0))
+
+
+def layer_bands(model, pred: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The bands of one target from `SurveyModel.predict_grid`: mean and sd for a scalar; east, north,
+    their sds, speed, its sd and direction (its convention: wind FROM, current TO) for a vector."""
+    if "east" not in pred:
+        return {"mean": pred["mean"], "sd": pred["std"]}
+    vt = model.vector
+    bands = {
+        "east": pred["east"],
+        "north": pred["north"],
+        "east_sd": pred["east_std"],
+        "north_sd": pred["north_std"],
+        "speed": pred["mean"] if vt.aspect == "speed" else pred["speed"],
+        "speed_sd": pred["std"] if vt.aspect == "speed" else pred["speed_std"],
+        "dir": pred["mean"] if vt.aspect == "dir" else vt.direction(pred["east"], pred["north"]),
+    }
+    if vt.aspect == "dir":
+        bands["dir_sd"] = pred["std"]
+    return bands
+
+
+def evaluate(grid: MapGrid, model) -> Layer:
+    """A fitted `SurveyModel` on the grid's mapped cells (NaN elsewhere), as a `Layer`."""
+    keep = grid.mask.ravel()
+    pred = model.predict_grid(grid.local_xy[keep])
+    bands = layer_bands(model, pred)
+    out = {}
+    for name, values in bands.items():
+        full = np.full(grid.ny * grid.nx, np.nan)
+        full[keep] = values
+        out[name] = full.reshape(grid.ny, grid.nx)
+    vt = model.vector if "east" in pred else None
+    return Layer(
+        model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix
+    )
