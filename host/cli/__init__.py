@@ -65,6 +65,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "forcemap.host.cli.history",
         "show every fit of a survey with its CV error, as a table and a plot",
     ),
+    "grid": (
+        "forcemap.host.cli.grid",
+        "write the survey's maps for GIS: GeoTIFF, NetCDF (CF) or GeoJSON contours, in its UTM zone",
+    ),
     "report": (
         "forcemap.host.cli.report",
         "write a self-contained HTML report of a survey's maps and diagnosis",

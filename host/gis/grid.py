@@ -5,8 +5,8 @@ survey's local frame (`cleaning.local_frame`, metres east/north of its centre, w
 -> the model's prediction. Cells farther than `max_distance` from every sample are masked (NaN): a map is
 only as good as where the boat went.
 
-The zone is the one holding the survey's centre (EPSG's own areas, so Norway's and Svalbard's exceptions
-hold). A survey that spans a zone boundary is gridded in its centre's zone, with a note: a transverse
+The zone is the one holding the survey's centre (with the exceptions for Norway and Svalbard; pyproj's
+`query_utm_crs_info` goes by EPSG's bounding boxes, which overlap there, so it is not used). A survey that spans a zone boundary is gridded in its centre's zone, with a note: a transverse
 Mercator projection stays conformal and within 1e-3 of scale a few degrees past its zone's edge, far more
 than any boat survey. Beyond UTM's limits (north of 84 N, south of 80 S) the survey is refused in one line,
 never projected wrongly.
@@ -77,12 +77,20 @@ class MapGrid:
         return f"UTM zone {self.epsg % 100}{'N' if self.epsg < 32700 else 'S'}"
 
 
-def utm_epsg(lat: np.ndarray, lon: np.ndarray) -> tuple[int, list[str]]:
-    """EPSG code of the WGS 84 UTM zone for a survey's positions, and notes; a one-line refusal where UTM
-    cannot map it (polar, or a track across the antimeridian that the local frame cannot hold)."""
-    from pyproj.aoi import AreaOfInterest
-    from pyproj.database import query_utm_crs_info
+def utm_zone(lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+    """UTM zone numbers of positions (degrees), with the grid's exceptions: south-west Norway is in
+    zone 32 (56-64 N, 3-12 E), and Svalbard (72-84 N) in zones 31, 33, 35 and 37 only."""
+    lat, lon = np.asarray(lat, float), np.asarray(lon, float)
+    zone = np.floor((lon + 180.0) / 6.0).astype(int) % 60 + 1
+    zone = np.where((lat >= 56) & (lat < 64) & (lon >= 3) & (lon < 12), 32, zone)
+    svalbard = (lat >= 72) & (lat <= 84) & (lon >= 0) & (lon < 42)
+    edges, zones = np.array([9.0, 21.0, 33.0]), np.array([31, 33, 35, 37])
+    return np.where(svalbard, zones[np.searchsorted(edges, lon, side="right")], zone)
 
+
+def utm_epsg(lat: np.ndarray, lon: np.ndarray) -> tuple[int, list[str]]:
+    """EPSG code of the WGS 84 UTM zone of a survey's centre, and notes; a one-line refusal where UTM
+    cannot map it (polar, or a track across the antimeridian, which the local frame cannot hold)."""
     lat_lo, lat_hi = float(np.min(lat)), float(np.max(lat))
     lon_lo, lon_hi = float(np.min(lon)), float(np.max(lon))
     if lat_hi > UTM_NORTH_LIMIT or lat_lo < UTM_SOUTH_LIMIT:
@@ -96,29 +104,16 @@ def utm_epsg(lat: np.ndarray, lon: np.ndarray) -> tuple[int, list[str]]:
             "which forcemap's local frame does not wrap; it cannot be gridded"
         )
     lat0, lon0 = 0.5 * (lat_lo + lat_hi), 0.5 * (lon_lo + lon_hi)
+    zone = int(utm_zone(lat0, lon0))
     hemi = "N" if lat0 >= 0.0 else "S"
-    infos = [
-        i
-        for i in query_utm_crs_info(
-            datum_name="WGS 84", area_of_interest=AreaOfInterest(lon0, lat0, lon0, lat0)
-        )
-        if i.name.endswith(hemi) and i.auth_name == "EPSG"
-    ]
-    if not infos:  # pragma: no cover - every point within UTM's limits is in some zone
-        raise WorkbenchError(f"no UTM zone found for {lat0:.4f}, {lon0:.4f}")
-    # on a zone's edge (a centre at exactly 6 E) both zones hold it: take the one it is east of the edge of
-    info = max(infos, key=lambda i: i.area_of_use.west)
-    epsg = int(info.code)
+    epsg = (32600 if hemi == "N" else 32700) + zone
     notes = []
-    whole = query_utm_crs_info(
-        datum_name="WGS 84",
-        area_of_interest=AreaOfInterest(lon_lo, lat_lo, lon_hi, lat_hi),
-        contains=True,
-    )
-    if not any(int(i.code) == epsg for i in whole):
+    zones = np.unique(utm_zone(lat, lon))
+    if len(zones) > 1 or (lat_lo < 0.0 <= lat_hi):
         notes.append(
-            f"the survey spans more than one UTM zone ({lon_lo:.4f} to {lon_hi:.4f} E); it is gridded "
-            f"in zone {epsg % 100}{hemi}, its centre's"
+            f"the survey spans UTM zones {', '.join(str(z) for z in zones)}"
+            f"{' and both hemispheres' if lat_lo < 0.0 <= lat_hi else ''}; it is gridded in zone "
+            f"{zone}{hemi}, its centre's"
         )
     return epsg, notes
 

@@ -166,6 +166,12 @@ def check_positions(
     if outside.any():
         notes.append(f"dropped {outside.sum()} row(s) with {what} ({_rows(rows[outside])})")
     keep = ~outside
+    if keep.any() and lon[keep].min() < -170.0 and lon[keep].max() > 170.0:
+        # lon - lon0 is not wrapped: across 180 the track would fall apart into two halves 40,000 km apart
+        raise WorkbenchError(
+            f"{path}: the track crosses the antimeridian (longitudes near both +180 and -180); "
+            "forcemap's local frame does not wrap longitude, so it cannot map this survey"
+        )
     jumps = np.zeros_like(keep)
     jumps[keep] = impossible_jumps(t[keep], lat[keep], lon[keep])
     if jumps.sum() > max_fraction * len(t):

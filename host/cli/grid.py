@@ -1,0 +1,192 @@
+"""`forcemap grid`: the workspace's latest maps on a grid in the survey's UTM zone, written for GIS."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from forcemap.host.cli.common import (
+    add_table,
+    add_workspace_options,
+    check_json_output,
+    prepare_workspace,
+    print_notes,
+    teach,
+    write_json,
+)
+from forcemap.host.errors import CliError
+
+EPILOG = """\
+The maps are the workspace's latest fits of each target (the rule of `report` and `plan`: the terms of
+the latest `forcemap fit`, the paper's baseline where there is none), evaluated on a regular grid in the
+survey's UTM zone (WGS 84). Cells farther than --mask-distance from every sample are left empty (nodata).
+
+-o decides the format:
+  maps.tif       a Cloud Optimized GeoTIFF per target (maps-depth.tif, ... with several targets): bands
+                 mean and sd for a scalar; east, north, their sds, speed, speed_sd, dir for a vector
+  maps.nc        one NetCDF file (CF-1.8) with every target, for xarray and ocean-model tools
+  maps.geojson   contours of each scalar map (lon/lat), for web maps and Foxglove
+  maps/          a folder: all three (TARGET.tif, maps.nc, TARGET-contours.geojson)
+
+examples:
+  forcemap grid survey.csv -o depth.tif --target depth --resolution 2
+  forcemap grid survey.csv -o survey.nc
+  forcemap grid survey.csv -o maps/ --json maps.json
+
+Needs the extra: pip install "forcemap[gis]". Surveys beyond UTM's limits (north of 84 N, south of 80 S)
+or across the antimeridian are refused; one across a zone boundary is gridded in its centre's zone.
+"""
+
+DEFAULT_TARGETS = ("current_speed", "wind_speed", "depth", "water_temp")
+FORMATS = {".tif": "geotiff", ".tiff": "geotiff", ".nc": "netcdf", ".geojson": "geojson"}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    teach(parser, EPILOG)
+    add_table(parser)
+    parser.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        help="OUT.tif, OUT.nc, OUT.geojson, or a folder for all three",
+    )
+    parser.add_argument(
+        "--target",
+        action="append",
+        metavar="T",
+        help="target to map (repeat, or comma-separated; default: current_speed, wind_speed, depth "
+        "and water_temp, those the table has)",
+    )
+    parser.add_argument(
+        "--resolution", type=float, default=5.0, metavar="M", help="cell size, m (default 5)"
+    )
+    parser.add_argument(
+        "--mask-distance",
+        type=float,
+        metavar="M",
+        help="leave cells empty farther than this from every sample (default: 8 %% of the survey's "
+        "larger side, at least 10 m)",
+    )
+    parser.add_argument(
+        "--json", type=Path, metavar="PATH", help="the files written, as JSON (- for stdout)"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_workspace_options(parser)
+
+
+def planned_files(
+    out: Path, targets: list[str], scalars: list[str]
+) -> dict[str, list[tuple[str, Path]]]:
+    """format -> [(target or "", path)] that `-o out` asks for (contours: of the `scalars` only)."""
+    fmt = FORMATS.get(out.suffix.lower())
+    if fmt is None and out.suffix:
+        raise CliError(
+            f"-o {out}: give a .tif, .nc or .geojson file, or a folder (no suffix) for all three"
+        )
+    if fmt is None:
+        return {
+            "geotiff": [(t, out / f"{t}.tif") for t in targets],
+            "netcdf": [("", out / "maps.nc")],
+            "geojson": [(t, out / f"{t}-contours.geojson") for t in scalars],
+        }
+    if fmt == "netcdf":
+        return {fmt: [("", out)]}
+    if fmt == "geojson":
+        if not scalars:
+            raise CliError("contours are drawn of scalar maps (depth, water_temp, ...); give one")
+        targets = scalars
+    if len(targets) == 1:
+        return {fmt: [(targets[0], out)]}
+    return {fmt: [(t, out.with_name(f"{out.stem}-{t}{out.suffix}")) for t in targets]}
+
+
+def _targets(args: argparse.Namespace, columns: list[str]) -> list[str]:
+    if args.target:
+        return list(dict.fromkeys(t.strip() for a in args.target for t in a.split(",") if t.strip()))
+    found = [t for t in DEFAULT_TARGETS if t in columns or t.replace("_speed", "_east") in columns]
+    if not found:
+        raise CliError("the table has none of " + ", ".join(DEFAULT_TARGETS) + "; give --target")
+    return found
+
+
+def run(args: argparse.Namespace) -> int:
+    from forcemap.host.cli.common import positive
+    from forcemap.host.gis import need_gis
+
+    need_gis("forcemap grid's maps")
+    positive("--resolution", args.resolution)
+    if args.mask_distance is not None:
+        positive("--mask-distance", args.mask_distance)
+    check_json_output(args)
+    prepare_workspace(args)
+    out = Path(args.output)
+    if not out.suffix and out.exists() and not out.is_dir():
+        raise CliError(f"-o {out} is a file; give a folder, or a .tif, .nc or .geojson file")
+    return _run(args, out)
+
+
+def _run(args: argparse.Namespace, out: Path) -> int:
+    from forcemap.host.api import read_survey
+    from forcemap.host.gis.contours import write_contours
+    from forcemap.host.gis.geotiff import write_geotiff
+    from forcemap.host.gis.grid import utm_epsg
+    from forcemap.host.gis.netcdf import write_netcdf
+    from forcemap.host.outputs import check_output
+    from forcemap.host.progress import note
+    from forcemap.host.workbench.model import small_blas
+
+    progress = not args.quiet
+    survey = read_survey(args.table)
+    utm_epsg(survey.table.columns["lat"], survey.table.columns["lon"])  # refused before the fits
+    targets = _targets(args, survey.columns)
+    scalars = [t for t in targets if survey.table.vector_target(t) is None]
+    plan = planned_files(out, targets, scalars)
+    if not out.suffix:
+        out.mkdir(parents=True, exist_ok=True)
+    for files in plan.values():
+        for _, path in files:
+            check_output(path, [args.table], force=args.force)
+    with small_blas():
+        fits = []
+        for t in targets:
+            note(f"map of {t}: the workspace's latest fit ...", progress)
+            fits.append(survey.latest_fit(t, progress))
+        note(f"gridding at {args.resolution:g} m ...", progress)
+        grid = survey.grid(fits, args.resolution, args.mask_distance)
+    print_notes(survey.table)
+    for n in grid.notes:
+        print(f"note: {n}", file=sys.stderr)
+    written = []
+    for fmt, files in plan.items():
+        for target, path in files:
+            layer = grid.layers.get(target)
+            if fmt == "geotiff":
+                written.append(write_geotiff(grid, layer, path))
+            elif fmt == "netcdf":
+                written.append(write_netcdf(grid, path))
+            else:
+                written.append(write_contours(grid, layer, path))
+    summary = {
+        "crs": f"EPSG:{grid.epsg}",
+        "zone": grid.zone_name,
+        "resolution_m": grid.resolution,
+        "shape": [grid.ny, grid.nx],
+        "mapped_cells": int(grid.mask.sum()),
+        "mask_distance_m": grid.max_distance,
+        "targets": {t: " + ".join(layer.terms) for t, layer in grid.layers.items()},
+        "files": [str(p) for p in written],
+    }
+    if args.json is not None and str(args.json) != "-":
+        write_json(args.json, summary)
+    if args.json is not None and str(args.json) == "-":
+        write_json(args.json, summary)
+    else:
+        print(
+            f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
+            f"{int(grid.mask.sum())} mapped"
+        )
+        for p in written:
+            print(f"wrote {p}")
+    return 0
