@@ -133,7 +133,9 @@ class Fit:
         terms = self._terms()
         check_terms(terms)
         with small_blas():
-            self.result_ = fitting.fit_target(survey.table, self.target, terms, self.folds, progress)
+            self.result_ = fitting.fit_target(
+                survey.table, self.target, terms, self.folds, progress
+            )
         self.model_, self.survey_ = self.result_.model, survey
         self.entry_ = fitting.record(survey.path, self.result_) if record else None
         return self
@@ -194,7 +196,9 @@ class Fit:
         self._fitted()
         return self.survey_.grid([self], resolution, max_distance)
 
-    def to_xarray(self, resolution: float = DEFAULT_RESOLUTION_M, max_distance: float | None = None):
+    def to_xarray(
+        self, resolution: float = DEFAULT_RESOLUTION_M, max_distance: float | None = None
+    ):
         """The map as a CF-1.8 `xarray.Dataset` (what `forcemap grid -o maps.nc` writes)."""
         from forcemap.host.gis.netcdf import to_dataset
 

@@ -9,17 +9,17 @@ import math
 import subprocess
 import sys
 
+import forcemap
 import numpy as np
 import pytest
 import rasterio
 import xarray as xr
-from bench.synth_survey import LAT0, LON0, make_survey
 from forcemap.host.cli import main
 from forcemap.host.gis.grid import cell_of, make_grid, utm_epsg
 from forcemap.host.workbench.table import load_survey
 from pyproj import Transformer
 
-import forcemap
+from bench.synth_survey import LAT0, LON0, make_survey
 
 TOL = 1e-6
 
@@ -102,7 +102,9 @@ def test_netcdf_round_trip_and_cf_attributes(fitted):
     assert ds["current_east"].attrs["ancillary_variables"] == "current_east_sd"
     import netCDF4
 
-    with netCDF4.Dataset(out / "maps.nc") as raw:  # the attributes as written, not as xarray decodes them
+    with netCDF4.Dataset(
+        out / "maps.nc"
+    ) as raw:  # the attributes as written, not as xarray decodes them
         for v in ("depth", "current_speed", "current_dir", "current_speed_sd"):
             assert raw[v].grid_mapping == "crs"
             assert set(raw[v].coordinates.split()) >= {"lat", "lon"}
@@ -120,7 +122,9 @@ def test_netcdf_round_trip_and_cf_attributes(fitted):
     to_ll = Transformer.from_crs(epsg, 4326, always_xy=True)
     X, Y = np.meshgrid(ds["x"].values, ds["y"].values)
     lon, lat = to_ll.transform(X, Y)
-    assert np.allclose(lat, ds["lat"].values, atol=1e-9) and np.allclose(lon, ds["lon"].values, atol=1e-9)
+    assert np.allclose(lat, ds["lat"].values, atol=1e-9) and np.allclose(
+        lon, ds["lon"].values, atol=1e-9
+    )
     res = float(ds.attrs["resolution_m"])
     to_utm = Transformer.from_crs(4326, epsg, always_xy=True)
     for la, lo in zip(*_samples(survey), strict=True):
@@ -160,7 +164,9 @@ def test_contours_are_lonlat_lines_at_round_levels(fitted):
         assert f["geometry"]["type"] == "MultiLineString"
         assert np.nanmin(depth) < f["properties"]["level"] < np.nanmax(depth)
         pts = np.array([p for line in f["geometry"]["coordinates"] for p in line])
-        assert (abs(pts[:, 1] - lat.mean()) < 0.01).all() and (abs(pts[:, 0] - lon.mean()) < 0.01).all()
+        assert (abs(pts[:, 1] - lat.mean()) < 0.01).all() and (
+            abs(pts[:, 0] - lon.mean()) < 0.01
+        ).all()
     assert not (out / "current_speed-contours.geojson").exists()  # a vector has no contours
 
 
@@ -211,7 +217,9 @@ def summary_epsg(summary: dict) -> int:
         (-16.0, 180.0, "crosses the antimeridian"),
     ],
 )
-def test_polar_and_antimeridian_surveys_are_refused_in_one_line(lat0, lon0, message, tmp_path, capsys):
+def test_polar_and_antimeridian_surveys_are_refused_in_one_line(
+    lat0, lon0, message, tmp_path, capsys
+):
     table = make_survey("river", [], 1, 200.0, tmp_path, extra=moved(lat0, lon0))
     rc = main(["grid", str(table), "-o", str(tmp_path / "m.nc"), "--quiet"])
     err = capsys.readouterr().err.strip().splitlines()

@@ -104,7 +104,9 @@ def planned_files(
 
 def _targets(args: argparse.Namespace, columns: list[str]) -> list[str]:
     if args.target:
-        return list(dict.fromkeys(t.strip() for a in args.target for t in a.split(",") if t.strip()))
+        return list(
+            dict.fromkeys(t.strip() for a in args.target for t in a.split(",") if t.strip())
+        )
     found = [t for t in DEFAULT_TARGETS if t in columns or t.replace("_speed", "_east") in columns]
     if not found:
         raise CliError("the table has none of " + ", ".join(DEFAULT_TARGETS) + "; give --target")

@@ -51,4 +51,3 @@ def write_geotiff(grid: MapGrid, layer: Layer, path: str | Path) -> Path:
             if "units" in attrs:
                 dst.set_band_unit(i, attrs["units"])
     return path
-

@@ -37,7 +37,9 @@ class Layer:
     target: str
     terms: list[str]
     bands: dict[str, np.ndarray]
-    vector: str | None = None  # "current" or "wind" for a vector target, with east/north/speed/dir bands
+    vector: str | None = (
+        None  # "current" or "wind" for a vector target, with east/north/speed/dir bands
+    )
     prefix: str | None = None  # the vector's column prefix: "current", "wind", "current_paper"
 
 
@@ -58,7 +60,9 @@ class MapGrid:
     time_span: tuple[float, float]  # unix seconds of the survey's first and last samples
     layers: dict[str, Layer] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    local_xy: np.ndarray = field(default=None, repr=False)  # (ny*nx, 2) cell centres in the survey frame
+    local_xy: np.ndarray = field(
+        default=None, repr=False
+    )  # (ny*nx, 2) cell centres in the survey frame
 
     @property
     def easting(self) -> np.ndarray:
@@ -147,7 +151,9 @@ def make_grid(survey: Survey, resolution: float, max_distance: float | None = No
             "give a coarser --resolution"
         )
     y1 = y0 + ny * resolution
-    ee, nn = np.meshgrid(x0 + resolution * (np.arange(nx) + 0.5), y1 - resolution * (np.arange(ny) + 0.5))
+    ee, nn = np.meshgrid(
+        x0 + resolution * (np.arange(nx) + 0.5), y1 - resolution * (np.arange(ny) + 0.5)
+    )
     glon, glat = Transformer.from_crs(epsg, 4326, always_xy=True).transform(ee, nn)
     lx, ly = local_frame(glat, glon, survey.lat0, survey.lon0)
     local_xy = np.column_stack([lx.ravel(), ly.ravel()])
@@ -213,6 +219,4 @@ def evaluate(grid: MapGrid, model) -> Layer:
         full[keep] = values
         out[name] = full.reshape(grid.ny, grid.nx)
     vt = model.vector if "east" in pred else None
-    return Layer(
-        model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix
-    )
+    return Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
