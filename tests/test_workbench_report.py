@@ -6,10 +6,10 @@ import json
 
 import numpy as np
 import pytest
+from forcemap.host.gis.grid import make_grid
 from forcemap.host.report import build as report
 from forcemap.host.workbench.fitting import fit_target, record, refit_or_restore, saved_model
 from forcemap.host.workbench.model import Model
-from forcemap.host.workbench.plots import map_grid
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.workspace import load_history, workspace_dir
 
@@ -30,8 +30,7 @@ def fitted(tmp_path_factory):
 
 
 def _grid(survey):
-    X, Y, _ = map_grid(survey, nx=30)
-    return np.column_stack([X.ravel(), Y.ravel()])
+    return make_grid(survey, 20.0, utm=False).local_xy
 
 
 def test_saved_fit_rebuilds_the_same_map_without_the_optimiser(fitted, monkeypatch):
@@ -97,3 +96,30 @@ def test_a_section_is_one_function(fitted):
         report.plan_section in report.SECTIONS
         and report.rounds_and_advice_section in report.SECTIONS
     )
+
+
+def test_maps_are_the_grid_of_forcemap_grid_with_scale_and_north(fitted, tmp_path):
+    import base64
+    import re
+
+    from forcemap.host.report.map_figure import figsize, nice_length
+
+    table, _ = fitted
+    survey = load_survey(table)
+    grid, track, _ = report.report_grid(survey)
+    assert grid.epsg == 32617  # 33.95 N, 81.05 W
+    assert np.allclose(track[0], make_grid(survey, grid.resolution).easting[0], atol=1e3)
+    # the survey is 600 m x 150 m: two panels stacked, each the page's width
+    (w, h), side = figsize(grid)
+    assert not side and w == 11.0 and h < 11.0
+    assert nice_length(600.0) == 100.0 and nice_length(4200.0) == 500.0
+    html = report.page("t", report.maps_section(report_context(table, survey)))
+    pngs = re.findall(r'alt="(\w+)" src="data:image/png;base64,([^"]+)"', html)
+    assert [a for a, _ in pngs] == ["current_speed", "wind_speed", "depth"]
+    (tmp_path / "depth.png").write_bytes(base64.b64decode(pngs[-1][1]))
+    assert "UTM zone 17N" in html
+
+
+def report_context(table, survey):
+    ws = workspace_dir(table)
+    return report.ReportContext(table, survey, ws, load_history(ws), {}, False)

@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.workbench.cleaning import local_frame, local_to_latlon
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.table import Survey
 from scipy.spatial import cKDTree
@@ -78,6 +78,8 @@ class MapGrid:
 
     @property
     def zone_name(self) -> str:
+        if self.epsg == 0:
+            return "the survey's local frame"
         return f"UTM zone {self.epsg % 100}{'N' if self.epsg < 32700 else 'S'}"
 
 
@@ -128,19 +130,24 @@ def default_max_distance(survey: Survey) -> float:
     return max(MIN_MAX_DISTANCE_M, 0.08 * span)
 
 
-def make_grid(survey: Survey, resolution: float, max_distance: float | None = None) -> MapGrid:
-    """The grid over the survey's samples, in its UTM zone, edges on multiples of `resolution`."""
-    from pyproj import Transformer
-
+def make_grid(
+    survey: Survey, resolution: float, max_distance: float | None = None, utm: bool = True
+) -> MapGrid:
+    """The grid over the survey's samples, in its UTM zone (`utm`; else in its local frame, EPSG 0, for
+    figures where pyproj is not installed), edges on multiples of `resolution`."""
     if not (math.isfinite(resolution) and resolution > 0):
         raise WorkbenchError(f"the resolution must be a number of metres above 0, not {resolution}")
     max_distance = default_max_distance(survey) if max_distance is None else float(max_distance)
     if not (math.isfinite(max_distance) and max_distance > 0):
         raise WorkbenchError(f"the mask distance must be above 0 m, not {max_distance}")
     lat, lon = survey.columns["lat"], survey.columns["lon"]
-    epsg, notes = utm_epsg(lat, lon)
-    to_utm = Transformer.from_crs(4326, epsg, always_xy=True)
-    e, n = to_utm.transform(lon, lat)
+    if utm:
+        from pyproj import Transformer
+
+        epsg, notes = utm_epsg(lat, lon)
+        e, n = Transformer.from_crs(4326, epsg, always_xy=True).transform(lon, lat)
+    else:
+        (epsg, notes), (e, n) = (0, []), (survey.columns["x"], survey.columns["y"])
     x0 = math.floor(float(np.min(e)) / resolution) * resolution
     y0 = math.floor(float(np.min(n)) / resolution) * resolution
     nx = int(math.floor((float(np.max(e)) - x0) / resolution)) + 1
@@ -154,8 +161,12 @@ def make_grid(survey: Survey, resolution: float, max_distance: float | None = No
     ee, nn = np.meshgrid(
         x0 + resolution * (np.arange(nx) + 0.5), y1 - resolution * (np.arange(ny) + 0.5)
     )
-    glon, glat = Transformer.from_crs(epsg, 4326, always_xy=True).transform(ee, nn)
-    lx, ly = local_frame(glat, glon, survey.lat0, survey.lon0)
+    if utm:
+        glon, glat = Transformer.from_crs(epsg, 4326, always_xy=True).transform(ee, nn)
+        lx, ly = local_frame(glat, glon, survey.lat0, survey.lon0)
+    else:
+        glat, glon = local_to_latlon(ee, nn, survey.lat0, survey.lon0)
+        lx, ly = ee, nn
     local_xy = np.column_stack([lx.ravel(), ly.ravel()])
     dist, _ = cKDTree(survey.xy).query(local_xy, distance_upper_bound=max_distance)
     mask = (dist <= max_distance).reshape(ny, nx)
@@ -167,18 +178,26 @@ def make_grid(survey: Survey, resolution: float, max_distance: float | None = No
     )  # fmt: skip
 
 
-def cell_of(grid: MapGrid, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(row, col) of the cells holding positions (lat/lon): the inverse of the grid's geotransform."""
+def project(grid: MapGrid, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (degrees) as UTM easting/northing in the grid's zone."""
     from pyproj import Transformer
 
     e, n = Transformer.from_crs(4326, grid.epsg, always_xy=True).transform(lon, lat)
-    col = np.floor((np.asarray(e) - grid.x0) / grid.resolution).astype(int)
-    row = np.floor((grid.y1 - np.asarray(n)) / grid.resolution).astype(int)
+    return np.asarray(e), np.asarray(n)
+
+
+def cell_of(grid: MapGrid, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(row, col) of the cells holding positions (lat/lon): the inverse of the grid's geotransform."""
+    e, n = project(grid, lat, lon)
+    col = np.floor((e - grid.x0) / grid.resolution).astype(int)
+    row = np.floor((grid.y1 - n) / grid.resolution).astype(int)
     return row, col
 
 
 def true_north(grid: MapGrid) -> float:
-    """Angle (deg, clockwise from grid north) of true north at the grid's centre."""
+    """Angle (deg, clockwise from the grid's north) of true north at the grid's centre (0 in a local grid)."""
+    if grid.epsg == 0:
+        return 0.0
     from pyproj import Transformer
 
     r, c = grid.ny // 2, grid.nx // 2

@@ -8,14 +8,17 @@ from __future__ import annotations
 
 import base64
 import html
+import importlib.util
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.gis.grid import MapGrid, evaluate, make_grid, project
 from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
+from forcemap.host.report.map_figure import grid_figure
 from forcemap.host.report.mission_section import mission_section
 from forcemap.host.workbench import plots
 from forcemap.host.workbench.cv import blocked_folds
@@ -93,21 +96,45 @@ def measurements_section(ctx: ReportContext) -> list[str]:
     return parts
 
 
+def report_grid(survey: Survey) -> tuple[MapGrid, tuple[np.ndarray, np.ndarray], list[str]]:
+    """The grid of `forcemap grid` at a resolution giving ~120 cells along the survey's longer side, in
+    its UTM zone (the local frame where pyproj is not installed or UTM cannot map it), and the track on it."""
+    span = float(np.ptp(survey.xy, axis=0).max())
+    resolution = max(1.0, float(f"{span / 120:.1g}"))
+    if importlib.util.find_spec("pyproj") is not None:
+        try:
+            grid = make_grid(survey, resolution)
+            return grid, project(grid, survey.columns["lat"], survey.columns["lon"]), grid.notes
+        except WorkbenchError as exc:
+            why = str(exc)
+    else:
+        why = 'pyproj is not installed (pip install "forcemap[gis]")'
+    grid = make_grid(survey, resolution, utm=False)
+    return (
+        grid,
+        (survey.columns["x"], survey.columns["y"]),
+        [f"maps in the survey's local frame: {why}"],
+    )
+
+
 def maps_section(ctx: ReportContext) -> list[str]:
     survey = ctx.survey
+    grid, track, notes = report_grid(survey)
     parts = [
         "<h2>Model maps: mean and uncertainty</h2>",
         "<p>Wind and current are modelled through their east/north components: arrows show the modelled "
         "velocity of the medium (where it moves to), colour its speed. Depth is shown with contours. Terms in "
-        "covariates are evaluated at typical values (depth from its own map, time at mid-survey).</p>",
+        "covariates are evaluated at typical values (depth from its own map, time at mid-survey). "
+        f"The grid is the one <code>forcemap grid</code> writes ({html.escape(grid.zone_name)}, "
+        f"{grid.resolution:g} m cells; cells farther than {grid.max_distance:.0f} m from every sample are "
+        "left blank); the arrow marks true north.</p>",
     ]
-    X, Y, mask = plots.map_grid(survey)
-    grid = np.column_stack([X.ravel(), Y.ravel()])
-    for target, label, arrows in MAPPED:
+    parts += [f"<p class=small>note: {html.escape(n)}</p>" for n in notes]
+    for target, label, _ in MAPPED:
         try:
             terms = map_terms(survey, ctx.history, target)
             note(f"report: mapping {target} ({' + '.join(terms)}) ...", ctx.progress)
-            pred = ctx.model(target, terms).predict_grid(grid)
+            layer = evaluate(grid, ctx.model(target, terms))
         except WorkbenchError as exc:
             parts.append(
                 f"<p class=small>{html.escape(target)}: not mapped ({html.escape(str(exc))})</p>"
@@ -115,8 +142,7 @@ def maps_section(ctx: ReportContext) -> list[str]:
             continue
         name = target.split("_")[0]
         parts.append(f"<h3>{html.escape(name)}: {html.escape(' + '.join(terms))}</h3>")
-        fig = plots.field_map(X, Y, mask, pred, name, label, arrows, not arrows, survey)
-        parts.append(img(fig, target))
+        parts.append(img(grid_figure(grid, layer, track, label), target))
     return parts
 
 

@@ -37,6 +37,15 @@ def local_frame(
     return x, y
 
 
+def local_to_latlon(
+    x: np.ndarray, y: np.ndarray, lat0: float, lon0: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of `local_frame`: (lat, lon) of points x m east and y m north of (lat0, lon0)."""
+    lat = lat0 + np.degrees(np.asarray(y) / EARTH_RADIUS_M)
+    lon = lon0 + np.degrees(np.asarray(x) / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+    return lat, lon
+
+
 @dataclass
 class NumericColumn:
     """A column's numbers (NaN where missing) and what was made missing, by data row (0-based)."""

@@ -1,4 +1,4 @@
-"""Figures: residual maps and panels, model maps with arrows and contours, error history.
+"""Figures: residual maps and panels, error history (the model maps: `host.report.map_figure`).
 
 Each figure is a matplotlib `Figure` on its own Agg canvas: nothing here touches pyplot's global state or
 the process's backend.
@@ -14,7 +14,6 @@ import numpy as np
 from forcemap.host.workbench.table import NOT_COVARIATES, Survey, family, is_circular
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from scipy.spatial import cKDTree
 
 PANEL_COVARIATES = (
     "t",
@@ -47,19 +46,6 @@ def png_bytes(fig: Figure) -> bytes:
 def save(fig, path: Path) -> Path:
     path.write_bytes(png_bytes(fig))
     return path
-
-
-def map_grid(survey: Survey, nx: int = 70) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A regular grid over the track, and a mask of the cells near enough to a sample to be mapped."""
-    xy = survey.xy
-    lo, hi = xy.min(axis=0), xy.max(axis=0)
-    span = hi - lo
-    ny = max(10, int(nx * span[1] / max(span[0], 1e-6)))
-    gx, gy = np.linspace(lo[0], hi[0], nx), np.linspace(lo[1], hi[1], min(ny, 120))
-    X, Y = np.meshgrid(gx, gy)
-    dist, _ = cKDTree(xy).query(np.column_stack([X.ravel(), Y.ravel()]))
-    mask = (dist <= max(10.0, 0.08 * float(span.max()))).reshape(X.shape)
-    return X, Y, mask
 
 
 def _axes_map(ax, title: str) -> None:
@@ -141,45 +127,6 @@ def residual_panels(
         ax.axis("off")
     if title:
         fig.suptitle(title, fontsize=11)
-    fig.tight_layout()
-    return fig
-
-
-def field_map(
-    X, Y, mask, pred: dict, title: str, label: str, arrows: bool, contours: bool, survey: Survey
-):
-    """Model mean (colour; arrows for a vector field, contours for a scalar) and its uncertainty, side by side."""
-    fig = new_figure((9, 7.5))
-    a1, a2 = fig.subplots(2, 1)
-    shape = X.shape
-    key = "speed" if arrows and "speed" in pred else "mean"
-    mean = np.where(mask, pred[key].reshape(shape), np.nan)
-    std = np.where(mask, pred["speed_std" if key == "speed" else "std"].reshape(shape), np.nan)
-    lo, hi = np.nanpercentile(mean, [1, 99]) if np.isfinite(mean).any() else (0.0, 1.0)
-    pc = a1.pcolormesh(X, Y, mean, shading="auto", cmap="viridis", vmin=lo, vmax=hi)
-    fig.colorbar(pc, ax=a1, label=label, shrink=0.85)
-    if arrows and "east" in pred:
-        step = max(1, shape[1] // 25)
-        E = np.where(mask, pred["east"].reshape(shape), np.nan)
-        N = np.where(mask, pred["north"].reshape(shape), np.nan)
-        a1.quiver(
-            X[::step, ::step],
-            Y[::step, ::step],
-            E[::step, ::step],
-            N[::step, ::step],
-            color="white",
-            scale_units="xy",
-            angles="xy",
-        )
-    if contours:
-        cs = a1.contour(X, Y, mean, levels=np.linspace(lo, hi, 8), colors="k", linewidths=0.6)
-        a1.clabel(cs, fontsize=7, fmt="%.1f")
-    a1.plot(survey.xy[:, 0], survey.xy[:, 1], ",", color="0.6", alpha=0.3)
-    _axes_map(a1, f"{title}: model mean")
-    top = np.nanpercentile(std, 99) if np.isfinite(std).any() else 1.0
-    pc2 = a2.pcolormesh(X, Y, std, shading="auto", cmap="magma", vmin=0.0, vmax=top)
-    fig.colorbar(pc2, ax=a2, label=f"std of {label}", shrink=0.85)
-    _axes_map(a2, f"{title}: model uncertainty (1 std)")
     fig.tight_layout()
     return fig
 
