@@ -65,7 +65,7 @@ def write_netcdf(grid: MapGrid, path: str | Path) -> Path:
     """Write `to_dataset(grid)` (netCDF4 engine, compressed); returns the path."""
     path = Path(path)
     ds = to_dataset(grid)
-    enc = {v: {"zlib": True, "complevel": 4, "_FillValue": np.nan} for v in ds.data_vars}
+    enc = {v: {"zlib": True, "complevel": 1, "_FillValue": np.nan} for v in ds.data_vars}
     enc[GRID_MAPPING] = {"_FillValue": None}
     enc["time_bnds"] = {"_FillValue": None}
     for c in ("x", "y", "lat", "lon", "time"):
