@@ -246,3 +246,85 @@ def test_existing_outputs_need_force(fitted, capsys):
     rc = main(["grid", str(survey.path), "-o", str(out / "depth.tif"), "--target", "depth"])
     assert rc == 2 and "--force" in capsys.readouterr().err
     assert (out / "depth.tif").read_bytes() == before
+
+
+# canonical units of the standard names the files use, from the CF standard name table (v84); the checker
+# is given this excerpt because the table's home, cfconventions.org, cannot be reached from the test
+CANONICAL = {
+    "sea_floor_depth_below_sea_surface": "m",
+    "sea_water_temperature": "K",
+    "eastward_sea_water_velocity": "m s-1",
+    "northward_sea_water_velocity": "m s-1",
+    "sea_water_speed": "m s-1",
+    "direction_of_sea_water_velocity": "degree",
+    "eastward_wind": "m s-1",
+    "northward_wind": "m s-1",
+    "wind_speed": "m s-1",
+    "wind_from_direction": "degree",
+    "latitude": "degree_north",
+    "longitude": "degree_east",
+    "projection_x_coordinate": "m",
+    "projection_y_coordinate": "m",
+    "time": "s",
+}
+
+
+def _tables(folder) -> list[str]:
+    entries = "".join(
+        f'<entry id="{n}"><canonical_units>{u}</canonical_units></entry>'
+        for n, u in CANONICAL.items()
+    )
+    head = "<version_number>84</version_number><last_modified>2024-01-19T15:55:10Z</last_modified>"
+    lists = "<version_number>84</version_number><date>2024-01-19</date>"
+    files = {
+        "-s": f"<standard_name_table>{head}{entries}</standard_name_table>",
+        "-a": f"<area_type_table>{lists}</area_type_table>",
+        "-r": f"<standardized_region_list>{lists}</standardized_region_list>",
+    }
+    args = []
+    for flag, text in files.items():
+        path = folder / f"table{flag}.xml"
+        path.write_text(text)
+        args += [flag, str(path)]
+    return args
+
+
+def _udunits_env(folder) -> dict:
+    """cfchecks' units library (cfunits) needs the UDUNITS-2 C library: the one the cf-units wheel from
+    PyPI bundles, under the name ctypes looks for, with its unit database."""
+    import os
+    from pathlib import Path
+
+    import cf_units
+
+    folder.mkdir(exist_ok=True)
+    root = Path(cf_units.__file__).parent
+    (lib,) = (root.parent / "cf_units.libs").glob("libudunits2*.so*")
+    (folder / "libudunits2.so").symlink_to(lib)
+    return {
+        **os.environ,
+        "LD_LIBRARY_PATH": f"{folder}:{lib.parent}",
+        "UDUNITS2_XML_PATH": str(root / "etc" / "share" / "udunits2.xml"),
+    }
+
+
+def test_the_cf_checker_finds_no_error_or_warning(fitted, tmp_path):
+    import shutil
+
+    _, _, out, _ = fitted
+    cmd = [shutil.which("cfchecks"), "-v", "1.8", *_tables(tmp_path), str(out / "maps.nc")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=_udunits_env(tmp_path))
+    report = proc.stdout
+    assert "ERRORS detected: 0" in report and "WARNINGS given: 0" in report, report[-3000:]
+    # the checker does check: a copy whose depth has units of time and a grid mapping that is not there
+    import netCDF4
+
+    bad = tmp_path / "bad.nc"
+    shutil.copy(out / "maps.nc", bad)
+    with netCDF4.Dataset(bad, "a") as ds:
+        ds["depth"].units = "s"
+        ds["depth_sd"].grid_mapping = "nowhere"
+    proc = subprocess.run(
+        [*cmd[:-1], str(bad)], capture_output=True, text=True, env=_udunits_env(tmp_path / "again")
+    )
+    assert "ERRORS detected: 2" in proc.stdout, proc.stdout[-3000:]
