@@ -68,15 +68,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host.workbench.fitting import (
-        fit_target,
-        record,
-        resolve_terms,
-        save_residual_plots,
-    )
-    from forcemap.host.workbench.model import small_blas
+    from forcemap.host.api import Fit, read_survey
+    from forcemap.host.workbench.fitting import resolve_terms, save_residual_plots
     from forcemap.host.workbench.spec import check_terms
-    from forcemap.host.workbench.table import load_survey
 
     # everything that can be checked is checked before the fit, which can take a minute
     terms, target = resolve_terms(args.model, args.effects, args.target)
@@ -84,11 +78,10 @@ def run(args: argparse.Namespace) -> int:
     check_terms(terms)
     check_json_output(args)
     ws = prepare_workspace(args)
-    survey = load_survey(args.table)
-    with small_blas():
-        result = fit_target(survey, target, terms, args.folds, progress=not args.quiet)
-    print_notes(survey)
-    entry = record(args.table, result)
+    survey = read_survey(args.table)
+    fit = Fit(target, terms=terms, folds=args.folds).fit(survey, record=True, progress=not args.quiet)
+    result, entry = fit.result_, fit.entry_
+    print_notes(survey.table)
     write_json(args.json, result.to_json())
     out = human(args)
     print(result.summary(), file=out)
