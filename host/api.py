@@ -8,7 +8,9 @@ the other summaries are read-only views of it).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -96,8 +98,11 @@ class Survey:
                 "two targets map the same vector (say current_speed and current_dir); give one of them"
             )
         grid = make_grid(self.table, resolution, max_distance)
-        for f in fits:
-            grid.layers[f.target] = evaluate(grid, f.model_)
+        # one target per core: the work is in numpy and BLAS, which release the GIL
+        workers = max(1, min(len(fits), os.cpu_count() or 1))
+        with ThreadPoolExecutor(workers) as pool:
+            layers = list(pool.map(lambda f: evaluate(grid, f.model_), fits))
+        grid.layers = {f.target: layer for f, layer in zip(fits, layers, strict=True)}
         return grid
 
 
