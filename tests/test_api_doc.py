@@ -16,7 +16,13 @@ def blocks() -> list[str]:
 
 def test_the_api_page_has_the_issues_example():
     code = "\n".join(blocks())
-    for call in ("forcemap.read_survey(", "survey.fit(", "fit.cv_rmse", "fit.diagnose()", "fit.to_xarray("):
+    for call in (
+        "forcemap.read_survey(",
+        "survey.fit(",
+        "fit.cv_rmse",
+        "fit.diagnose()",
+        "fit.to_xarray(",
+    ):
         assert call in code
 
 

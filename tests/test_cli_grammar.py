@@ -69,6 +69,8 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--build-dir": (VALUE, "a staging folder for the compiled firmware (a cache, not an output)"),
     "--dry-run": (FLAG, "print commands instead of running them"),
     "--frames": (VALUE, "stop after this many frames"),
+    "--resolution": (VALUE, "a map grid's cell size, in metres"),
+    "--mask-distance": (VALUE, "how far from every sample a map grid's cells are still mapped, m"),
 }
 
 

@@ -79,7 +79,9 @@ def run(args: argparse.Namespace) -> int:
     check_json_output(args)
     ws = prepare_workspace(args)
     survey = read_survey(args.table)
-    fit = Fit(target, terms=terms, folds=args.folds).fit(survey, record=True, progress=not args.quiet)
+    fit = Fit(target, terms=terms, folds=args.folds).fit(
+        survey, record=True, progress=not args.quiet
+    )
     result, entry = fit.result_, fit.entry_
     print_notes(survey.table)
     write_json(args.json, result.to_json())

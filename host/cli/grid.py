@@ -7,9 +7,13 @@ import sys
 from pathlib import Path
 
 from forcemap.host.cli.common import (
+    add_json,
+    add_output,
+    add_quiet,
     add_table,
     add_workspace_options,
     check_json_output,
+    human,
     prepare_workspace,
     print_notes,
     teach,
@@ -45,12 +49,8 @@ FORMATS = {".tif": "geotiff", ".tiff": "geotiff", ".nc": "netcdf", ".geojson": "
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     add_table(parser)
-    parser.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        required=True,
-        help="OUT.tif, OUT.nc, OUT.geojson, or a folder for all three",
+    add_output(
+        parser, "OUT.tif, OUT.nc, OUT.geojson, or a folder for all three", required=True, type=Path
     )
     parser.add_argument(
         "--target",
@@ -69,11 +69,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="leave cells empty farther than this from every sample (default: 8 %% of the survey's "
         "larger side, at least 10 m)",
     )
-    parser.add_argument(
-        "--json", type=Path, metavar="PATH", help="the files written, as JSON (- for stdout)"
-    )
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    add_workspace_options(parser)
+    add_json(parser, "the grid and the files")
+    add_quiet(parser)
+    add_workspace_options(parser, output=False)
 
 
 def planned_files(
@@ -180,15 +178,13 @@ def _run(args: argparse.Namespace, out: Path) -> int:
         "targets": {t: " + ".join(layer.terms) for t, layer in grid.layers.items()},
         "files": [str(p) for p in written],
     }
-    if args.json is not None and str(args.json) != "-":
-        write_json(args.json, summary)
-    if args.json is not None and str(args.json) == "-":
-        write_json(args.json, summary)
-    else:
-        print(
-            f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
-            f"{int(grid.mask.sum())} mapped"
-        )
-        for p in written:
-            print(f"wrote {p}")
+    write_json(args.json, summary)
+    out = human(args)
+    print(
+        f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
+        f"{int(grid.mask.sum())} mapped",
+        file=out,
+    )
+    for p in written:
+        print(f"wrote {p}", file=out)
     return 0
