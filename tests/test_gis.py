@@ -328,3 +328,14 @@ def test_the_cf_checker_finds_no_error_or_warning(fitted, tmp_path):
         [*cmd[:-1], str(bad)], capture_output=True, text=True, env=_udunits_env(tmp_path / "again")
     )
     assert "ERRORS detected: 2" in proc.stdout, proc.stdout[-3000:]
+
+
+def test_json_dash_is_only_json_on_stdout(fitted, tmp_path, capsys):
+    survey, fits, _, _ = fitted
+    out = tmp_path / "depth.nc"
+    rc = main(["grid", str(survey.path), "-o", str(out), "--target", "depth", "--json", "-"])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["files"] == [str(out)] and summary["targets"]["depth"] == " + ".join(
+        fits["depth"].model_.terms
+    )
