@@ -12,8 +12,10 @@ import signal
 import threading
 import time
 
+import pytest
 from forcemap.host.log.mcap import read_messages
 
+from bench.live_client import LiveClient
 from tests.test_daemon_support import (
     DaemonProcess,
     PtyPort,
@@ -43,9 +45,12 @@ class Outage:
         self.back_mono = time.monotonic_ns()
 
 
-def test_cable_pull_and_replug(tmp_path):
+@pytest.mark.parametrize("live", [False, True], ids=["plain", "live_client"])
+def test_cable_pull_and_replug(tmp_path, live):
     ports = {n: PtyPort(tmp_path / n) for n in ("bridge", "depth")}
-    daemon = DaemonProcess(tmp_path / "out", {n: str(p.path) for n, p in ports.items()})
+    extra = ("--live", "127.0.0.1:0") if live else ()
+    daemon = DaemonProcess(tmp_path / "out", {n: str(p.path) for n, p in ports.items()}, *extra)
+    client = None
     stop = threading.Event()
     lock = threading.Lock()
     bridge_sent: dict[int, int] = {}  # seq -> wall ns just after the frame was written
@@ -66,6 +71,9 @@ def test_cable_pull_and_replug(tmp_path):
     outages: list[Outage] = []
     with StallProbe() as probe:
         try:
+            if live:  # a Foxglove client watching the whole time
+                client = LiveClient(daemon.wait_for(lambda e: e.get("event") == "live")["connect"])
+                client.wait_ready()
             daemon.wait_connected(ports)
             t = threading.Thread(target=writer)
             t.start()
@@ -85,6 +93,8 @@ def test_cable_pull_and_replug(tmp_path):
             assert daemon.stop(signal.SIGTERM) == 0
         finally:
             stop.set()
+            if client is not None:
+                client.close()
             for p in ports.values():
                 p.close()
             if daemon.proc.poll() is None:
@@ -126,3 +136,6 @@ def test_cable_pull_and_replug(tmp_path):
         assert reconnect_s <= MAX_RECONNECT_S + stall, report
         assert data_s <= MAX_RECONNECT_S + stall, report
     print("after the port came back: (connected, first data after its write, stall) s:", report)
+    if client is not None:  # and the client saw the outages as the log has them
+        seen = [m for m in client.messages if m[0] == "/daemon/event"]
+        assert sum(b'"disconnected"' in p and b'"depth"' in p for _, _, p in seen) == len(PULLS_S)

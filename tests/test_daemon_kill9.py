@@ -15,10 +15,12 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import pytest
 from forcemap.host.cli.log import recover
 from forcemap.host.log.mcap import FileScan, read_messages
 from mcap.reader import make_reader
 
+from bench.live_client import LiveClient
 from tests.test_daemon_support import (
     DaemonProcess,
     PtyPort,
@@ -30,16 +32,19 @@ from tests.test_daemon_support import (
 )
 
 ROUNDS = 20
+LIVE_ROUNDS = 8  # with `--live` and a client attached (each starts a server and a map process)
 PARALLEL = 4
 NMEA_HZ = 50
 MAX_LOSS_S = 1.0
 
 
-def _one_round(tmp_path, k: int, delay_s: float, probe: StallProbe) -> dict:
+def _one_round(tmp_path, k: int, delay_s: float, probe: StallProbe, live: bool = False) -> dict:
     base = tmp_path / f"round{k:02d}"
     base.mkdir()
     ports = {n: PtyPort(base / n) for n in ("bridge", "depth")}
-    daemon = DaemonProcess(base / "out", {n: str(p.path) for n, p in ports.items()})
+    extra = ("--live", "127.0.0.1:0") if live else ()
+    daemon = DaemonProcess(base / "out", {n: str(p.path) for n, p in ports.items()}, *extra)
+    client = None
     # per NMEA line: wall-clock ns just after it was written, and the depth bytes written by then
     sent: list[tuple[int, int]] = []
     stop = threading.Event()
@@ -57,6 +62,9 @@ def _one_round(tmp_path, k: int, delay_s: float, probe: StallProbe) -> dict:
             stop.wait(1 / NMEA_HZ)
 
     try:
+        if live:  # a Foxglove client watching the whole time
+            client = LiveClient(daemon.wait_for(lambda e: e.get("event") == "live")["connect"])
+            client.wait_ready()
         daemon.wait_connected(ports)
         t = threading.Thread(target=writer)
         t.start()
@@ -69,6 +77,8 @@ def _one_round(tmp_path, k: int, delay_s: float, probe: StallProbe) -> dict:
         unread = unread_bytes(ports["depth"])  # what the daemon never took from the port
     finally:
         stop.set()
+        if client is not None:
+            client.close()
         for p in ports.values():
             p.close()
         if daemon.proc.poll() is None:
@@ -104,17 +114,22 @@ def _one_round(tmp_path, k: int, delay_s: float, probe: StallProbe) -> dict:
         "due": due,
         "delay_s": delay_s,
         "truncated": truncated,
+        "live_got": len(client.messages) if client is not None else None,
     }
 
 
-def test_kill9_at_random_moments_loses_at_most_one_second(tmp_path):
+@pytest.mark.parametrize("live", [False, True], ids=["plain", "live_client"])
+def test_kill9_at_random_moments_loses_at_most_one_second(tmp_path, live):
     rng = random.Random(20261121)
-    delays = [rng.uniform(0.05, 3.0) for _ in range(ROUNDS)]
+    rounds = LIVE_ROUNDS if live else ROUNDS
+    delays = [rng.uniform(0.05, 3.0) for _ in range(rounds)]
     with StallProbe() as probe, ThreadPoolExecutor(PARALLEL) as pool:
-        results = list(pool.map(lambda kd: _one_round(tmp_path, *kd, probe), enumerate(delays)))
+        results = list(
+            pool.map(lambda kd: _one_round(tmp_path, *kd, probe, live=live), enumerate(delays))
+        )
     worst = max(results, key=lambda r: r["loss_s"])
     print(
-        f"kill -9 x{ROUNDS}: worst loss {worst['loss_s']:.3f} s (allowed {worst['allowed_s']:.3f} s);"
+        f"kill -9 x{rounds}: worst loss {worst['loss_s']:.3f} s (allowed {worst['allowed_s']:.3f} s);"
         f" largest stall {max(r['stall_s'] for r in results):.3f} s, reader behind at most "
         f"{max(r['reader_behind_s'] for r in results):.3f} s;",
         sorted(round(r["loss_s"], 3) for r in results),
@@ -123,4 +138,6 @@ def test_kill9_at_random_moments_loses_at_most_one_second(tmp_path):
         assert r["files"] == 1, r
         assert r["loss_s"] <= r["allowed_s"], r
         assert r["recorded"] >= r["due"], r
-    assert sum(r["truncated"] for r in results) == ROUNDS  # they really were killed mid-file
+    assert sum(r["truncated"] for r in results) == rounds  # they really were killed mid-file
+    if live:  # the client was served while the daemon ran
+        assert all(r["live_got"] > 0 for r in results), results

@@ -40,6 +40,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "forcemap.host.cli.run",
         "the acquisition daemon: read bridge, depth sounder and autopilot, log to MCAP",
     ),
+    "replay": (
+        "forcemap.host.cli.replay",
+        "stream a finished MCAP log to Foxglove as if live, with the maps as they grew (--live)",
+    ),
+    "live-layout": (
+        "forcemap.host.cli.live_layout",
+        "write the Foxglove layout for the live view (map, plots, health, alerts)",
+    ),
     "bridge": (
         "forcemap.host.cli.bridge",
         "flash the MicroPython bridge firmware, or monitor its frames live",
@@ -88,6 +96,7 @@ typical session:
   forcemap export logs/run-*.mcap -o survey.csv
   forcemap fit survey.csv --target current_speed
   forcemap diagnose survey.csv --target current_speed
+  forcemap run ... --live                         # watch it in Foxglove: ws://127.0.0.1:8765
 
 Units and conventions: docs/CONVENTIONS.md. The options' grammar (-o/--output, --force, --json PATH|-,
 --boat, --quiet, durations as 30s/20m/3h): docs/CLI.md. `forcemap COMMAND --help` explains each command.

@@ -4,4 +4,5 @@ import sys
 
 from forcemap.host.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # not when the live map process (spawned) imports this module again
+    sys.exit(main())

@@ -35,6 +35,7 @@ examples:
   forcemap demo                                  # river, hidden depth-dependent current
   forcemap demo --phenomena dam_release --target current_speed
   forcemap demo --phenomena anemometer_upwash --target wind_speed -o /tmp/demo
+  forcemap demo --live                           # and watch it in Foxglove: ws://127.0.0.1:8765
 
 Every step prints the command it runs, so you can repeat any of them by hand. -o must be a new or
 empty folder, or one an earlier demo wrote (whose outputs the new demo replaces without --force).
@@ -72,6 +73,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument(
         "--faults", default="default", help="fault set for the instruments (default: default)"
+    )
+    p.add_argument(
+        "--live",
+        nargs="?",
+        const="127.0.0.1:8765",
+        default=None,
+        metavar="HOST:PORT",
+        help="serve the survey to Foxglove while it runs (default 127.0.0.1:8765; docs/LIVE.md); "
+        'needs pip install "forcemap[live]"',
     )
 
 
@@ -115,6 +125,9 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
         "-o", str(logs),
         "--quiet",
     )  # fmt: skip
+    if args.live is not None:
+        run_cmd += ["--live", args.live]
+        _connect_hint(args.live)
     # the daemon first: it waits for the simulator's clock file, so its start-up (seconds on a
     # busy machine, minutes of virtual time at x60) costs no data
     print("$ forcemap " + " ".join(run_cmd[3:]) + " &", flush=True)
@@ -149,6 +162,20 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     if not files:
         raise SystemExit("demo: the daemon wrote no MCAP file")
     return files
+
+
+def _connect_hint(address: str) -> None:
+    """How to watch: checked before the survey starts (the sdk must be there)."""
+    from forcemap.host.live.server import parse_address, require_sdk
+
+    host, port = parse_address(address)
+    require_sdk()
+    print(
+        f"live view: open Foxglove, 'Open connection' > Foxglove WebSocket > ws://{host}:{port}\n"
+        "           then Layouts > Import from file: `forcemap live-layout -o forcemap.json`"
+        " (docs/LIVE.md)",
+        flush=True,
+    )
 
 
 MARKER = ".forcemap-demo"

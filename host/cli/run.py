@@ -35,6 +35,7 @@ from forcemap.host.cli.common import (
     positive,
     sample_rate,
 )
+from forcemap.host.cli.live_options import add_live_arguments, start_live
 from forcemap.host.errors import CliError
 from forcemap.host.log.mcap import McapLog
 
@@ -56,6 +57,13 @@ examples:
   forcemap run --nmea /dev/ttyUSB0 --boat boat.toml -o /data/logs --rotate-every 30m --quiet
 
 Every source is optional, but at least one is needed. See docs/DAEMON.md.
+
+live view (docs/LIVE.md): --live serves every logged topic, /health, /alerts and the growing maps
+(/map/current, /map/wind, /map/depth, GeoJSON layers under /map/layers/) to Foxglove over WebSocket
+on 127.0.0.1:8765, this machine only; reach it from ashore through an SSH tunnel
+(ssh -L 8765:127.0.0.1:8765 pi@boat). --live 0.0.0.0:8765 serves the boat's whole network,
+unencrypted and without a password, and the daemon warns so. The MCAP is the same with or without it.
+  forcemap run --nmea /dev/ttyUSB0 --mavlink /dev/ttyAMA0,57600 --live
 """
 
 
@@ -137,6 +145,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="also log every chunk of bytes as read (/raw/<source>, base64), for replaying later",
     )
+    add_live_arguments(parser)
 
 
 def nmea_sources(nmea: list[str], depth: str | None = None) -> dict[str, str]:
@@ -258,6 +267,26 @@ def run(args: argparse.Namespace) -> int:
         cal = calibration.load(args.boat)
     except (ValueError, FileNotFoundError) as exc:  # calibration.ConfigError is a ValueError
         raise CliError(str(exc)) from None
+    # the live view first: a viewer can connect while the daemon waits for its clock and ports
+    reporter = Reporter(sys.stderr, live=False if args.quiet else None)
+    live = start_live(args, args.output, reporter.event)
+    try:
+        return _run_daemon(args, cal, openers, nmea, rotate_bytes, rotate_seconds, reporter, live)
+    finally:
+        if live is not None:
+            live.close()
+
+
+def _run_daemon(
+    args: argparse.Namespace,
+    cal: Any,
+    openers: dict[str, Callable[[], Transport]],
+    nmea: list[str],
+    rotate_bytes: int,
+    rotate_seconds: float,
+    reporter: Reporter,
+    live: Any,
+) -> int:
     clock = start_clock(args.clock, args.clock_wait)
     sync = args.sync or getattr(cal, "sync", "interpolate")
     absent = [s for s in ("bridge", "mavlink") if s not in openers] + ([] if nmea else ["nmea"])
@@ -273,7 +302,7 @@ def run(args: argparse.Namespace) -> int:
             _pipeline_factory(cal, sync, clock.speed, sample_rate(args)),
             log,
             clock=clock,
-            reporter=Reporter(sys.stderr, live=False if args.quiet else None),
+            reporter=reporter,
             absent=absent,
             record_raw=args.raw,
         )
@@ -283,5 +312,7 @@ def run(args: argparse.Namespace) -> int:
     except BaseException:
         log.close()
         raise
+    if live is not None:
+        live.attach(log)
     _stop_on_signals(daemon)
     return daemon.run()

@@ -117,6 +117,9 @@ class McapLog:
         self._file: BinaryIO | None = None
         self._writer: Writer | None = None
         self._closed = False
+        # called with (topic, log_time_ns, encoded JSON, message) after every write; must not block
+        # or raise (the live view's bounded queue: forcemap.host.live.tee.LiveTee.offer)
+        self.tee: Callable[[str, int, bytes, Record | dict[str, Any]], None] | None = None
         self._open()
 
     @property
@@ -201,6 +204,8 @@ class McapLog:
             self.messages += 1
             self.topic_counts[topic] = self.topic_counts.get(topic, 0) + 1
             self._maintain()
+        if self.tee is not None:
+            self.tee(topic, int(log_time_ns), data, message)
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         """Record a metadata record now and at the start of every later file of this run."""

@@ -162,3 +162,112 @@ class LocationFix(Record):
             ctype = 2
         ts = Time(t_ns // 1_000_000_000, t_ns % 1_000_000_000)
         return cls(ts, frame_id, lat, lon, alt, cov, ctype)
+
+
+LOG_LEVELS = ("UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL")
+
+
+@dataclass(slots=True)
+class FoxgloveLog(Record):
+    """foxglove.Log, as Foxglove publishes it (its Log panel lists it)."""
+
+    NAME = "foxglove.Log"
+    DESCRIPTION = "A log message"
+    timestamp: Time
+    level: int
+    message: str
+    name: str
+    file: str = ""
+    line: int = 0
+
+    @classmethod
+    def json_schema(cls) -> dict[str, Any]:
+        if cls._schema is None:
+            s = _object_schema(cls)
+            del s["required"], s["additionalProperties"]
+            s["properties"]["level"] = {
+                "title": "foxglove.LogLevel",
+                "oneOf": [{"title": n, "const": i} for i, n in enumerate(LOG_LEVELS)],
+            }
+            cls._schema = s
+        return cls._schema
+
+    @classmethod
+    def at(cls, t_ns: int, level: str, message: str, name: str) -> FoxgloveLog:
+        ts = Time(t_ns // 1_000_000_000, t_ns % 1_000_000_000)
+        return cls(ts, LOG_LEVELS.index(level), message, name)
+
+
+@dataclass(slots=True)
+class GeoJSON(Record):
+    """foxglove.GeoJSON: a GeoJSON document as a string (its Map panel draws it)."""
+
+    NAME = "foxglove.GeoJSON"
+    DESCRIPTION = "GeoJSON data for annotating maps"
+    geojson: str
+
+    @classmethod
+    def json_schema(cls) -> dict[str, Any]:
+        return {
+            "title": cls.NAME,
+            "description": cls.DESCRIPTION,
+            "type": "object",
+            "properties": {"geojson": {"type": "string"}},
+        }
+
+
+FLOAT32 = 7  # foxglove.NumericType
+
+
+@dataclass(slots=True)
+class Grid(Record):
+    """foxglove.Grid: a 2-D grid of float32 fields, row-major from its origin (the 3D panel draws it)."""
+
+    NAME = "foxglove.Grid"
+    DESCRIPTION = "A 2D grid of data"
+    timestamp: Time
+    frame_id: str
+    pose: dict[str, Any]
+    column_count: int
+    cell_size: dict[str, Any]
+    row_stride: int
+    cell_stride: int
+    fields: list[dict[str, Any]]
+    data: str  # base64
+
+    @classmethod
+    def json_schema(cls) -> dict[str, Any]:
+        vec = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
+        quat = {"type": "object", "properties": {k: {"type": "number"} for k in "xyzw"}}
+        return {
+            "title": cls.NAME,
+            "description": cls.DESCRIPTION,
+            "type": "object",
+            "properties": {
+                "timestamp": Time.json_schema(),
+                "frame_id": {"type": "string"},
+                "pose": {
+                    "type": "object",
+                    "properties": {"position": vec, "orientation": quat},
+                },
+                "column_count": {"type": "integer", "minimum": 0},
+                "cell_size": {
+                    "type": "object",
+                    "properties": {"x": {"type": "number"}, "y": {"type": "number"}},
+                },
+                "row_stride": {"type": "integer", "minimum": 0},
+                "cell_stride": {"type": "integer", "minimum": 0},
+                "fields": {
+                    "type": "array",
+                    "items": {
+                        "type": "object",
+                        "properties": {
+                            "name": {"type": "string"},
+                            "offset": {"type": "integer", "minimum": 0},
+                            "type": {"type": "integer"},
+                        },
+                    },
+                },
+                "data": {"type": "string", "contentEncoding": "base64"},
+            },
+        }

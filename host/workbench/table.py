@@ -311,6 +311,18 @@ def load_survey(path: str | Path) -> Survey:
             f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
         )
     columns, non_numeric, notes = _numeric_columns(path, raw)
+    return survey_from_columns(path, columns, non_numeric, notes)
+
+
+def survey_from_columns(
+    path: Path,
+    columns: dict[str, np.ndarray],
+    non_numeric: set[str] | None = None,
+    notes: list[str] | None = None,
+) -> Survey:
+    """A `Survey` from numeric columns (with t, lat, lon) already in memory, checked as `load_survey` does:
+    the live map builds its surveys this way from the samples so far."""
+    non_numeric, notes = set(non_numeric or ()), list(notes or [])
     rows = _placed_rows(path, columns, notes)
     columns = {k: v[rows] for k, v in columns.items()}
     n = len(rows)

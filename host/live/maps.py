@@ -1,0 +1,201 @@
+"""The live maps of current, wind and depth: samples in, `MapGrid`s out, every N seconds and at each line's end.
+
+Time is the samples' own (their ``t``), so a replay at any speed and a test give the same maps. The
+policy: an update (rank-one statistics, new posterior, new grid) every ``every_s`` and at the end of a
+line; a hyperparameter refit (`forcemap fit`'s path) at the first update with enough samples, then
+every ``refit_every_s``, when the samples have doubled since the last one, or when the boat has left
+the box the basis was built for.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from forcemap.host.live.growing import Component, MapGrid, grid_over, live_survey
+from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import MIN_ROWS
+
+TARGETS: dict[str, tuple[str, ...]] = {
+    "current": ("current_east", "current_north"),
+    "wind": ("wind_east", "wind_north"),
+    "depth": ("depth",),
+}
+COLUMNS = ("t", "lat", "lon", "cog", "depth", "current_east", "current_north", "wind_east",
+           "wind_north")  # fmt: skip
+EVERY_S = 60.0
+REFIT_EVERY_S = 300.0
+TURN_DEG = 60.0  # a course this far off the line's for TURN_SAMPLES samples ends the line
+TURN_SAMPLES = 3
+MIN_LINE_S = 30.0
+
+
+@dataclass
+class LineWatcher:
+    """Notices the end of a survey line: the course over ground leaves the line's course."""
+
+    course: float | None = None
+    started: float | None = None
+    off: int = 0
+
+    def see(self, t: float, cog: float | None) -> bool:
+        if cog is None or not math.isfinite(cog):
+            return False
+        if self.course is None or self.started is None:
+            self.course, self.started, self.off = cog, t, 0
+            return False
+        diff = abs((cog - self.course + 180.0) % 360.0 - 180.0)
+        if diff <= TURN_DEG:
+            self.off = 0
+            a = math.radians(self.course) + 0.2 * math.radians(
+                (cog - self.course + 180) % 360 - 180
+            )
+            self.course = math.degrees(a) % 360.0
+            return False
+        self.off += 1
+        if self.off < TURN_SAMPLES:
+            return False
+        ended = t - self.started >= MIN_LINE_S
+        self.course, self.started, self.off = cog, t, 0
+        return ended
+
+
+@dataclass
+class TargetState:
+    comps: list[Component]
+    lat0: float
+    lon0: float
+    box: tuple[np.ndarray, np.ndarray]
+    grid: tuple[float, float, float, int, int]
+    t_hyper: float
+    n_refit: int
+    applied: int  # samples (rows of the columns) already in the statistics
+
+
+@dataclass
+class LiveMaps:
+    """The in-process live maps; `mapproc.MapProcess` runs one in its own process."""
+
+    every_s: float = EVERY_S
+    refit_every_s: float = REFIT_EVERY_S
+    terms: list[str] = field(default_factory=lambda: list(BASELINE))
+    rows: dict[str, list[float]] = field(default_factory=lambda: {c: [] for c in COLUMNS})
+    state: dict[str, TargetState] = field(default_factory=dict)
+    latest: dict[str, MapGrid] = field(default_factory=dict)
+    notes: dict[str, str] = field(default_factory=dict)
+    lines: LineWatcher = field(default_factory=LineWatcher)
+    last_update: float | None = None
+    line_end: bool = False
+    refits: int = 0
+    updates: int = 0
+
+    @property
+    def n(self) -> int:
+        return len(self.rows["t"])
+
+    def add(self, sample: dict[str, Any]) -> None:
+        """One `/samples` row (its JSON); rows without a time or position are skipped."""
+        vals = {c: sample.get(c) for c in COLUMNS}
+        if any(not isinstance(vals[c], int | float) for c in ("t", "lat", "lon")):
+            return
+        for c in COLUMNS:
+            v = vals[c]
+            self.rows[c].append(float(v) if isinstance(v, int | float) else math.nan)
+        if self.lines.see(float(vals["t"]), vals["cog"]):
+            self.line_end = True
+
+    def due(self) -> str:
+        """Why an update is due now ("" if none)."""
+        if not self.n:
+            return ""
+        t = self.rows["t"][-1]
+        if self.line_end:
+            return "line end"
+        if self.last_update is None or t - self.last_update >= self.every_s:
+            return f"every {self.every_s:g}s"
+        return ""
+
+    def step(self, force: str = "", refit: bool = False) -> list[MapGrid]:
+        """Update the maps if due (or ``force``: the reason; ``refit``: hyperparameters too); the maps
+        updated."""
+        reason = force or self.due()
+        if not reason:
+            return []
+        self.line_end = False
+        self.last_update = self.rows["t"][-1]
+        cols = {c: np.asarray(v, float) for c, v in self.rows.items()}
+        out = []
+        for target, columns in TARGETS.items():
+            try:
+                grid = self._update(target, columns, cols, reason, refit)
+            except WorkbenchError as exc:
+                self.notes[target] = str(exc)
+                continue
+            if grid is not None:
+                self.notes.pop(target, None)
+                self.latest[target] = grid
+                out.append(grid)
+        self.updates += 1
+        return out
+
+    def _needs_refit(self, st: TargetState | None, cols: dict[str, np.ndarray]) -> bool:
+        if st is None:
+            return True
+        t = cols["t"][-1]
+        if t - st.t_hyper >= self.refit_every_s or self.n >= 2 * st.n_refit:
+            return True
+        x, y = local_frame(cols["lat"][st.applied :], cols["lon"][st.applied :], st.lat0, st.lon0)
+        lo, hi = st.box
+        span = np.maximum(hi - lo, 0.25 * float(np.max(hi - lo)))
+        return bool(
+            len(x)
+            and (np.any(x < lo[0] - 0.1 * span[0]) or np.any(x > hi[0] + 0.1 * span[0])
+                 or np.any(y < lo[1] - 0.1 * span[1]) or np.any(y > hi[1] + 0.1 * span[1]))
+        )  # fmt: skip
+
+    def _update(self, target, columns, cols, reason, refit=False) -> MapGrid | None:
+        known = np.ones(self.n, bool)
+        for c in columns:
+            known &= np.isfinite(cols[c])
+        if known.sum() < MIN_ROWS:
+            self.notes[target] = f"{int(known.sum())} samples with {target} so far"
+            return None
+        st = self.state.get(target)
+        if refit or self._needs_refit(st, cols):
+            survey = live_survey(cols, list(columns))
+            comps = [Component.refit(survey, c, self.terms) for c in columns]
+            xy = survey.xy
+            st = TargetState(comps, survey.lat0, survey.lon0, (xy.min(axis=0), xy.max(axis=0)),
+                             grid_over(xy), cols["t"][-1], self.n, self.n)  # fmt: skip
+            self.state[target] = st
+            self.refits += 1
+            reason = f"{reason}; hyperparameters refitted"
+        else:
+            new = slice(st.applied, self.n)
+            x, y = local_frame(cols["lat"][new], cols["lon"][new], st.lat0, st.lon0)
+            rows_ok = known[new]
+            xy = np.column_stack([x, y])[rows_ok]
+            for comp in st.comps:
+                comp.add(xy, cols[comp.column][new][rows_ok])
+            st.applied = self.n
+        return self._grid(target, st, cols, reason)
+
+    def _grid(self, target: str, st: TargetState, cols, reason: str) -> MapGrid:
+        x0, y0, step, nx, ny = st.grid
+        gx, gy = np.meshgrid(x0 + step * np.arange(nx), y0 + step * np.arange(ny))
+        xy = np.column_stack([gx.ravel(), gy.ravel()])
+        fields: dict[str, np.ndarray] = {}
+        for comp in st.comps:
+            mu, sd = comp.predict(xy)
+            name = comp.column.split("_")[-1] if target != "depth" else "depth"
+            fields[name], fields[f"{name}_sd"] = mu.reshape(gx.shape), sd.reshape(gx.shape)
+        if "east" in fields:
+            fields["speed"] = np.hypot(fields["east"], fields["north"])
+            fields["speed_sd"] = np.hypot(fields["east_sd"], fields["north_sd"]) / math.sqrt(2.0)
+        n = int(min(c.n for c in st.comps))
+        return MapGrid(target, st.lat0, st.lon0, x0, y0, step, fields, n, float(cols["t"][-1]),
+                       float(st.t_hyper), reason, list(self.terms))  # fmt: skip

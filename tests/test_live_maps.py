@@ -1,0 +1,119 @@
+"""The growing maps: rank-one updates give the batch statistics, and the live map is `forcemap fit`'s map.
+
+In process (the map process runs this same `LiveMaps`), on the synthetic survey: no clocks involved.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from forcemap.host.live.growing import Component, live_survey
+from forcemap.host.live.health import HealthMonitor
+from forcemap.host.live.maps import TARGETS, LiveMaps
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.targets import SurveyModel
+
+from bench.synth_survey import make_survey, simulate
+
+
+def _rows(cols, i):
+    return {k: float(v[i]) for k, v in cols.items()}
+
+
+def test_rank_one_updates_equal_the_batch_statistics():
+    cols = simulate(duration_s=400, seed=3)
+    half = len(cols["t"]) // 2
+    first = {k: v[:half] for k, v in cols.items()}
+    comp = Component.refit(live_survey(first, "depth"), "depth", list(BASELINE))
+    # the second half in the first half's frame, one sample at a time
+    from forcemap.host.workbench.cleaning import local_frame
+
+    s0 = live_survey(first, "depth")
+    x, y = local_frame(cols["lat"], cols["lon"], s0.lat0, s0.lon0)
+    for i in range(half, len(cols["t"])):
+        comp.add(np.array([[x[i], y[i]]]), np.array([cols["depth"][i]]))
+    Phi = comp.features(np.column_stack([x, y]))
+    r = cols["depth"] / comp.y_scale
+    assert comp.n == len(r)
+    np.testing.assert_allclose(comp.G, Phi.T @ Phi, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(comp.b, Phi.T @ r, rtol=1e-9, atol=1e-9)
+    assert comp.rr == pytest.approx(float(r @ r), rel=1e-12)
+
+
+@pytest.mark.slow
+def test_final_live_maps_are_forcemap_fits_maps(tmp_path):
+    table = make_survey("river", [], 5, 900.0, tmp_path)
+    survey = load_survey(table)
+    cols = {k: survey.columns[k] for k in survey.columns}
+    maps = LiveMaps(every_s=60.0)
+    for i in range(survey.n):
+        maps.add(_rows(cols, i))
+        maps.step()
+    assert maps.updates >= 900 / 60 - 1 and maps.refits >= 3
+    before = {t: g.n_samples for t, g in maps.latest.items()}
+    maps.step(force="final", refit=True)
+    for target, columns in TARGETS.items():
+        g = maps.latest[target]
+        assert g.n_samples == survey.n >= before[target]
+        ny, nx = g.shape
+        gx, gy = np.meshgrid(g.x0 + g.step * np.arange(nx), g.y0 + g.step * np.arange(ny))
+        xy = np.column_stack([gx.ravel(), gy.ravel()])
+        for column in columns:
+            # `forcemap fit TABLE --target COLUMN`'s model, on the same samples, in the same frame
+            ref = SurveyModel(survey, column, list(BASELINE)).fit().primary
+            mu, sd = ref.predict({"position": xy}, return_std=True)
+            name = "depth" if target == "depth" else column.split("_")[-1]
+            live = g.fields[name].ravel()
+            span = float(np.ptp(mu))
+            assert np.max(np.abs(live - mu)) <= 0.01 * span, (
+                column,
+                np.max(np.abs(live - mu)),
+                span,
+            )
+            assert np.max(np.abs(g.fields[f"{name}_sd"].ravel() - sd)) <= 0.01 * float(np.max(sd))
+
+
+def test_line_ends_update_the_maps_between_periodic_updates():
+    cols = simulate(duration_s=900, seed=2)
+    maps = LiveMaps(every_s=1e9)  # only line ends (and the first update) are due
+    reasons = []
+    for i in range(len(cols["t"])):
+        maps.add(_rows(cols, i))
+        reasons += [g.reason for g in maps.step() if g.target == "depth"]
+    assert sum(r.startswith("line end") for r in reasons) >= 3, reasons
+
+
+def test_health_alerts_raise_and_clear_on_the_logs_clock():
+    h = HealthMonitor()
+    t0 = 1_700_000_000 * 10**9
+    s = 10**9
+
+    def status(t, depth_bytes):
+        snap = {
+            "sources": {"depth": {"connected": True, "bytes": depth_bytes}},
+            "absent": ["bridge"],
+        }
+        h.observe("/daemon/status", t, snap)
+
+    status(t0, 100)
+    h.observe("/fix", t0, {"latitude": 1.0})
+    h.observe("/depth", t0, {"depth": 3.0})
+    health, logs = h.update(t0, {})
+    assert logs == [] and health.sources["depth"]["state"] == "reading"
+    assert health.sources["bridge"] == {"state": "not given"}
+    status(t0 + 6 * s, 100)  # no new bytes for 6 s, no fix, no depth
+    health, logs = h.update(t0 + 6 * s, {})
+    texts = sorted(log.message for log in logs)
+    assert any("source depth silent" in m for m in texts), texts
+    assert any(m.startswith("fix lost") for m in texts), texts
+    assert any(m.startswith("sounder out of range") for m in texts), texts
+    assert health.sources["depth"]["state"] == "silent" and len(health.alerts) == 3
+    status(t0 + 7 * s, 200)
+    h.observe("/fix", t0 + 7 * s, {})
+    h.observe("/depth", t0 + 7 * s, {"depth": 250.0})  # beyond the sounder's range
+    health, logs = h.update(t0 + 7 * s, {})
+    assert {log.message.split(":")[0] for log in logs} == {"cleared"}
+    assert health.alerts == ["sounder out of range: 250.00 m (expected 0.3-100 m)"]
+    h.disk_free = 10
+    assert any(k == "disk" for k in h._conditions(t0 + 7 * s))
