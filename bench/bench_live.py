@@ -42,10 +42,10 @@ def _cpu(proc) -> float:
 
 
 def _daemon(out: Path, ports: Path, live: bool) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "forcemap.host.cli", "run", "--quiet", "--out", str(out),
+    cmd = [sys.executable, "-m", "forcemap.host.cli", "run", "--quiet", "-o", str(out),
            "--bridge", str(ports / "bridge"), "--depth", str(ports / "depth"),
            "--mavlink", f"{ports / 'mavlink'},115200", "--clock", f"sim:{ports / 'clock'}",
-           "--clock-wait", "60"]  # fmt: skip
+           "--clock-wait", "60s"]  # fmt: skip
     if live:
         cmd += ["--live", "127.0.0.1:0", "--map-every", "60s"]
     return subprocess.Popen(
@@ -55,7 +55,7 @@ def _daemon(out: Path, ports: Path, live: bool) -> subprocess.Popen:
 
 def _sim(ports: Path, duration: str, speed: float, truth: Path) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "forcemap.host.cli", "sim", "--scenario", "river", "--faults", "none",
-           "--speed", str(speed), "--duration", duration, "--ports", str(ports), "--truth", str(truth),
+           "--speed", str(speed), "--duration", duration, "--ports", str(ports), "-o", str(truth),
            "--seed", "1"]  # fmt: skip
     return subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 

@@ -51,7 +51,7 @@ def _sim(tmp_path, ports):
     return subprocess.Popen(
         [sys.executable, "-m", "forcemap.host.cli", "sim", "--scenario", "river", "--faults", "default",
          "--speed", str(SPEED), "--duration", DURATION, "--ports", str(ports),
-         "--truth", str(tmp_path / "truth")],
+         "-o", str(tmp_path / "truth")],
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
 

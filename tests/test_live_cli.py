@@ -48,7 +48,7 @@ def test_live_without_the_sdk_is_one_line_and_exit_2(tmp_path):
     res = _py(
         "import sys; sys.modules['foxglove'] = None\n"  # as if foxglove-sdk were not installed
         "from forcemap.host.cli import main\n"
-        f"sys.exit(main(['run', '--nmea', '/dev/null', '--out', {str(tmp_path)!r}, '--live']))\n"
+        f"sys.exit(main(['run', '--nmea', '/dev/null', '-o', {str(tmp_path)!r}, '--live']))\n"
     )
     assert res.returncode == 2
     assert res.stderr.strip().count("\n") == 0
