@@ -117,3 +117,28 @@ def test_health_alerts_raise_and_clear_on_the_logs_clock():
     assert health.alerts == ["sounder out of range: 250.00 m (expected 0.3-100 m)"]
     h.disk_free = 10
     assert any(k == "disk" for k in h._conditions(t0 + 7 * s))
+
+
+def test_live_records_are_valid_json_schemas_and_their_messages_match():
+    import jsonschema
+    from forcemap.host.live.layers import map_messages
+    from forcemap.host.log.messages import LIVE_TOPIC_TYPES, as_json, record_type
+
+    cols = simulate(duration_s=300, seed=6)
+    maps = LiveMaps()
+    for i in range(len(cols["t"])):
+        maps.add(_rows(cols, i))
+    messages = map_messages(maps.step(force="test"), maps)
+    h = HealthMonitor()
+    h.observe("/daemon/status", 0, {"sources": {"nmea": {"bytes": 1}}})
+    health, logs = h.update(6 * 10**9, {})  # silent for 6 s: an alert
+    messages += [("/health", health), *(("/alerts", log) for log in logs)]
+    topics = {t for t, _ in messages}
+    assert topics >= {"/map/current", "/map/info", "/map/layers/depth", "/map/layers/samples"}
+    assert topics >= set(LIVE_TOPIC_TYPES)
+    for topic, record in messages:
+        schema = record_type(topic).json_schema()
+        assert schema["title"] == type(record).NAME
+        cls = jsonschema.validators.validator_for(schema)
+        cls.check_schema(schema)
+        cls(schema).validate(as_json(record))
