@@ -54,7 +54,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--raw": (FLAG, "also log the raw bytes"),
     "--scenario": (VALUE, "a simulated scenario, by name or TOML"),
     "--mission": (VALUE, "a mission: built-in name, mission TOML or QGC WPL 110 file"),
-    "--speed": (VALUE, "the simulator's clock speed-up over real time"),
+    "--speed": (VALUE, "the speed-up over real time: the simulator's clock, a replay's pace"),
     "--faults": (VALUE, "the simulated instruments' faults"),
     "--seed": (VALUE, "the simulator's random seed"),
     "--list": (FLAG, "list what the simulator knows, then exit"),
@@ -71,6 +71,9 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--frames": (VALUE, "stop after this many frames"),
     "--resolution": (VALUE, "a map grid's cell size, in metres"),
     "--mask-distance": (VALUE, "how far from every sample a map grid's cells are still mapped, m"),
+    "--live": (VALUE, "serve the survey to Foxglove on HOST:PORT (default 127.0.0.1:8765)"),
+    "--map-every": (DURATION, "how often, in survey time, the live maps are updated"),
+    "--no-maps": (FLAG, "a live view without the growing maps"),
 }
 
 

@@ -12,7 +12,7 @@ from forcemap.host.cli import main
 from forcemap.host.cli.live_options import start_live
 from forcemap.host.cli.replay import _stream
 from forcemap.host.errors import CliError
-from forcemap.host.live.layout import build_layout, layout_json
+from forcemap.host.live.layout import build_layout, layout_json, schematic_png
 from forcemap.host.live.server import parse_address
 from forcemap.host.live.service import LiveService
 from forcemap.host.log.mcap import McapLog
@@ -90,8 +90,9 @@ def test_live_layout_is_the_sdks_layout_and_is_written_once(tmp_path):
     for panel in ('"Map"', '"Plot"', '"Table"', '"Log"', "/fix", "/health", "/alerts"):
         assert panel in panels
     out = tmp_path / "forcemap.json"
-    assert main(["live-layout", "-o", str(out), "--png", str(tmp_path / "l.png")]) == 0
+    assert main(["live-layout", "-o", str(out)]) == 0
     assert json.loads(out.read_text()) == build_layout()
+    schematic_png(tmp_path / "l.png")  # the picture in docs/LIVE.md
     assert (tmp_path / "l.png").read_bytes()[:4] == b"\x89PNG"
     assert main(["live-layout", "-o", str(out)]) == 2  # exists: only with --force
     assert main(["live-layout", "-o", str(out), "--force"]) == 0
