@@ -98,10 +98,13 @@ def turn_errors(tr: dict, wps: np.ndarray, flow_deg: float, window_s: float = 25
     return np.array(out)
 
 
-def fly(waypoints: Path, scenario: str, seed: int, effects: list[str], duration_s: float) -> Flight:
+def fly(
+    waypoints: Path, scenario: str, seed: int, effects: list[str], duration_s: float, boat=None
+) -> Flight:  # type: ignore[no-untyped-def]
     """Fly a waypoint file offline and score the true track, until the mission ends, on its intended
-    lines (from the FILE.json beside it)."""
-    sim = Simulation(scenario, str(waypoints), effects, seed=seed, instruments=False)
+    lines (from the FILE.json beside it); ``boat``: (BoatParams, Gains) of the boat flown."""
+    sim = Simulation(scenario, str(waypoints), effects, seed=seed, instruments=False,
+                     boat_params=boat and boat[0], gains=boat and boat[1])  # fmt: skip
     if sim.mission.lines is None:
         raise ValueError(f"{waypoints} has no intended lines beside it ({waypoints.stem}.json)")
     sim.run(duration_s, lambda *a: None)

@@ -10,6 +10,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from .geo import Geo
 from .mission_protocol import MissionReceiver
+from .modes import AUTO
 
 # (message, period s): ArduPilot Rover's default SRx_ stream rates
 RATES = {
@@ -22,13 +23,10 @@ RATES = {
     "MISSION_CURRENT": 1.0,  # EXTENDED_STATUS group
     "NAV_CONTROLLER_OUTPUT": 1.0,
 }
-ROVER_MODE_AUTO = 10
-BASE_MODE = (
-    mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-    | mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
-    | mavlink2.MAV_MODE_FLAG_AUTO_ENABLED
-    | mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
-)
+ROVER_MODE_AUTO = AUTO
+BASE_MODE = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+AUTO_FLAGS = mavlink2.MAV_MODE_FLAG_AUTO_ENABLED | mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
+MANUAL_FLAGS = mavlink2.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
 
 
 @dataclass
@@ -71,6 +69,7 @@ class Autopilot:
         self.deviation = deviation  # (amplitude deg, phase deg) of compass deviation
         self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
         self.next_due = dict.fromkeys(RATES, 0.0)
+        self._now: set[str] = set()
         self.gps_lost = False
         self.time_jump_s = 0.0  # a clock-jump fault steps the autopilot's clocks
         self._err = [0.0, 0.0]  # slowly wandering GPS position error (m)
@@ -78,6 +77,7 @@ class Autopilot:
         self._dr: tuple[float, float] | None = None
         self._last_t = 0.0
         self.uplink = MissionReceiver()  # the mission protocol, vehicle side
+        self.mode = AUTO  # HEARTBEAT custom_mode (sim_devices.modes)
         self._rx = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
         self._rx.robust_parsing = True
 
@@ -94,6 +94,11 @@ class Autopilot:
             if msg.get_type() != "BAD_DATA":
                 out += [self._pack(r) for r in self.uplink.handle(msg, t)]
         return out
+
+    def report_now(self, *names: str) -> None:
+        """Send these messages at the next step too (a mode change, a new current item), as Rover
+        does, without moving their regular schedule."""
+        self._now.update(names)
 
     def uplink_due(self, t: float) -> list[bytes]:
         """The vehicle's own re-requests of a stalled upload."""
@@ -137,14 +142,18 @@ class Autopilot:
         sog = math.hypot(s.ve, s.vn)
         for name, period in RATES.items():
             if s.t + 1e-9 < self.next_due[name]:
-                continue
-            self.next_due[name] = max(self.next_due[name] + period, s.t)
+                if name not in self._now:
+                    continue
+            else:
+                self.next_due[name] = max(self.next_due[name] + period, s.t)
+            self._now.discard(name)
             if name == "HEARTBEAT":
+                flags = AUTO_FLAGS if self.mode == AUTO else MANUAL_FLAGS
                 msg = self.mav.heartbeat_encode(
                     mavlink2.MAV_TYPE_SURFACE_BOAT,
                     mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                    BASE_MODE,
-                    ROVER_MODE_AUTO,
+                    BASE_MODE | flags,
+                    self.mode,
                     mavlink2.MAV_STATE_ACTIVE,
                 )
             elif name == "SYSTEM_TIME":

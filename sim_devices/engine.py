@@ -21,15 +21,17 @@ import numpy as np
 from . import effects as fx
 from . import faults as fl
 from . import mission as ms
+from . import modes as md
 from . import scenario as sc
 from .autopilot import Autopilot, NavState
 from .boat import Boat, BoatParams, BoatState
 from .bridge_emu import EmulatedBridge
-from .control import Controller, Navigator
+from .control import Controller, Gains, Navigator
 from .fields import World
 from .geo import Geo
 from .instruments import InstrumentConfig, Readings, Sensors
 from .machine_emu import PWRON_RESET
+from .mission_link import MissionLink
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
 from .truth import samples_table, track_arrays, write_all, write_pulses
@@ -44,7 +46,7 @@ TRUTH_EVERY = 2  # truth rows at 10 Hz
 MAVLINK_BYTES_PER_S = 11_520.0  # 115200 baud telemetry port
 
 
-class Simulation:
+class Simulation(MissionLink):
     """One simulated survey: scenario, mission, effects, faults and seed fix every byte it produces."""
 
     def __init__(
@@ -60,6 +62,8 @@ class Simulation:
         events: Events | None = None,
         instruments: bool = True,
         nmea_bus: bool = False,
+        boat_params: BoatParams | None = None,
+        gains: Gains | None = None,
     ) -> None:
         self.scenario = sc.load(scenario)
         self.mission = ms.load(mission or "lawnmower", self.scenario)
@@ -73,6 +77,8 @@ class Simulation:
         # the NMEA-only boat's bus (nmea_bus.py) on the "nmea" port: on request or with its faults
         self.bus_faults = {f.kind for f in self.faults if f.kind in fl.BUS_KINDS}
         self.nmea_bus = nmea_bus or bool(self.bus_faults)
+        self.boat_params = boat_params or BoatParams()  # the hull and jet flown (not the planner's)
+        self.gains = gains or Gains()  # the autopilot's tuning
         self.geo = Geo(self.scenario.lat0, self.scenario.lon0)
         self.t0_ns = int(round(self.scenario.t0 * 1e9))
         self.world: World | None = None
@@ -96,10 +102,14 @@ class Simulation:
         wps = self.mission.waypoints
         a, b = wps[0], wps[1]
         psi = math.atan2(b[0] - a[0], b[1] - a[1]) % (2 * math.pi)
-        self.boat = Boat(BoatParams(), BoatState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
+        self.boat = Boat(self.boat_params, BoatState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
         self.cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
-        self.nav = Navigator(wps, loop=self.mission.loop, speeds=self.mission.speeds)
-        self.ctl = Controller(self.cruise)
+        self.nav = Navigator(wps, self.mission.loop, self.gains, self.mission.speeds)
+        self.ctl = Controller(self.cruise, self.gains)
+        self.mode = md.AUTO
+        self.mode_changes = md.schedule(tables)
+        self.mode_log: list[tuple[float, int]] = []  # (t s, mode) as it changed
+        self.pilot = md.ModePilot((float(a[0]), float(a[1])), self.gains.wp_radius_m)
         icfg = InstrumentConfig.from_table(tables.get("instruments", {}))
         mis = self._effect("wheel_misalignment")
         up = self._effect("anemometer_upwash")
@@ -135,6 +145,7 @@ class Simulation:
             gps_fix_after_s=float(apcfg.get("gps_fix_after_s", 8.0)),
             deviation=(dev["amplitude_deg"], dev["phase_deg"]) if dev else None,
         )
+        self.autopilot.uplink.accepted = self._mission_items()
         off = self._effect("clock_offset")
         self.mav_latency_ns = int(float(off["offset_s"]) * 1e9) if off else 0
         snd = tables.get("sounder", {})
@@ -266,19 +277,32 @@ class Simulation:
                 self.garbler = None
             self.fault_log.append((at, act, src))
 
+    def _steer(self, dt: float) -> tuple[float, float]:
+        """(throttle, steer) of the mode flown: the mission in AUTO, the mode's pilot otherwise."""
+        s = self.boat.s
+        while self.mode_changes and self.mode_changes[0].at_s <= self.t + 1e-9:
+            self.set_mode(self.mode_changes.pop(0).mode)
+        sog = math.hypot(s.ve, s.vn)
+        if self.mode == md.AUTO:
+            leg = self.nav.leg
+            self.psi_d, self.xte = self.nav.update(s.x, s.y)
+            if self.nav.leg != leg:  # Rover reports a new current item at once
+                self.autopilot.report_now("MISSION_CURRENT")
+            self.ctl.cruise = self.nav.speed(self.cruise)
+            out = self.ctl.update(dt, s.psi, s.r, self.psi_d, sog)
+            # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
+            return (0.0, 0.0) if self.nav.done else out
+        psi_d = self.pilot.heading(self.mode, s.x, s.y)
+        if psi_d is None:
+            return 0.0, 0.0
+        self.psi_d, self.ctl.cruise = psi_d, self.cruise
+        return self.ctl.update(dt, s.psi, s.r, psi_d, sog)
+
     def step(self) -> None:
         """Advance one boat step (DT) with every instrument."""
         dt = DT
-        s, p = self.boat.s, self.p
-        psi_d, xte = self.nav.update(s.x, s.y)
-        self.psi_d, self.xte = psi_d, xte
-        self.ctl.cruise = self.nav.speed(self.cruise)
-        sog = math.hypot(s.ve, s.vn)
-        self.throttle, steer = self.ctl.update(dt, s.psi, s.r, psi_d, sog)
-        if (
-            self.nav.done
-        ):  # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
-            self.throttle, steer = 0.0, 0.0
+        p = self.p
+        self.throttle, steer = self._steer(dt)
         t_prev = self.t
         self.k += 1
         t_new = self.k * dt
@@ -287,6 +311,7 @@ class Simulation:
         self.boat.step(
             dt, self.throttle, steer, (p.current_east, p.current_north), (p.wind_east, p.wind_north)
         )
+        s = self.boat.s
         self._update_point()
         p = self.p
         sog = math.hypot(s.ve, s.vn)
@@ -304,7 +329,7 @@ class Simulation:
                 p.wind_east, p.wind_north, p.current_east, p.current_north, *truth.wheels,
                 truth.app_speed, truth.app_angle,
             ))  # fmt: skip
-            self.extra.append((xte, self.nav.legs_done, self.throttle, s.u, s.v))
+            self.extra.append((self.xte, self.nav.legs_done, self.throttle, s.u, s.v))
         self._flush(self._ns(t_new))
 
     def _instruments(
@@ -365,22 +390,6 @@ class Simulation:
             target_bearing_deg=math.degrees(math.atan2(wx - s.x, wy - s.y)) % 360.0,
             wp_dist=math.hypot(wx - s.x, wy - s.y),
         )  # fmt: skip
-
-    def uplink(self, data: bytes) -> None:
-        """Bytes a ground station wrote to the autopilot's port; a mission it completes is flown at once."""
-        replies = self.autopilot.receive(data, self.t)
-        if replies:
-            for t_ns, piece in self.uart_mav.send(self._ns(self.t), b"".join(replies)):
-                self._push(t_ns + self.mav_latency_ns, "mavlink", piece)
-        rx = self.autopilot.uplink
-        if rx.new_mission and rx.accepted:
-            rx.new_mission = False
-            s = self.boat.s
-            try:
-                self.mission = ms.from_items(rx.accepted, self.geo, (s.x, s.y))
-            except ValueError:
-                return  # nothing to fly: keep the current mission, as Rover does
-            self.nav = Navigator(self.mission.waypoints, loop=False, speeds=self.mission.speeds)
 
     def advance(self, t_s: float, progress: Progress | None = None) -> None:
         """Step until sim time ``t_s`` (s since the start), capped at the run's duration."""

@@ -74,6 +74,8 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--live": (VALUE, "serve the survey to Foxglove on HOST:PORT (default 127.0.0.1:8765)"),
     "--map-every": (DURATION, "how often, in survey time, the live maps are updated"),
     "--no-maps": (FLAG, "a live view without the growing maps"),
+    "--replan": (FLAG, "replan the rest of the mission in flight, after each line"),
+    "--replan-bound": (VALUE, "the largest move of a waypoint across its line when replanning"),
 }
 
 

@@ -88,7 +88,11 @@ def test_upload_is_acknowledged_and_flown(
     assert not sim.autopilot.uplink.drop_request and sim.autopilot.uplink.nak_at is None
     assert n == len(want) == 8  # home, 5 waypoints, 2 speed changes
     assert got == [(c, la, lo, tuple(float(p) for p in ps)) for c, la, lo, ps in want]
-    # it flies what it received: from where it was, through the five waypoints, at the speeds given
-    assert len(sim.mission.waypoints) == 6
+    # it flies what it received, from where it was: as Rover, a mission accepted in AUTO keeps the
+    # current item number (the boat was going for item 2 or 3 of the lawnmower), so it goes for the
+    # first waypoint at or after that item and on through the last, at the speeds given
+    seqs = list(sim.mission.seqs[1:])
+    assert seqs == [3, 4, 5, 7]  # the file's NAV_WAYPOINTs are items 1, 3, 4, 5 and 7
+    assert len(sim.mission.waypoints) == len(seqs) + 1
     assert np.nanmax(sim.mission.speeds) == pytest.approx(4.5)
     assert sim.mission.speeds[-1] == pytest.approx(2.0)

@@ -8,6 +8,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from forcemap.host.acquire.arrival_clock import Clock, SystemClock
@@ -94,6 +95,15 @@ class RawOnly:
         pass
 
 
+@dataclass
+class Posted:
+    """A record handed over by another thread (the replanner) for the log."""
+
+    topic: str
+    t_wall_ns: int
+    record: Record
+
+
 class Daemon:
     """Runs readers for the given sources and feeds their bytes to the pipeline until stopped."""
 
@@ -108,9 +118,11 @@ class Daemon:
         absent: list[str] | None = None,
         status_interval_s: float = STATUS_INTERVAL_S,
         record_raw: bool = False,
+        taps: Mapping[str, Callable[[bytes], object]] | None = None,
     ):
         self.clock = clock or SystemClock()
         self.record_raw = record_raw
+        self.taps = dict(taps or {})  # source -> a quick, non-blocking consumer of its bytes
         self.log = log
         self.reporter = reporter or Reporter()
         self.stop_event = threading.Event()
@@ -141,8 +153,26 @@ class Daemon:
         self.reporter.event(event, **fields)
         self.sink.write("/daemon/event", self.clock.wall_ns(), DaemonEvent(event, fields))
 
+    def post(self, topic: str, record: Record) -> None:
+        """Log a record from another thread: written by the daemon's own loop, in order."""
+        try:
+            self.queue.put_nowait(Posted(topic, self.clock.wall_ns(), record))  # type: ignore[arg-type]
+        except queue.Full:
+            pass
+
     def _handle(self, item: Chunk | SourceEvent) -> None:
+        if isinstance(item, Posted):
+            if isinstance(item.record, DaemonEvent):
+                self.reporter.event(item.record.event, **item.record.details)
+            self.sink.write(item.topic, item.t_wall_ns, item.record)
+            return
         if isinstance(item, Chunk):
+            tap = self.taps.get(item.source)
+            if tap is not None:
+                try:
+                    tap(item.data)
+                except Exception as exc:
+                    self.sink.failed(f"tap_{item.source}", exc)
             if self.record_raw:
                 self.sink.write(f"/raw/{item.source}", item.t_wall_ns, raw_message(item))
             try:

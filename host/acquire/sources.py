@@ -128,6 +128,9 @@ class SerialTransport:
                 raise Disconnected("port_replaced", self.url)
         return b""
 
+    def write(self, data: bytes) -> None:
+        self._ser.write(data)
+
     def close(self) -> None:
         try:
             self._ser.close()
@@ -143,12 +146,19 @@ class UdpTransport:
         self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self._sock.bind((host, port))
         self._sock.settimeout(READ_TIMEOUT_S)
+        self._peer: tuple | None = None  # who sent the last datagram: where replies go
 
     def read(self) -> bytes:
         try:
-            return self._sock.recv(MAX_READ)
+            data, self._peer = self._sock.recvfrom(MAX_READ)
+            return data
         except TimeoutError:
             return b""
+
+    def write(self, data: bytes) -> None:
+        if self._peer is None:
+            raise OSError("nothing heard yet on this UDP port: no one to send to")
+        self._sock.sendto(data, self._peer)
 
     def close(self) -> None:
         self._sock.close()
@@ -287,6 +297,19 @@ class Reader(threading.Thread):
         self.stats = ReaderStats()
         self._down = True
         self._first = True
+        self._transport: Transport | None = None  # while open: ``write`` sends through it
+
+    def write(self, data: bytes) -> bool:
+        """Send bytes out of this source's port (a ground station's uplink); False if it is not open
+        or cannot be written."""
+        t = self._transport
+        try:
+            if t is None or not hasattr(t, "write"):
+                return False
+            t.write(data)  # type: ignore[attr-defined]
+            return True
+        except Exception:
+            return False
 
     def _emit(self, item: Chunk | SourceEvent) -> None:
         try:
@@ -344,11 +367,13 @@ class Reader(threading.Thread):
             self._event("connected")
             opened = time.monotonic()
             failure: Exception | None = None
+            self._transport = transport
             try:
                 self._pump(transport)
             except Exception as exc:
                 failure = exc
             finally:
+                self._transport = None
                 transport.close()
             if failure is not None:
                 self._failed(failure)

@@ -83,6 +83,7 @@ class LogInfo:
     columns: dict[str, str] = field(default_factory=dict)
     winds: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
     sources: SourceCollector = field(default_factory=SourceCollector)
+    replans: list[dict[str, Any]] = field(default_factory=list)  # /plan/replan, in order
 
     @property
     def start_ns(self) -> int:
@@ -174,6 +175,11 @@ def scan_file(path: str | os.PathLike[str]) -> LogInfo:
                 info.sources.add(record.log_time, record.data)
             elif channel.topic == "/wind/true":
                 _add_wind(info, record.data)
+            elif channel.topic == "/plan/replan":
+                try:
+                    info.replans.append(json.loads(record.data))
+                except ValueError:
+                    continue
             elif channel.topic in ("/diagnostics", "/daemon/status", "/daemon/event"):
                 try:
                     msg = json.loads(record.data)
@@ -291,12 +297,28 @@ def print_info(info: LogInfo, out: TextIO | None = None) -> None:
     _print_columns_and_winds(info, w)
     for line in info.sources.lines():
         w(line + "\n")
+    if info.replans:
+        _print_replans(info.replans, w)
     errors = info.error_counters()
     if errors:
         w("\n  errors, rejections and gaps (last recorded counters):\n")
         for k in sorted(errors):
             w(f"    {k:<50} {errors[k]}\n")
     w("\n")
+
+
+def _print_replans(replans: list[dict[str, Any]], w: Any) -> None:
+    n_up = sum(bool(r.get("uploaded")) for r in replans)
+    w(f"\n  in-flight replanning: {len(replans)} decisions, {n_up} uploaded\n")
+    for r in replans:
+        age = r.get("map_age_s")
+        age_s = f"map {age:.0f} s old" if isinstance(age, int | float) else "no map"
+        cur = r.get("current_mean_mps")
+        cur_s = f", current {cur:.2f} m/s" if isinstance(cur, int | float) else ""
+        mark = "uploaded" if r.get("uploaded") else "kept    "
+        t = _fmt_time(int(float(r.get("t", 0)) * 1e9))
+        w(f"    {t}  after line {int(r.get('line_done', -1)) + 1}  {mark}  {age_s}{cur_s}: "
+          f"{r.get('reason', '')}\n")  # fmt: skip
 
 
 def info_json(info: LogInfo) -> dict[str, Any]:
@@ -324,6 +346,7 @@ def info_json(info: LogInfo) -> dict[str, Any]:
         "columns": info.columns,
         "true_wind_routes": wind_routes(info),
         "sources": info.sources.result(),
+        "replans": info.replans,
     }
 
 

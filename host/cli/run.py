@@ -141,6 +141,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_sample_rate(parser)
     parser.add_argument("--prefix", default="run", help="file name prefix (default: run)")
     parser.add_argument(
+        "--mission",
+        metavar="MISSION",
+        help="with --replan: the mission the autopilot flies (QGC WPL 110 or simulator TOML, with "
+        "its intended lines in MISSION.json if it was planned); checked against the autopilot's "
+        "copy (default: the autopilot's mission, read back)",
+    )
+    parser.add_argument(
+        "--replan",
+        action="store_true",
+        help="after each survey line, plan the rest of the mission on the maps so far and upload "
+        "it when it is predicted to hold the lines better (needs --mavlink; docs/PLAN.md)",
+    )
+    parser.add_argument(
+        "--replan-bound",
+        type=float,
+        default=30.0,
+        metavar="M",
+        help="with --replan: largest move of a waypoint across its line (default 30 m)",
+    )
+    parser.add_argument(
         "--raw",
         action="store_true",
         help="also log every chunk of bytes as read (/raw/<source>, base64), for replaying later",
@@ -199,13 +219,38 @@ def start_clock(spec: str, wait_s: float) -> Clock:
 SOURCES_PERIOD_S = 600.0  # the sources' comparison and latency, into the log's metadata
 
 
+class _Tee:
+    """The pipeline's sink, with every /samples row also handed to ``on_sample`` (the replanner)."""
+
+    def __init__(self, sink: Any, on_sample: Callable[[dict], object]) -> None:
+        self.sink, self.on_sample = sink, on_sample
+
+    def write(self, topic: str, log_time_ns: int, message: Any) -> None:
+        self.sink.write(topic, log_time_ns, message)
+        if topic == "/samples":
+            self.on_sample(message.to_json())
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        self.sink.metadata(name, data)
+
+    def failed(self, *a: Any, **kw: Any) -> None:
+        self.sink.failed(*a, **kw)
+
+
 def _pipeline_factory(
-    cal: Any, sync: str, speed: float, sample_rate_hz: float | None = None
+    cal: Any,
+    sync: str,
+    speed: float,
+    sample_rate_hz: float | None = None,
+    on_sample: Callable[[dict], object] | None = None,
 ) -> Callable[[Any], Any]:
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
 
     def make(sink: Any) -> Any:
         from forcemap.host.fuse import pipeline
+
+        if on_sample is not None:
+            sink = _Tee(sink, on_sample)
 
         # how long a sample waits for the autopilot is host time: a busy machine's stall is
         # `speed` times longer on an accelerated simulator's clock
@@ -256,6 +301,42 @@ def _stop_on_signals(daemon: Daemon) -> None:
     signal.signal(signal.SIGINT, stop)
 
 
+def _replan_service(args: argparse.Namespace) -> Any:
+    """The replanner's thread for --replan (not started), or None; a bad combination is a CliError."""
+    if not args.replan:
+        if args.mission:
+            raise CliError("--mission is only used with --replan")
+        return None
+    if not args.mavlink:
+        raise CliError(
+            "--replan needs --mavlink: the autopilot to read the mission from and upload to"
+        )
+    positive("--replan-bound", args.replan_bound)
+    from forcemap.host.plan.boat_model import load_boat
+    from forcemap.host.plan.mission_io import read_mission
+    from forcemap.host.plan.service import ReplanService
+
+    mission = read_mission(args.mission) if args.mission else None
+    box: dict[str, Any] = {}
+
+    def send(data: bytes) -> bool:
+        return box["daemon"].readers["mavlink"].write(data)
+
+    def record(rec: Any) -> None:
+        box["daemon"].post("/plan/replan", rec)
+
+    def log(text: str) -> None:
+        from forcemap.host.log.messages import DaemonEvent
+
+        d = box.get("daemon")
+        if d is not None:
+            d.post("/daemon/event", DaemonEvent("replan", {"message": text}))
+
+    svc = ReplanService(mission, load_boat(None), send, record, log, bound_m=args.replan_bound)
+    svc.box = box  # type: ignore[attr-defined]
+    return svc
+
+
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.fuse import calibration
 
@@ -263,6 +344,7 @@ def run(args: argparse.Namespace) -> int:
     rotate_seconds = positive("--rotate-every", args.rotate_s)
     positive("--clock-wait", args.clock_wait)
     openers, nmea = _openers(args)
+    svc = _replan_service(args)
     try:
         cal = calibration.load(args.boat)
     except (ValueError, FileNotFoundError) as exc:  # calibration.ConfigError is a ValueError
@@ -271,7 +353,9 @@ def run(args: argparse.Namespace) -> int:
     reporter = Reporter(sys.stderr, live=False if args.quiet else None)
     live = start_live(args, args.output, reporter.event)
     try:
-        return _run_daemon(args, cal, openers, nmea, rotate_bytes, rotate_seconds, reporter, live)
+        return _run_daemon(
+            args, cal, openers, nmea, rotate_bytes, rotate_seconds, reporter, live, svc
+        )
     finally:
         if live is not None:
             live.close()
@@ -286,6 +370,7 @@ def _run_daemon(
     rotate_seconds: float,
     reporter: Reporter,
     live: Any,
+    svc: Any = None,
 ) -> int:
     clock = start_clock(args.clock, args.clock_wait)
     sync = args.sync or getattr(cal, "sync", "interpolate")
@@ -299,12 +384,15 @@ def _run_daemon(
         _record_setup(log, args, nmea, sync)
         daemon = Daemon(
             openers,
-            _pipeline_factory(cal, sync, clock.speed, sample_rate(args)),
+            _pipeline_factory(
+                cal, sync, clock.speed, sample_rate(args), svc.sample if svc else None
+            ),
             log,
             clock=clock,
             reporter=reporter,
             absent=absent,
             record_raw=args.raw,
+            taps={"mavlink": svc.feed} if svc else None,
         )
     except ValueError as exc:  # the pipeline rejects the calibration (e.g. degenerate wheels)
         log.close()
@@ -315,4 +403,8 @@ def _run_daemon(
     if live is not None:
         live.attach(log)
     _stop_on_signals(daemon)
+    if svc is not None:
+        svc.box["daemon"] = daemon
+        svc.stop_event = daemon.stop_event
+        svc.start()
     return daemon.run()

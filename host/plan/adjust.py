@@ -126,12 +126,30 @@ def start_missed(tree: cKDTree, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(tree.query(pts)[0] > 0.7 * TOL_M))
 
 
-def adjust(lines: np.ndarray, maps: Maps, boat: BoatModel, progress=None) -> tuple[Plan, Track]:  # type: ignore[no-untyped-def]
-    """The adjusted plan for ``lines`` (in the order flown) and its predicted track."""
-    lines = upstream_first(np.asarray(lines, dtype=float), maps)
+def from_start(plan: Plan, start: np.ndarray | None) -> Plan:
+    """The plan flown from ``start`` (the boat's position) rather than from its first waypoint."""
+    if start is None:
+        return plan
+    wps = np.vstack([np.asarray(start, dtype=float)[None, :], plan.wps])
+    speeds = np.r_[np.nan, plan.speeds]
+    return Plan(wps, speeds, plan.lines, [(a + 1, b + 1) for a, b in plan.line_wps])
+
+
+def adjust(
+    lines: np.ndarray,
+    maps: Maps,
+    boat: BoatModel,
+    progress=None,  # type: ignore[no-untyped-def]
+    start: np.ndarray | None = None,
+    reorder: bool = True,
+) -> tuple[Plan, Track]:
+    """The adjusted plan for ``lines`` (in the order flown) and its predicted track; ``start``: flown
+    from there (in flight), ``reorder=False``: in the order and directions given."""
+    lines = np.asarray(lines, dtype=float)
+    lines = upstream_first(lines, maps) if reorder else lines.copy()
     approach = np.full(len(lines), APPROACH_M)
     shifts = [np.zeros(max(int(round(np.hypot(*(b - a)) / STRETCH_M)), 1) + 1) for a, b in lines]
-    plan = layout(lines, approach, shifts, maps, boat)
+    plan = from_start(layout(lines, approach, shifts, maps, boat), start)
     track = predict_track(plan.wps, plan.speeds, maps, boat)
     for it in range(ITERATIONS):
         if progress is not None:
@@ -148,7 +166,7 @@ def adjust(lines: np.ndarray, maps: Maps, boat: BoatModel, progress=None) -> tup
                 moved = np.inf
         if moved < SETTLED_M:
             break  # the last prediction already holds the lines: another pass would change nothing
-        plan = layout(lines, approach, shifts, maps, boat)
+        plan = from_start(layout(lines, approach, shifts, maps, boat), start)
         track = predict_track(plan.wps, plan.speeds, maps, boat)
     return plan, track
 

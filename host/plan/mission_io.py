@@ -116,3 +116,20 @@ def _jsonable(v):  # type: ignore[no-untyped-def]
     if isinstance(v, np.ndarray):
         return v.tolist()
     raise TypeError(type(v))
+
+
+def mission_items(latlon: np.ndarray, speeds: np.ndarray, cruise: float) -> list[wp.Item]:
+    """Mission items through ``latlon`` with an explicit ground speed on every leg (NaN: ``cruise``),
+    so a part spliced after other items does not inherit their last DO_CHANGE_SPEED."""
+    sp = np.where(np.isfinite(speeds), speeds, cruise)
+    return wp.items_for(np.asarray(latlon, dtype=float), sp)
+
+
+def nav_items(items: list[wp.Item]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lat/lon, leg speed, seq) of each NAV_WAYPOINT of ``items`` (home first, seq 0)."""
+    latlon, speeds, seqs = wp.nav_points(items[1:])
+    return latlon, speeds, seqs
+
+
+def home_item(lat: float, lon: float) -> wp.Item:
+    return wp.waypoint(lat, lon)

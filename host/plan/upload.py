@@ -147,3 +147,51 @@ def upload_file(port: str, path: str | Path, progress: bool = True) -> int:
         return Uploader(conn, [home, *items], target, log=log).run()
     finally:
         conn.close()
+
+
+def download(
+    conn, target: tuple[int, int] = (1, 1), timeout_s: float = 1.5, retries: int = 5
+) -> list[Item]:  # type: ignore[no-untyped-def]
+    """The mission the autopilot holds (home first), read with MISSION_REQUEST_LIST and one
+    MISSION_REQUEST_INT per item (each asked again on silence, up to ``retries`` times)."""
+
+    def ask(msg, want: str):  # type: ignore[no-untyped-def]
+        for _ in range(retries + 1):
+            conn.mav.send(msg)
+            got = conn.recv_match(type=[want], blocking=True, timeout=timeout_s)
+            if got is not None:
+                return got
+        raise CliError(
+            f"the autopilot did not answer the mission download ({want}) after {retries} retries"
+        )
+
+    count = ask(
+        M.MAVLink_mission_request_list_message(*target, M.MAV_MISSION_TYPE_MISSION), "MISSION_COUNT"
+    )
+    items = []
+    for seq in range(int(count.count)):
+        m = ask(
+            M.MAVLink_mission_request_int_message(*target, seq, M.MAV_MISSION_TYPE_MISSION),
+            "MISSION_ITEM_INT",
+        )
+        items.append(Item(int(m.command), m.x * 1e-7, m.y * 1e-7, float(m.z),
+                          (m.param1, m.param2, m.param3, m.param4), int(m.frame)))  # fmt: skip
+    conn.mav.send(
+        M.MAVLink_mission_ack_message(*target, M.MAV_MISSION_ACCEPTED, M.MAV_MISSION_TYPE_MISSION)
+    )
+    return items
+
+
+def same_mission(a: list[Item], b: list[Item]) -> bool:
+    """Whether two missions (home first) fly the same: commands, positions to 1e-7 deg, speeds; the
+    home item is not compared (the autopilot sets it where it was armed)."""
+
+    def key(it: Item) -> tuple:
+        return (it.command, it.lat_e7, it.lon_e7, round(float(it.params[1]), 2))
+
+    return [key(i) for i in a[1:]] == [key(i) for i in b[1:]]
+
+
+def set_current(conn, seq: int, target: tuple[int, int] = (1, 1)) -> None:  # type: ignore[no-untyped-def]
+    """MISSION_SET_CURRENT: the autopilot goes for item ``seq``."""
+    conn.mav.send(M.MAVLink_mission_set_current_message(*target, seq))

@@ -80,11 +80,50 @@ def _table(plan: dict) -> str:
     return "\n".join(rows)
 
 
-def mission_section(table: Path, survey) -> list[str]:  # type: ignore[no-untyped-def]
-    """HTML parts for the newest plan of this survey (`forcemap plan`), or nothing if there is none."""
-    plans = load_plans(table)
-    if not plans:
+def read_replans(table: Path) -> list[dict]:
+    """The in-flight replanning decisions (/plan/replan) of an MCAP log given as the table."""
+    if Path(table).suffix.lower() != ".mcap":
         return []
+    from forcemap.host.log.mcap import read_messages
+
+    try:
+        return [m.message for m in read_messages([table], "/plan/replan")]
+    except Exception:  # a damaged log: the report shows what the rest of it holds
+        return []
+
+
+def replan_section(replans: list[dict]) -> list[str]:
+    """One row per in-flight decision: when, after which line, the map, predictions and the reason."""
+    n_up = sum(bool(r.get("uploaded")) for r in replans)
+    rows = [
+        f"<h3>In flight</h3><p>{len(replans)} replanning decisions, {n_up} uploaded "
+        '(`forcemap run --replan`; docs/PLAN.md, "In flight").</p>',
+        "<table><tr><th>after line</th><th>map age s</th><th>current m/s</th>"
+        "<th>p95 m kept / new</th><th>coverage kept / new</th><th>uploaded</th><th>reason</th></tr>",
+    ]
+
+    def f(v, fmt: str) -> str:  # type: ignore[no-untyped-def]
+        return format(v, fmt) if isinstance(v, int | float) else "-"
+
+    for r in replans:
+        rows.append(
+            f"<tr><td>{int(r.get('line_done', -1)) + 1}</td><td>{f(r.get('map_age_s'), '.0f')}</td>"
+            f"<td>{f(r.get('current_mean_mps'), '.2f')}</td>"
+            f"<td>{f(r.get('old_p95_m'), '.2f')} / {f(r.get('new_p95_m'), '.2f')}</td>"
+            f"<td>{f(r.get('old_coverage'), '.0%')} / {f(r.get('new_coverage'), '.0%')}</td>"
+            f"<td>{'yes' if r.get('uploaded') else 'no'}</td><td>{html.escape(str(r.get('reason')))}</td></tr>"
+        )
+    rows.append("</table>")
+    return rows
+
+
+def mission_section(table: Path, survey) -> list[str]:  # type: ignore[no-untyped-def]
+    """HTML parts for the newest plan of this survey (`forcemap plan`) and the in-flight replanning
+    decisions logged with it, or nothing if there are neither."""
+    plans = load_plans(table)
+    replans = read_replans(table)
+    if not plans:
+        return ["<h2>Mission</h2>", *replan_section(replans)] if replans else []
     from forcemap.host.workbench import plots
 
     plan = plans[0]
@@ -108,4 +147,5 @@ def mission_section(table: Path, survey) -> list[str]:  # type: ignore[no-untype
         f"lines; with the current scaled by twice that: {sens}. A map from another day (other discharge) "
         "can be wrong by far more than that: see docs/PLAN.md.</p>",
         *[f"<p class=small>note: {html.escape(n)}</p>" for n in plan.get("notes", [])],
+        *(replan_section(replans) if replans else []),
     ]

@@ -1,0 +1,67 @@
+"""Maps refitted on the samples logged so far: what the replanner asks for after each line.
+
+This is the stand-in for the live map (issue 21) until it lands: the ``/samples`` rows the pipeline
+writes are kept (every ``SPACING_S``), and each call fits the workbench's baseline model
+(BASELINE terms, the east and north components of current and wind) on them and grids it over the
+mission's area, exactly as `forcemap plan` maps a finished survey.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import Survey, local_frame
+
+from .inflight import MapSnapshot
+from .maps import Field, Maps, fit_field
+
+SPACING_S = 0.5  # keep one sample every this many seconds (the pipeline writes 10 per second)
+MIN_SAMPLES = 60
+COLUMNS = ("t", "lat", "lon", "current_east", "current_north", "wind_east", "wind_north")
+
+
+class RefitMaps:
+    """A MapProvider: ``add`` each /samples row; calling it fits the maps on the rows so far."""
+
+    def __init__(self, lat0: float, lon0: float, bounds: tuple[float, float, float, float]) -> None:
+        self.lat0, self.lon0, self.bounds = lat0, lon0, bounds
+        self.rows: list[tuple[float, ...]] = []
+        self._last_t = -np.inf
+        self._lock = threading.Lock()  # rows come from the daemon's thread, fits run in another
+
+    def add(self, row: dict) -> None:
+        t = row.get("t")
+        if t is None or t < self._last_t + SPACING_S:
+            return
+        vals = tuple(np.nan if row.get(c) is None else float(row[c]) for c in COLUMNS)
+        if np.isfinite(vals[1]) and np.isfinite(vals[2]):
+            with self._lock:
+                self.rows.append(vals)
+            self._last_t = t
+
+    def survey(self) -> Survey | None:
+        with self._lock:
+            a = np.array(self.rows)
+        ok = np.isfinite(a[:, 3]) & np.isfinite(a[:, 4]) if len(a) else np.zeros(0, bool)
+        if ok.sum() < MIN_SAMPLES:
+            return None
+        cols = {c: a[:, i] for i, c in enumerate(COLUMNS)}
+        cols["x"], cols["y"] = local_frame(cols["lat"], cols["lon"], self.lat0, self.lon0)
+        return Survey(cols, self.lat0, self.lon0, float(cols["t"][0]), Path("live"))
+
+    def __call__(self) -> MapSnapshot | None:
+        sv = self.survey()
+        if sv is None:
+            return None
+        fields = {}
+        for prefix in ("current", "wind"):
+            e = sv.columns[f"{prefix}_east"]
+            if np.isfinite(e).sum() < MIN_SAMPLES:
+                fields[prefix] = Field.still()
+                continue
+            fields[prefix] = fit_field(sv, prefix, list(BASELINE), self.bounds)
+        maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0)
+        return MapSnapshot(maps, float(sv.columns["t"][-1]), sv.n)
