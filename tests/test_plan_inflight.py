@@ -192,3 +192,29 @@ def test_no_decision_in_manual_hold_or_rtl_nor_mid_line() -> None:
     d = rp.mission_current(3, 100.0)
     assert d is not None and d.items is not None and d.set_current is not None
     assert M.MAV_CMD_NAV_WAYPOINT in {i.command for i in d.items[3:]}
+
+
+def test_the_live_maps_board_feeds_the_replanner_in_its_own_frame() -> None:
+    """With --live the replanner reads the live map process's newest grids (MapBoard), moved from the
+    map's local frame into the replanner's."""
+    from forcemap.host.live.growing import MapGrid
+    from forcemap.host.live.mapproc import MapBoard
+    from forcemap.host.plan.refit_maps import BoardMaps
+
+    board = MapBoard()
+    provider = BoardMaps(board, 33.82, -80.85)
+    assert provider() is None  # no map yet
+    ny, nx = 3, 4
+    east = np.tile(np.arange(nx, dtype=float), (ny, 1))  # 0, 1, 2, 3 m/s going east, cell by cell
+    z = np.zeros((ny, nx))
+    f = {"east": east, "north": z, "speed": east, "east_sd": z + 0.1, "north_sd": z + 0.1,
+         "speed_sd": z + 0.1}  # fmt: skip
+    # the map's origin 100 m east of the replanner's
+    lon0 = -80.85 + np.degrees(100.0 / (6371008.8 * np.cos(np.radians(33.82))))
+    board.put([MapGrid("current", 33.82, lon0, 0.0, 0.0, 10.0, f, 500, 1000.0, 900.0)])
+    snap = provider()
+    assert snap is not None and snap.samples == 500 and snap.t_data == 1000.0
+    # the map's x = 10 m (1 m/s) is the replanner's x = 110 m
+    assert snap.maps.current.at(110.0, 0.0)[0] == pytest.approx(1.0, abs=0.02)
+    assert snap.maps.current.at(125.0, 0.0)[0] == pytest.approx(2.5, abs=0.02)
+    assert snap.maps.wind.at(0.0, 0.0) == (0.0, 0.0)

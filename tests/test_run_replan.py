@@ -37,7 +37,9 @@ def test_replan_needs_mavlink_and_mission_needs_replan(capsys) -> None:  # type:
 
 
 @pytest.mark.slow
-def test_run_replan_on_ptys(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("live", [False, True], ids=["refit", "live-map"])
+def test_run_replan_on_ptys(tmp_path: Path, capsys, live: bool) -> None:  # type: ignore[no-untyped-def]
+    """Without --live the replanner refits the maps itself; with it, it reads the live map's grids."""
     scen = sc.load("river")
     wpl = tmp_path / "lawnmower.waypoints"
     save_waypoints(wpl, mission("river"), Geo(scen.lat0, scen.lon0))
@@ -46,6 +48,7 @@ def test_run_replan_on_ptys(tmp_path: Path, capsys) -> None:  # type: ignore[no-
         out, {"mavlink": str(ports / "mavlink"), "bridge": str(ports / "bridge")},
         "--clock", f"sim:{ports / 'clock'}", "--clock-wait", "60s",
         "--mission", str(wpl), "--replan",
+        *(["--live", "127.0.0.1:0", "--map-every", "30s"] if live else []),
     )  # fmt: skip
     sim = subprocess.Popen(
         [sys.executable, "-m", "forcemap.host.cli", "sim", "--scenario", "river", "--mission",

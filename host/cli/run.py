@@ -404,6 +404,8 @@ def _run_daemon(
         live.attach(log)
     _stop_on_signals(daemon)
     if svc is not None:
+        if live is not None and not getattr(args, "no_maps", False):
+            svc.board = live.board  # the live map process's grids, rather than refits of our own
         svc.box["daemon"] = daemon
         svc.stop_event = daemon.stop_event
         svc.start()

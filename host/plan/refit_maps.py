@@ -1,9 +1,11 @@
-"""Maps refitted on the samples logged so far: what the replanner asks for after each line.
+"""The maps the replanner asks for after each line: the live map's latest grids, or a refit.
 
-This is the stand-in for the live map (issue 21) until it lands: the ``/samples`` rows the pipeline
-writes are kept (every ``SPACING_S``), and each call fits the workbench's baseline model
-(BASELINE terms, the east and north components of current and wind) on them and grids it over the
-mission's area, exactly as `forcemap plan` maps a finished survey.
+- ``BoardMaps``: with `forcemap run --live`, the live map process's newest current and wind grids
+  (host/live/mapproc.py ``MapBoard``), moved into the replanner's frame;
+- ``RefitMaps``: without it, the ``/samples`` rows the pipeline writes are kept (every
+  ``SPACING_S``), and each call fits the workbench's baseline model (BASELINE terms, the east and north
+  components of current and wind) on them and grids it over the mission's area, exactly as
+  `forcemap plan` maps a finished survey.
 """
 
 from __future__ import annotations
@@ -65,3 +67,31 @@ class RefitMaps:
             fields[prefix] = fit_field(sv, prefix, list(BASELINE), self.bounds)
         maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0)
         return MapSnapshot(maps, float(sv.columns["t"][-1]), sv.n)
+
+
+def moved(f: Field, dx: float, dy: float) -> Field:
+    """A field on a grid whose origin is (dx, dy) m from the frame it is wanted in."""
+    return Field(f.x0 + dx, f.y0 + dy, f.step, f.east, f.north, f.east_sd, f.north_sd, f.terms)
+
+
+class BoardMaps:
+    """A MapProvider over the live map's board (``board.latest()``: target -> MapGrid)."""
+
+    def __init__(self, board, lat0: float, lon0: float) -> None:  # type: ignore[no-untyped-def]
+        self.board, self.lat0, self.lon0 = board, lat0, lon0
+
+    def __call__(self) -> MapSnapshot | None:
+        grids = self.board.latest()
+        cur = grids.get("current")
+        if cur is None:
+            return None
+        fields = {}
+        for name in ("current", "wind"):
+            g = grids.get(name)
+            if g is None:
+                fields[name] = Field.still()
+                continue
+            dx, dy = local_frame(np.array(g.lat0), np.array(g.lon0), self.lat0, self.lon0)
+            fields[name] = moved(g.to_field(), float(dx), float(dy))
+        maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0)
+        return MapSnapshot(maps, float(cur.t_fit), int(cur.n_samples))

@@ -23,7 +23,7 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 from .boat_model import BoatModel
 from .inflight import Decision, Replanner
 from .mission_io import Frame, MissionIn, nav_items, survey_lines
-from .refit_maps import RefitMaps
+from .refit_maps import BoardMaps, RefitMaps
 from .upload import Uploader, download, set_current
 
 MODES = {0: "MANUAL", 4: "HOLD", 10: "AUTO", 11: "RTL"}  # ArduPilot Rover's custom_mode
@@ -137,10 +137,11 @@ class ReplanService(threading.Thread):
         log: Callable[[str], object],
         bound_m: float = 30.0,
         stop: threading.Event | None = None,
+        board=None,  # type: ignore[no-untyped-def]  # the live map's MapBoard (--live), if any
     ) -> None:
         super().__init__(name="replan", daemon=True)
         self.mission, self.boat, self.record, self.log = mission, boat, record, log
-        self.bound_m = bound_m
+        self.bound_m, self.board = bound_m, board
         self.stop_event = stop or threading.Event()
         self.link = PortLink(send, self._telemetry)
         self.rp: Replanner | None = None
@@ -155,6 +156,8 @@ class ReplanService(threading.Thread):
 
     def sample(self, row: dict) -> None:
         self.last_t = row.get("t") or self.last_t
+        if self.board is not None:
+            return  # the live map process has them
         if self.maps is not None:
             self.maps.add(row)
         elif len(self._early) < 100_000:
@@ -196,11 +199,15 @@ class ReplanService(threading.Thread):
         frame = Frame(float(latlon[:, 0].mean()), float(latlon[:, 1].mean()))
         xy = frame.to_local(latlon)
         lo, hi = xy.min(axis=0) - 120.0, xy.max(axis=0) + 120.0
-        self.maps = RefitMaps(frame.lat0, frame.lon0, (lo[0], hi[0], lo[1], hi[1]))
-        for row in self._early:
-            self.maps.add(row)
+        provider: BoardMaps | RefitMaps
+        if self.board is not None:
+            provider = BoardMaps(self.board, frame.lat0, frame.lon0)
+        else:
+            self.maps = provider = RefitMaps(frame.lat0, frame.lon0, (lo[0], hi[0], lo[1], hi[1]))
+            for row in self._early:
+                self.maps.add(row)
         self._early = []
-        self.rp = Replanner(items, lines, frame, self.boat, self.maps, bound_m=self.bound_m,
+        self.rp = Replanner(items, lines, frame, self.boat, provider, bound_m=self.bound_m,
                             log=self.log)  # fmt: skip
         self.log(f"replan: following the autopilot's mission ({len(items) - 1} items, "
                  f"{len(lines)} intended lines)")  # fmt: skip
