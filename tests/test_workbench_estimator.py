@@ -9,10 +9,11 @@ import pickle
 import joblib
 import numpy as np
 import pytest
-from forcemap.host.workbench.model import Model, NotFittedError
+from forcemap.host.workbench.model import DesignCache, Model, NotFittedError, spaced_rows
 from forcemap.host.workbench.spec import build_term, parse_term
 from forcemap.host.workbench.table import is_circular
 from sklearn.base import clone
+from sklearn.model_selection import GroupKFold, KFold
 from sklearn.utils import estimator_checks as ec
 
 NO_DATA_CHECKS = [
@@ -44,7 +45,7 @@ def data():
     xy = rng.uniform([-150, -50], [150, 50], (n, 2))
     depth = rng.uniform(1.0, 6.0, n)
     y = 0.8 + 0.3 * np.sin(xy[:, 0] / 50.0) + 0.1 * depth + 0.05 * rng.standard_normal(n)
-    return {"position": xy, "depth": depth}, y
+    return {"position": xy, "depth": depth, "t": np.arange(n) * 0.5}, y
 
 
 def _terms():
@@ -54,7 +55,7 @@ def _terms():
 
 def test_fit_returns_self_and_leaves_its_parameters_alone(data):
     X, y = data
-    m = Model(_terms(), max_basis=100, hyper_rows=np.arange(0, 300, 2))
+    m = Model(_terms(), max_basis=100, hyper_spacing_s=2.0, init=None, memory=DesignCache())
     before = joblib.hash(m.get_params())
     assert m.fit(X, y) is m
     # scikit-learn's check_estimators_overwrite_params: the constructor's arguments, Term objects included,
@@ -116,7 +117,7 @@ def test_extended_shares_no_term_with_either_model(data):
     assert not base_ids & {id(t) for t in ext.terms_}
     assert not base_ids & {id(t) for t in ext.terms}
     assert term not in ext.terms_
-    assert ext.max_basis == base.max_basis and ext.hyper_rows is base.hyper_rows
+    assert ext.max_basis == base.max_basis and ext.hyper_spacing_s == base.hyper_spacing_s
 
 
 def test_pickled_model_predicts_the_same(data):
@@ -124,3 +125,48 @@ def test_pickled_model_predicts_the_same(data):
     m = Model(_terms()).fit(X, y)
     again = pickle.loads(pickle.dumps(m))
     assert np.array_equal(again.predict(X), m.predict(X))
+
+
+def _rows(X: dict, rows: np.ndarray) -> dict:
+    return {k: v[rows] for k, v in X.items()}
+
+
+@pytest.mark.parametrize(
+    "splitter",
+    [KFold(4, shuffle=True, random_state=0), GroupKFold(3)],
+    ids=["KFold", "GroupKFold"],
+)
+def test_clone_then_a_splitter_fits_each_fold_on_its_own_rows(data, splitter):
+    """The hyperparameters come from samples `hyper_spacing_s` apart in the fold's own times, so a clone
+    fitted on a fold's rows is the model of those rows: the same as a model built for them directly."""
+    X, y = data
+    m = Model(
+        ["const", "gp(position, matern32)", "linear(depth)"], max_basis=64, hyper_spacing_s=2.0
+    )
+    groups = (X["position"][:, 0] // 100).astype(int)
+    for train, test in splitter.split(y, y, groups if isinstance(splitter, GroupKFold) else None):
+        fold = clone(m).fit(_rows(X, train), y[train])
+        direct = Model(m.terms, max_basis=64, hyper_spacing_s=2.0).fit(_rows(X, train), y[train])
+        np.testing.assert_allclose(
+            fold.predict(_rows(X, test)), direct.predict(_rows(X, test)), rtol=0, atol=1e-10
+        )
+        # and its hyperparameter rows are rows of the fold: one per 2 s of the fold's times
+        t = X["t"][train]
+        rows = spaced_rows(t, 2.0, min_rows=1)
+        assert rows is not None and rows.max() < len(train)
+        assert np.all(np.diff(np.floor((t[rows] - t.min()) / 2.0)) >= 1)
+
+
+def test_warm_start_and_design_cache_are_constructor_parameters(data):
+    """`fit` takes data only: a warm start (`init`, `optimize`) and the Gram cache (`memory`) are parameters,
+    and two models of the same features on the same inputs share one design through the cache."""
+    X, y = data
+    cache = DesignCache()
+    first = Model(["const", "gp(position, matern32)"], memory=cache).fit(X, y)
+    again = Model(["const", "gp(position, matern32)"], init=first.theta_, optimize=False)
+    np.testing.assert_allclose(again.fit(X, y).predict(X), first.predict(X), atol=1e-10)
+    other = Model(["const", "gp(position, matern32)"], memory=cache).fit(X, -2.0 * y)
+    assert other.design_ is first.design_
+    np.testing.assert_allclose(other.predict(X), -2.0 * first.predict(X), rtol=1e-6, atol=1e-6)
+    with pytest.raises(TypeError):
+        Model().fit(X, y, init=first.theta_)

@@ -126,8 +126,9 @@ def test_fold_predictions_equal_a_refit_on_the_training_rows(field):
     folds = np.arange(len(y)) % 4
     mu, sd = m.cv_predict(folds)
     test = folds == 2
-    refit = Model(m.terms_)  # same basis (domain fixed on all data) and hyperparameters
-    refit.fit({"position": xy[~test]}, y[~test], init=m.theta_, optimize=False, design=None)
+    # same basis (domain fixed on all data) and hyperparameters
+    refit = Model(m.terms_, init=m.theta_, optimize=False)
+    refit.fit({"position": xy[~test]}, y[~test])
     # the refit re-ran setup() on the training rows only, so compare with a tolerance
     mu2 = refit.predict({"position": xy[test]})
     assert np.sqrt(np.mean((mu[test] - mu2) ** 2)) < 0.02

@@ -14,10 +14,9 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.progress import note
-from forcemap.host.workbench.model import Model, small_blas
+from forcemap.host.workbench.model import HYPER_SPACING_S, DesignCache, Model, small_blas
 from forcemap.host.workbench.spec import BASELINE, parse_term
 from forcemap.host.workbench.table import Survey, is_circular
-from forcemap.host.workbench.targets import hyper_rows
 from forcemap.host.workbench.workspace import current_terms, workspace_dir
 
 GRID_STEP_M = 4.0
@@ -126,7 +125,6 @@ def fit_field(
     e, n = survey.components(vt)  # type: ignore[arg-type]
     ok = np.isfinite(e) & np.isfinite(n)
     X = {"position": survey.xy[ok], "t": survey.trel[ok]}
-    rows = hyper_rows(survey.subset(ok))
     gx, gy = _grid(bounds, step)
     GX, GY = np.meshgrid(gx, gy)
     G = {
@@ -134,9 +132,11 @@ def fit_field(
         "t": np.full(GX.size, float(np.median(survey.trel))),
     }
     out = []
+    grams = DesignCache()  # the east and north components share their features
     with small_blas():
         for comp in (e[ok], n[ok]):
-            m = Model(terms, max_basis=MAX_BASIS, hyper_rows=rows).fit(X, comp)
+            m = Model(terms, max_basis=MAX_BASIS, hyper_spacing_s=HYPER_SPACING_S, memory=grams)
+            m.fit(X, comp)
             mu, sd = m.predict(G, return_std=True)
             out += [mu.reshape(GX.shape), sd.reshape(GX.shape)]
     return Field(float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms))

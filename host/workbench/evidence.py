@@ -5,12 +5,15 @@ gradient by the log prior variances and the log noise variance. The numerical co
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import hashlib
 import math
+import pickle
 from collections.abc import Iterator
 
 import numpy as np
+from forcemap.host.workbench import fourier
 from scipy import linalg
 
 LOG_2PI = math.log(2 * math.pi)
@@ -34,20 +37,111 @@ def small_blas():
     return blas_threads(1)
 
 
-class Design:
-    """Feature blocks of the training data with their Gram matrix, and cached per-fold Gram matrices."""
+# rows per chunk when features are computed on demand: 4096 x 2048 features are 64 MB
+CHUNK_ROWS = 4096
+# a design with features below this size holds them; a larger one computes them chunk by chunk when needed
+DENSE_BYTES = 160 * 2**20
 
-    def __init__(self, blocks: list[np.ndarray]) -> None:
+
+def chunks(rows: np.ndarray, size: int = CHUNK_ROWS) -> Iterator[np.ndarray]:
+    for a in range(0, len(rows), size):
+        yield rows[a : a + size]
+
+
+def as_rows(rows, n: int) -> np.ndarray:
+    """Row indices from a boolean mask, a slice or indices."""
+    if isinstance(rows, slice):
+        return np.arange(n)[rows]
+    rows = np.asarray(rows)
+    return np.flatnonzero(rows) if rows.dtype == bool else rows
+
+
+class TermBlock:
+    """A feature term's block, computed from its inputs for the rows asked for: a design of 43,000 rows and
+    2,048 basis functions never holds its 0.7 GB of features."""
+
+    def __init__(self, term, Z: np.ndarray) -> None:
+        self.term, self.Z = term, Z
+        self.shape = (len(Z), term.features(Z[:1]).shape[1])
+
+    def __getitem__(self, rows) -> np.ndarray:
+        return self.term.features(self.Z[rows])
+
+
+class Design:
+    """Feature blocks of the training data (arrays, or `TermBlock`s computed chunk by chunk when large) with
+    their Gram matrix, computed on first use, and cached per-fold Gram matrices. With `plan` (a fold
+    assignment) the Gram matrix is the sum of that assignment's fold Grams, accumulated in the same pass.
+    `fast` = (block index, term, inputs) of a reduced-rank GP block whose own Gram comes from `fourier`'s
+    cosine tables: only its cross products with the other (small) blocks need the features."""
+
+    def __init__(
+        self, blocks: list, plan: np.ndarray | None = None, fast: tuple | None = None
+    ) -> None:
         self.blocks = blocks
         self.sizes = [b.shape[1] for b in blocks]
-        with blas_threads(None):
-            self.G = (
-                np.vstack([np.hstack([a.T @ b for b in blocks]) for a in blocks])
-                if blocks
-                else np.zeros((0, 0))
-            )
+        self.plan = plan
+        self.fast = fast
         self._folds: dict[str, list[np.ndarray]] = {}
         self._fold_ids: dict[str, np.ndarray] = {}
+
+    @functools.cached_property
+    def G(self) -> np.ndarray:
+        return self.products(None)[0]
+
+    @property
+    def fast_cols(self) -> tuple[np.ndarray, np.ndarray]:
+        """Columns of the fast block, and of every other block."""
+        start = sum(self.sizes[: self.fast[0]])
+        cols = np.arange(self.M)
+        inside = (cols >= start) & (cols < start + self.sizes[self.fast[0]])
+        return cols[inside], cols[~inside]
+
+    def _pass(self, rows, r: np.ndarray | None, want_gram: bool):
+        """Phi'Phi (if `want_gram`) and Phi'r (if `r`) over `rows`, in one pass over their features."""
+        G = np.zeros((self.M, self.M)) if want_gram and self.fast is None else None
+        b = None if r is None else np.zeros(self.M)
+        fast = self.fast if want_gram else None
+        if fast is not None:
+            fcols, slow = self.fast_cols
+            cross = np.zeros((self.M, len(slow)))
+        if G is not None or b is not None or (fast is not None and len(slow)):
+            with blas_threads(None):
+                for idx, F in self.row_chunks(rows):
+                    if G is not None:
+                        G += F.T @ F
+                    elif fast is not None:
+                        cross += F.T @ F[:, slow]
+                    if b is not None:
+                        b += F.T @ r[idx]
+        if fast is not None:
+            G = np.zeros((self.M, self.M))
+            G[:, slow], G[slow, :] = cross, cross.T
+            Z = fast[2][as_rows(rows, self.n)]
+            G[np.ix_(fcols, fcols)] = fourier.gram(fast[1], Z)
+        return G, b
+
+    def products(self, r: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, list | None]:
+        """G, Phi'r and Phi_f'r_f for every fold f of `plan` (None without `r` or without a plan), in one pass
+        over the data that also accumulates the Gram matrix (and the plan's fold Grams) if not known yet."""
+        plan = self.plan if self.plan is not None and len(self.plan) == self.n else None
+        known = "G" in self.__dict__
+        if known and (r is None or plan is None):
+            return self.G, None if r is None else self.rmatvec(r), None
+        parts = [slice(None)] if plan is None else [plan == f for f in np.unique(plan)]
+        grams, bs = zip(*(self._pass(rows, r, not known) for rows in parts), strict=True)
+        if not known:
+            self.G = grams[0] if plan is None else np.sum(grams, axis=0)
+            if plan is not None:
+                key = folds_key(plan)
+                self._folds[key], self._fold_ids[key] = list(grams), plan
+        if r is None:
+            return self.G, None, None
+        return self.G, np.sum(bs, axis=0), (None if plan is None else list(bs))
+
+    def gram(self, rows) -> np.ndarray:
+        """Phi'Phi over `rows`."""
+        return self._pass(rows, None, True)[0]
 
     @property
     def n(self) -> int:
@@ -57,26 +151,60 @@ class Design:
     def M(self) -> int:
         return sum(self.sizes)
 
-    def rmatvec(self, r: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
-        return np.concatenate([b[rows].T @ r for b in self.blocks])
+    @property
+    def lazy(self) -> bool:
+        return any(isinstance(b, TermBlock) for b in self.blocks)
 
-    def matvec(self, w: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
-        out, i = 0.0, 0
-        for b, m in zip(self.blocks, self.sizes, strict=True):
-            out = out + b[rows] @ w[i : i + m]
-            i += m
+    def _materialize(self) -> None:
+        """Hold the features once they are needed, if they are small."""
+        if self.lazy and self.n * self.M * 8 <= DENSE_BYTES:
+            self.blocks = [b[:] if isinstance(b, TermBlock) else b for b in self.blocks]
+
+    def rows(self, rows) -> np.ndarray:
+        """The features of `rows`, column-major."""
+        self._materialize()
+        parts = [b[rows] for b in self.blocks]
+        out = np.empty((self.M, parts[0].shape[0]))
+        i = 0
+        for p in parts:
+            out[i : i + p.shape[1]] = p.T
+            i += p.shape[1]
+        return out.T
+
+    def row_chunks(self, rows=slice(None)) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """(row indices, their features) in chunks: one chunk for a design that holds its features."""
+        self._materialize()
+        idx = as_rows(rows, self.n)
+        if not self.lazy:
+            yield idx, self.rows(idx)
+            return
+        for c in chunks(idx):
+            yield c, self.rows(c)
+
+    def rmatvec(self, r: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """Phi[rows]' r[rows] (`r` has a value for every row)."""
+        out = np.zeros(self.M)
+        for idx, F in self.row_chunks(rows):
+            out += F.T @ r[idx]
         return out
 
-    def rows(self, rows: np.ndarray) -> np.ndarray:
-        return np.hstack([b[rows] for b in self.blocks])
+    def matvec(self, w: np.ndarray) -> np.ndarray:
+        """Phi w."""
+        return np.concatenate([F @ w for _, F in self.row_chunks()])
+
+    def subset(self, rows) -> Design:
+        """The design of some rows, holding its features."""
+        fast = None if self.fast is None else (*self.fast[:2], self.fast[2][rows])
+        return Design([np.asarray(b[rows]) for b in self.blocks], fast=fast)
 
     def augment(self, new: np.ndarray) -> Design:
         """The design with one more feature block; reuses this Gram matrix and its fold Grams."""
-        d = Design.__new__(Design)
-        d.blocks, d.sizes = self.blocks + [new], self.sizes + [new.shape[1]]
-        cross = np.vstack([b.T @ new for b in self.blocks])
+        d = Design(self.blocks + [new], fast=self.fast)
+        cross = np.zeros((self.M, new.shape[1]))
+        for idx, F in self.row_chunks():
+            cross += F.T @ new[idx]
         d.G = np.block([[self.G, cross], [cross.T, new.T @ new]])
-        d._folds, d._fold_ids = {}, dict(self._fold_ids)
+        d._fold_ids = dict(self._fold_ids)
         if not self._folds:
             return d
         cells, cell_cross, cell_gram = self._cell_products(new)
@@ -95,25 +223,94 @@ class Design:
         ids = np.stack([self._fold_ids[key] for key in self._folds], axis=1)
         cells, cell_of_row = np.unique(ids, axis=0, return_inverse=True)
         cell_of_row = cell_of_row.ravel()
-        cross = np.empty((len(cells), self.M, new.shape[1]))
+        cross = np.zeros((len(cells), self.M, new.shape[1]))
         gram = np.empty((len(cells), new.shape[1], new.shape[1]))
         for c in range(len(cells)):
-            rows = cell_of_row == c
+            rows = np.flatnonzero(cell_of_row == c)
             nc = new[rows]
-            cross[c] = np.vstack([b[rows].T @ nc for b in self.blocks])
+            for idx, F in self.row_chunks(rows):
+                cross[c] += F.T @ new[idx]
             gram[c] = nc.T @ nc
         return cells, cross, gram
 
     def fold_grams(self, folds: np.ndarray) -> list[np.ndarray]:
-        key = hashlib.sha1(np.ascontiguousarray(folds).tobytes()).hexdigest()
+        key = folds_key(folds)
         if key not in self._folds:
-            grams = []
-            for f in np.unique(folds):
-                X = self.rows(folds == f)
-                grams.append(X.T @ X)
-            self._folds[key] = grams
+            self._folds[key] = [self.gram(folds == f) for f in np.unique(folds)]
             self._fold_ids[key] = folds
         return self._folds[key]
+
+
+def folds_key(folds: np.ndarray) -> str:
+    return hashlib.sha1(np.ascontiguousarray(folds).tobytes()).hexdigest()
+
+
+class DesignCache:
+    """Designs by content, so that models with the same features on the same inputs (the east and north
+    components of a vector, its along- and across-flow components) compute one Gram matrix, and the
+    cross-validation folds `plan` share its pass. Keys are hashes of the terms' set-up state and inputs
+    (`design_key`); the `size` latest designs are kept. A model's `memory`: copies of a model share it."""
+
+    def __init__(self, size: int = 4) -> None:
+        self.size = size
+        self.plan: np.ndarray | None = None
+        self._designs: dict[str, Design] = {}
+
+    def __deepcopy__(self, memo) -> DesignCache:
+        return self
+
+    def __getstate__(self) -> dict:
+        # a pickled cache (a pickled model's `memory`) starts empty: its contents are derived data
+        return {"size": self.size}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["size"])
+
+    def design(self, key: str, build) -> Design:
+        if key in self._designs:
+            self._designs[key] = self._designs.pop(key)
+        else:
+            self._designs[key] = build(self.plan)
+            while len(self._designs) > self.size:
+                self._designs.pop(next(iter(self._designs)))
+        return self._designs[key]
+
+
+def design_key(blocks: list[tuple[object, np.ndarray]]) -> str:
+    """A hash of feature terms (their class and set-up state: the basis) and their inputs."""
+    h = hashlib.sha1()
+    for term, Z in blocks:
+        state = {k: v for k, v in sorted(vars(term).items()) if k != "max_basis"}
+        h.update(pickle.dumps((type(term).__name__, state)))
+        h.update(repr(Z.shape).encode())
+        h.update(np.ascontiguousarray(Z).tobytes())
+    return h.hexdigest()
+
+
+@dataclasses.dataclass
+class SufficientStats:
+    """What Bayesian linear regression in fixed features needs of the data: G = Phi'Phi, b = Phi'y,
+    yy = y'y, ysum = sum(y) and n. Statistics of disjoint chunks of rows add up to those of their union."""
+
+    G: np.ndarray
+    b: np.ndarray
+    yy: float
+    ysum: float
+    n: int
+
+    @classmethod
+    def of(cls, Phi: np.ndarray, y: np.ndarray) -> SufficientStats:
+        y = np.asarray(y, float)
+        return cls(Phi.T @ Phi, Phi.T @ y, float(y @ y), float(y.sum()), len(y))
+
+    def __add__(self, other: SufficientStats) -> SufficientStats:
+        return SufficientStats(
+            self.G + other.G,
+            self.b + other.b,
+            self.yy + other.yy,
+            self.ysum + other.ysum,
+            self.n + other.n,
+        )
 
 
 @functools.lru_cache(maxsize=4)

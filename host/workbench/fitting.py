@@ -13,6 +13,7 @@ from forcemap.host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, r
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
+from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import Survey
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
@@ -87,9 +88,12 @@ def fit_target(
         every = float(np.ptp(survey.trel)) / len(rows)
         hyper = f" (hyperparameters from {len(rows)} of them, one per {every:.1f} s)"
     note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples{hyper} ...", progress)
+    fold_ids = make_folds(survey, folds)
+    # the Gram matrices are accumulated fold by fold: the CV then costs no second pass over the data
+    survey_fits(survey).grams.plan = fold_ids
     sm = SurveyModel(survey, target, terms, max_basis=max_basis).fit()
     note(f"cross-validating ({folds} folds) ...", progress)
-    cv = sm.cv(make_folds(survey, folds))
+    cv = sm.cv(fold_ids)
     unit = " deg" if sm.circular else ""
     return FitResult(sm, cv, folds, failure_summary(survey, cv.error, unit))
 

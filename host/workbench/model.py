@@ -15,8 +15,18 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from forcemap.host.workbench import fourier
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.evidence import Design, blas_threads, evidence, small_blas
+from forcemap.host.workbench.evidence import (
+    Design,
+    DesignCache,
+    TermBlock,
+    blas_threads,
+    design_key,
+    evidence,
+    folds_key,
+    small_blas,
+)
 from forcemap.host.workbench.spec import BASELINE, build_term, parse_term
 from forcemap.host.workbench.table import is_circular
 from forcemap.host.workbench.terms import ConstTerm, HilbertGPTerm, Term, TermSpec
@@ -28,16 +38,40 @@ CHUNK = 8192
 # where callers have always found them
 __all__ = [
     "Design",
+    "DesignCache",
     "Model",
     "NotFittedError",
     "blas_threads",
     "evidence",
     "small_blas",
+    "spaced_rows",
     "term_inputs",
 ]
 # L-BFGS stops when an iteration gains less than this fraction of |log evidence| (scipy's default: 2.2e-9).
 # On a survey's ~10^4 nats that is ~10^-3 nats, far below what moves a map; it halves the iterations
 FTOL = 1e-7
+# a survey's hyperparameters come from samples this far apart in time (see `spaced_rows`)
+HYPER_SPACING_S = 5.0
+MIN_HYPER_ROWS = 300
+
+
+def spaced_rows(
+    t: np.ndarray, spacing_s: float, min_rows: int = MIN_HYPER_ROWS
+) -> np.ndarray | None:
+    """The first sample of every `spacing_s` seconds of `t` (at least `min_rows`, evenly spread; None: all).
+
+    Along a survey line the samples are a metre apart and their errors are correlated over seconds
+    (paddle-wheel inertia, gusts, the sounder's 1 Hz updates, turns). Fed every sample, the marginal
+    likelihood reads that as fine spatial structure: it puts the position lengthscale at the basis's
+    limit, far below the line spacing, and the map then extrapolates wildly into any area it has not
+    seen. Samples `spacing_s` apart are close to independent, so their marginal likelihood sets the
+    hyperparameters; the posterior (the map) uses every sample."""
+    t = np.asarray(t, float)
+    n = len(t)
+    _, rows = np.unique(np.floor((t - t.min()) / spacing_s), return_index=True)
+    if len(rows) < min_rows:
+        rows = np.unique(np.linspace(0, n - 1, min(min_rows, n)).astype(int))
+    return None if len(rows) >= n else np.sort(rows)
 
 
 def term_inputs(term: Term, X: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -64,20 +98,28 @@ class Model:
     mean terms (power law, user functions) are subtracted with parameters fitted by marginal likelihood.
 
     `terms`: term strings, `TermSpec`s or `Term` objects (copied by `fit`, never changed). `max_basis` caps the
-    basis of a spatial GP term; `hyper_rows` are the rows whose marginal likelihood sets the hyperparameters
-    (None: all); the posterior always uses every row."""
+    basis of a spatial GP term. With `hyper_spacing_s`, the hyperparameters are set by the marginal likelihood
+    of the samples that far apart in the input "t" (`spaced_rows`); the posterior always uses every row.
+    `init` starts the hyperparameter search (the layout of `theta_`); without `optimize` they are kept as given.
+    `memory` (a `DesignCache`) shares Gram matrices between models with the same features on the same inputs."""
 
     def __init__(
         self,
         terms: Sequence[Term | TermSpec | str] = tuple(BASELINE),
         max_iter: int = 300,
         max_basis: int | None = None,
-        hyper_rows: np.ndarray | None = None,
+        hyper_spacing_s: float | None = None,
+        init: np.ndarray | None = None,
+        optimize: bool = True,
+        memory: DesignCache | None = None,
     ) -> None:
         self.terms = terms
         self.max_iter = max_iter
         self.max_basis = max_basis
-        self.hyper_rows = hyper_rows
+        self.hyper_spacing_s = hyper_spacing_s
+        self.init = init
+        self.optimize = optimize
+        self.memory = memory
 
     # ---- scikit-learn's parameter protocol
     @classmethod
@@ -122,25 +164,25 @@ class Model:
 
     # ---- layout of the parameter vector: [log noise] + feature-term log-hypers + mean-term thetas
     def _layout(self) -> None:
-        self._feat_terms = [t for t in self.terms_ if not t.is_mean]
-        self._mean_terms = [t for t in self.terms_ if t.is_mean]
+        self.feat_terms_ = [t for t in self.terms_ if not t.is_mean]
+        self.mean_terms_ = [t for t in self.terms_ if t.is_mean]
         self.h_slices_, i = [], 1
-        for t in self._feat_terms:
+        for t in self.feat_terms_:
             k = len(t.hypers())
             self.h_slices_.append(slice(i, i + k))
             i += k
-        self._m_slices = []
-        for t in self._mean_terms:
+        self.m_slices_ = []
+        for t in self.mean_terms_:
             k = len(t.theta_init())
-            self._m_slices.append(slice(i, i + k))
+            self.m_slices_.append(slice(i, i + k))
             i += k
         self._n_params = i
 
     def _bounds(self) -> list[tuple[float, float]]:
         b = [NOISE_BOUNDS]
-        for t in self._feat_terms:
+        for t in self.feat_terms_:
             b += [(h.lo, h.hi) for h in t.hypers()]
-        for t in self._mean_terms:
+        for t in self.mean_terms_:
             b += t.theta_bounds()
         return b
 
@@ -150,19 +192,19 @@ class Model:
 
     def _init(self, y: np.ndarray) -> np.ndarray:
         theta = [math.log(0.1)]
-        for t in self._feat_terms:
+        for t in self.feat_terms_:
             hs = t.hypers()
             vals = [h.init for h in hs]
-            if t.describe() == "const":
+            if isinstance(t, ConstTerm):
                 vals[0] = math.log((np.mean(y) / self.y_scale_) ** 2 + 1.0)
             theta += vals
-        for t in self._mean_terms:
+        for t in self.mean_terms_:
             theta += list(t.theta_init())
         return np.array(theta, float)
 
     def _loglam(self, theta: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         logs, ders = [], []
-        for t, sl in zip(self._feat_terms, self.h_slices_, strict=True):
+        for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True):
             lv, d = t.log_prior_var(theta[sl])
             logs.append(lv)
             ders.append(d)
@@ -170,7 +212,7 @@ class Model:
 
     def _mean(self, Zs: list[np.ndarray], theta: np.ndarray) -> np.ndarray:
         out = np.zeros(len(Zs[0]) if Zs else 0)
-        for t, sl, Z in zip(self._mean_terms, self._m_slices, Zs, strict=True):
+        for t, sl, Z in zip(self.mean_terms_, self.m_slices_, Zs, strict=True):
             out = out + t.mean(Z, theta[sl])
         return out
 
@@ -178,7 +220,7 @@ class Model:
         """Negative log marginal likelihood of the hyperparameter rows, and its gradient."""
         loglam, ders = self._loglam(theta)
         hd = self._hdesign
-        if self._mean_terms:
+        if self.mean_terms_:
             r = (self._hy - self._mean(self._hZmean, theta)) / self.y_scale_
             b, rr = hd.rmatvec(r), float(r @ r)
         else:
@@ -194,7 +236,7 @@ class Model:
             m = d.shape[0]
             grad[sl] = g_lam[i : i + m] @ d
             i += m
-        if self._mean_terms:
+        if self.mean_terms_:
             self._mean_gradient(theta, r, hd.matvec(post["mu"]), post["sn2"], grad)
         if not np.isfinite(logp) or not np.all(np.isfinite(grad)):
             return 1e25, np.zeros_like(theta)
@@ -204,7 +246,7 @@ class Model:
         """The log evidence's gradient by the mean terms' parameters (into `grad`): the mean function's
         derivative by forward finite differences, times the posterior residual."""
         sinv_r = (r - fitted) / sn2
-        for t, sl, Z in zip(self._mean_terms, self._m_slices, self._hZmean, strict=True):
+        for t, sl, Z in zip(self.mean_terms_, self.m_slices_, self._hZmean, strict=True):
             th = theta[sl]
             base = t.mean(Z, th)
             for k in range(len(th)):
@@ -215,42 +257,66 @@ class Model:
                 grad[sl.start + k] = sinv_r @ dm
 
     def _prepare(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design | None) -> None:
+        """Scale the target, set the terms up (unless `design` is given: then they are), and gather what the
+        hyperparameter search needs: the design of the hyperparameter rows holds its features, the design
+        of every row computes its Gram matrix only when the posterior needs it."""
         y = np.asarray(y, float)
         if not np.all(np.isfinite(y)):
             raise WorkbenchError("the target has missing or non-finite values")
         self.y_scale_ = float(np.std(y)) or 1.0
-        self._y = y
+        self.target_ = y
+        inputs = [term_inputs(t, X) for t in self.terms_]
         if design is None:
-            blocks = []
-            for t in self.terms_:
-                Z = term_inputs(t, X)
+            for t, Z in zip(self.terms_, inputs, strict=True):
                 t.setup(Z)
-                if not t.is_mean:
-                    blocks.append(t.features(Z))
-            design = Design(blocks)
         self._layout()
-        self._Zmean = [term_inputs(t, X) for t in self._mean_terms]
+        self._Zmean = [Z for t, Z in zip(self.terms_, inputs, strict=True) if t.is_mean]
+        if design is None:
+            feat = [(t, Z) for t, Z in zip(self.terms_, inputs, strict=True) if not t.is_mean]
+            design = self._design(feat, len(y))
         self.design_ = design
         r = y / self.y_scale_
-        self._b, self._rr = design.rmatvec(r), float(r @ r)
-        rows = self.hyper_rows
-        if rows is None or len(rows) >= len(y):
-            self._hdesign, self._hb, self._hrr = design, self._b, self._rr
-            self._hy, self._hZmean = y, self._Zmean
+        rows = self._hyper_rows(X, len(y))
+        if rows is None:
+            self._hdesign, self._hy, self._hZmean = design, y, self._Zmean
         else:
-            self._hdesign = Design([b[rows] for b in design.blocks])
+            self._hdesign = design.subset(rows)
             self._hy, self._hZmean = y[rows], [Z[rows] for Z in self._Zmean]
-            self._hb, self._hrr = self._hdesign.rmatvec(r[rows]), float(r[rows] @ r[rows])
+        hr = r if rows is None else r[rows]
+        self._hb, self._hrr = self._hdesign.rmatvec(hr), float(hr @ hr)
+
+    def _design(self, feat: list[tuple[Term, np.ndarray]], n: int) -> Design:
+        """The design of every row: features held when small, else computed chunk by chunk; shared through
+        `memory` with any model of the same features on the same inputs."""
+
+        def build(plan: np.ndarray | None) -> Design:
+            blocks = [TermBlock(copy.deepcopy(t), Z) for t, Z in feat]
+            fast = [i for i, b in enumerate(blocks) if fourier.is_fast(b.term)]
+            if not fast:
+                return Design(blocks, plan)
+            i = max(fast, key=lambda i: blocks[i].shape[1])
+            return Design(blocks, plan, (i, blocks[i].term, blocks[i].Z))
+
+        if self.memory is None:
+            return build(None)
+        return self.memory.design(design_key(feat), build)
+
+    def _hyper_rows(self, X: Mapping[str, np.ndarray], n: int) -> np.ndarray | None:
+        if self.hyper_spacing_s is None:
+            return None
+        if "t" not in X:
+            raise WorkbenchError("hyper_spacing_s needs the input 't' (the samples' times)")
+        return spaced_rows(X["t"], self.hyper_spacing_s)
 
     def _search_lengthscale(self, theta: np.ndarray) -> np.ndarray:
         """Start L-BFGS from the best of a few lengthscales for the first GP term (avoids poor local optima)."""
-        for t, sl in zip(self._feat_terms, self.h_slices_, strict=True):
+        for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True):
             if isinstance(t, HilbertGPTerm):
                 lo, hi = math.log(t.l_min * 1.1), math.log(2.0 * float(t.half.max()))
                 best, best_val = theta, self._objective(theta)[0]
                 for logl in np.linspace(lo, hi, 7):
                     trial = theta.copy()
-                    trial[sl.start + 1] = logl
+                    trial[sl.start + t.hyper_index("lengthscale")] = logl
                     val = self._objective(trial)[0]
                     if val < best_val:
                         best, best_val = trial, val
@@ -272,27 +338,32 @@ class Model:
         self.n_iter_ = int(res.nit)
         return res.x
 
-    def fit(
-        self,
-        X: Mapping[str, np.ndarray],
-        y: np.ndarray,
-        init: np.ndarray | None = None,
-        optimize: bool = True,
-        design: Design | None = None,
-    ) -> Model:
-        """Fit hyperparameters by marginal likelihood (from `init` if given; kept as given if not `optimize`)
-        and the posterior over weights. With `design`, the terms must already be set up for it (`extended`)."""
+    def fit(self, X: Mapping[str, np.ndarray], y: np.ndarray) -> Model:
+        """Fit the hyperparameters by marginal likelihood (from `init` if given; kept as given without
+        `optimize`) and the posterior over the weights."""
         self.terms_ = self._build_terms()
+        return self._fit(X, y, None)
+
+    def fit_design(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design) -> Model:
+        """`fit` on a design already built for these terms (`Design.augment` of another model's): the terms
+        must be set up for it, and their bases are not grown."""
+        self.terms_ = self._build_terms()
+        return self._fit(X, y, design)
+
+    def _fit(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design | None) -> Model:
         self._prepare(X, y, design)
+        init = self.init
         theta = self._init(y) if init is None else np.asarray(init, float).copy()
         if len(theta) != self._n_params:
             raise WorkbenchError("initial hyperparameters do not match the model's terms")
         theta = self._clip(theta)
-        if optimize:
+        if self.optimize:
             theta = self._optimize(theta, search=init is None)
             if design is None:
                 theta = self._grow_basis(X, y, theta)
         self._set_posterior(theta)
+        # the search's scratch: the hyperparameter rows' design and inputs
+        del self._hdesign, self._hy, self._hZmean, self._hb, self._hrr
         return self
 
     def _grow_basis(
@@ -303,9 +374,9 @@ class Model:
         for _ in range(3):
             grow = [
                 t
-                for t, sl in zip(self._feat_terms, self.h_slices_, strict=True)
+                for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True)
                 if isinstance(t, HilbertGPTerm)
-                and theta[sl.start + 1] < math.log(1.25 * t.l_min)
+                and theta[sl.start + t.hyper_index("lengthscale")] < math.log(1.25 * t.l_min)
                 and t.n_basis < min(t.max_basis, len(y))
             ]
             if not grow:
@@ -324,18 +395,21 @@ class Model:
     def _set_posterior_inner(self, theta: np.ndarray) -> None:
         self.theta_ = theta
         loglam, _ = self._loglam(theta)
-        if self._mean_terms:
-            r = (self._y - self._mean(self._Zmean, theta)) / self.y_scale_
-            self._r = r
-            self._b, self._rr = self.design_.rmatvec(r), float(r @ r)
-        else:
-            self._r = self._y / self.y_scale_
+        r = self.target_ / self.y_scale_
+        if self.mean_terms_:
+            r = (self.target_ - self._mean(self._Zmean, theta)) / self.y_scale_
+        self.scaled_residual_ = r
+        G, b, fold_b = self.design_.products(r)
+        self.feature_residual_ = b
+        # Phi_f'r_f per fold of the design's planned assignment, from the same pass (for `cv_predict`)
+        plan = self.design_.plan
+        self.fold_residuals_ = {} if fold_b is None else {folds_key(plan): fold_b}
         logp, _, _, post = evidence(
-            self.design_.G, self._b, self._rr, self.design_.n, loglam, theta[0], grad=False
+            G, b, float(r @ r), self.design_.n, loglam, theta[0], grad=False
         )
         self.log_marginal_likelihood_ = float(logp)
-        self._post = post
-        self._loglam_ = loglam
+        self.posterior_ = post
+        self.loglam_ = loglam
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "theta_"):
@@ -351,14 +425,14 @@ class Model:
         """Fitted parameters of every term, plus the noise standard deviation, in the target's units."""
         out: dict[str, dict[str, float]] = {"noise": {"std": self.noise_std_}}
         i = 0
-        for t, sl, m in zip(self._feat_terms, self.h_slices_, self.design_.sizes, strict=True):
-            w = self._post["mu"][i : i + m] * self.y_scale_
+        for t, sl, m in zip(self.feat_terms_, self.h_slices_, self.design_.sizes, strict=True):
+            w = self.posterior_["mu"][i : i + m] * self.y_scale_
             p = t.params(self.theta_[sl], w)
             if "variance" in p:
                 p["std"] = math.sqrt(p.pop("variance")) * self.y_scale_
             out[t.describe()] = p
             i += m
-        for t, sl in zip(self._mean_terms, self._m_slices, strict=True):
+        for t, sl in zip(self.mean_terms_, self.m_slices_, strict=True):
             out[t.describe()] = t.params(self.theta_[sl], np.zeros(0))
         return out
 
@@ -368,17 +442,47 @@ class Model:
         self._check_fitted()
         return {t.describe(): t.n_basis for t in self.terms_ if isinstance(t, HilbertGPTerm)}
 
+    def _fast_inputs(self, X: Mapping[str, np.ndarray]) -> np.ndarray | None:
+        fast = self.design_.fast
+        return None if fast is None else term_inputs(fast[1], X)
+
     def features(self, X: Mapping[str, np.ndarray]) -> list[np.ndarray]:
         self._check_fitted()
-        return [t.features(term_inputs(t, X)) for t in self._feat_terms]
+        return [t.features(term_inputs(t, X)) for t in self.feat_terms_]
 
-    def _predict_rows(self, Phi: np.ndarray, mean_part: np.ndarray, post: dict, return_std: bool):
+    def _predict_rows(self, Phi, Zf, mean_part, post: dict, return_std: bool):
+        """Mean and latent std at rows with features `Phi` (and the fast GP term's inputs `Zf`)."""
         mu = Phi @ post["mu"] * self.y_scale_ + mean_part
         if not return_std:
             return mu, None
-        V = linalg.solve_triangular(post["L"], (Phi * post["s"]).T, lower=True, check_finite=False)
-        var = (V**2).sum(axis=0) * self.y_scale_**2
-        return mu, np.sqrt(np.maximum(var, 0.0))
+        fast = self.design_.fast
+        if fast is None:
+            V = linalg.solve_triangular(
+                post["L"], (Phi * post["s"]).T, lower=True, check_finite=False
+            )
+            var = (V**2).sum(axis=0)
+        else:
+            var = self._fast_variance(Phi, Zf, post)
+        return mu, np.sqrt(np.maximum(var * self.y_scale_**2, 0.0))
+
+    def _fast_variance(self, Phi, Zf, post: dict) -> np.ndarray:
+        """phi' Sigma phi with the GP block's part from a cosine table (`fourier`), not an M x M product per row."""
+        fcols, slow = self.design_.fast_cols
+        if "table" not in post:
+            # Sigma = diag(s) B^-1 diag(s), B = L L'
+            inv, info = linalg.lapack.dpotri(post["L"], lower=1)
+            if info != 0:
+                raise np.linalg.LinAlgError("dpotri failed")
+            inv = np.tril(inv) + np.tril(inv, -1).T
+            post["cov"] = cov = inv * post["s"][:, None] * post["s"][None, :]
+            post["table"] = fourier.variance_table(self.design_.fast[1], cov[np.ix_(fcols, fcols)])
+        cov = post["cov"]
+        var = fourier.quadratic_form(self.design_.fast[1], Zf, post["table"])
+        if len(slow):
+            S = Phi[:, slow]
+            var += 2.0 * np.einsum("ij,ij->i", S @ cov[np.ix_(slow, fcols)], Phi[:, fcols])
+            var += np.einsum("ij,ij->i", S @ cov[np.ix_(slow, slow)], S)
+        return var
 
     def predict(
         self, X: Mapping[str, np.ndarray], return_std: bool = False, include_noise: bool = False
@@ -394,12 +498,13 @@ class Model:
         for a in range(0, n, CHUNK):
             Xc = {k: np.asarray(v)[a : a + CHUNK] for k, v in X.items()}
             mean_part = (
-                self._mean([term_inputs(t, Xc) for t in self._mean_terms], self.theta_)
-                if self._mean_terms
+                self._mean([term_inputs(t, Xc) for t in self.mean_terms_], self.theta_)
+                if self.mean_terms_
                 else 0.0
             )
             Phi = np.hstack(self.features(Xc))
-            mu, sd = self._predict_rows(Phi, mean_part, self._post, return_std)
+            Zf = self._fast_inputs(Xc)
+            mu, sd = self._predict_rows(Phi, Zf, mean_part, self.posterior_, return_std)
             means[a : a + CHUNK] = mu
             if return_std:
                 stds[a : a + CHUNK] = sd
@@ -419,8 +524,8 @@ class Model:
         self._check_fitted()
         grams = self.design_.fold_grams(folds)
         sn2 = math.exp(self.theta_[0])
-        loglam = self._loglam_
-        mean_part = self._y - self._r * self.y_scale_
+        loglam = self.loglam_
+        mean_part = self.target_ - self.scaled_residual_ * self.y_scale_
         mu_out = np.empty(self.design_.n)
         sd_out = np.empty(self.design_.n) if return_std else None
         with small_blas():
@@ -428,19 +533,27 @@ class Model:
         return mu_out, sd_out
 
     def _cv_loop(self, folds, grams, loglam, sn2, mean_part, mu_out, sd_out) -> None:
-        for f, Gf in zip(np.unique(folds), grams, strict=True):
+        design, r = self.design_, self.scaled_residual_
+        fold_b = self.fold_residuals_.get(folds_key(folds))
+        for i, (f, Gf) in enumerate(zip(np.unique(folds), grams, strict=True)):
             test = folds == f
-            Phi = self.design_.rows(test)
-            b_tr = self._b - Phi.T @ self._r[test]
-            G_tr = self.design_.G - Gf
-            rr = float(self._r[~test] @ self._r[~test])
+            bf = fold_b[i] if fold_b is not None else design.rmatvec(r, test)
+            rr = float(r[~test] @ r[~test])
             _, _, _, post = evidence(
-                G_tr, b_tr, rr, int((~test).sum()), loglam, self.theta_[0], grad=False
+                design.G - Gf,
+                self.feature_residual_ - bf,
+                rr,
+                int((~test).sum()),
+                loglam,
+                self.theta_[0],
+                grad=False,
             )
-            mu, sd = self._predict_rows(Phi, mean_part[test], post, sd_out is not None)
-            mu_out[test] = mu
-            if sd_out is not None:
-                sd_out[test] = sd
+            for idx, Phi in design.row_chunks(test):
+                Zf = None if design.fast is None else design.fast[2][idx]
+                mu, sd = self._predict_rows(Phi, Zf, mean_part[idx], post, sd_out is not None)
+                mu_out[idx] = mu
+                if sd_out is not None:
+                    sd_out[idx] = sd
 
     def extended(self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray) -> Model:
         """A new, fitted model with one more feature term, sharing this model's design (only cross products
@@ -452,15 +565,17 @@ class Model:
         term = copy.deepcopy(term)
         Z = term_inputs(term, X)
         term.setup(Z)
-        new = Model(
-            copy.deepcopy(self._feat_terms + [term] + self._mean_terms),
-            max_iter=self.max_iter,
-            max_basis=self.max_basis,
-            hyper_rows=self.hyper_rows,
-        )
         design = self.design_.augment(term.features(Z))
         cut = self.h_slices_[-1].stop
         init = np.concatenate(
             [self.theta_[:cut], [h.init for h in term.hypers()], self.theta_[cut:]]
         )
-        return new.fit(X, y, init=init, design=design)
+        new = Model(
+            copy.deepcopy(self.feat_terms_ + [term] + self.mean_terms_),
+            max_iter=self.max_iter,
+            max_basis=self.max_basis,
+            hyper_spacing_s=self.hyper_spacing_s,
+            init=init,
+            memory=self.memory,
+        )
+        return new.fit_design(X, y, design)

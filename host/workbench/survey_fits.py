@@ -7,13 +7,18 @@ import functools
 
 import numpy as np
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.model import Model
+from forcemap.host.workbench.model import (
+    HYPER_SPACING_S,
+    MIN_HYPER_ROWS,
+    DesignCache,
+    Model,
+    spaced_rows,
+)
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
 
-# hyperparameters come from samples this far apart in time (see hyper_rows), but never fewer than MIN_HYPER_ROWS
-HYPER_SPACING_S = 5.0
-MIN_HYPER_ROWS = 300
+# the names callers have always found here (hyperparameters come from samples HYPER_SPACING_S apart)
+__all__ = ["HYPER_SPACING_S", "MIN_HYPER_ROWS", "SurveyFits", "hyper_rows", "survey_fits"]
 
 
 def wrap180(a: np.ndarray) -> np.ndarray:
@@ -43,32 +48,25 @@ class SurveyFits:
         self._secondary: dict[tuple[str, bool], Model] = {}
         self._frame_cv: dict[tuple[str, str, bytes], tuple[np.ndarray, np.ndarray]] = {}
         self._derived: dict[str, np.ndarray] = {}
+        # Gram matrices shared by models of the same features (a vector's components); `plan` is the
+        # cross-validation folds to accumulate with them
+        self.grams = DesignCache()
 
     @functools.cached_property
     def hyper_rows(self) -> np.ndarray | None:
-        """Rows for the hyperparameters: the first sample of every HYPER_SPACING_S (None: all rows).
+        """Rows for the hyperparameters: the first sample of every HYPER_SPACING_S (None: all rows), what
+        `Model(hyper_spacing_s=HYPER_SPACING_S)` picks on the survey's times (see `model.spaced_rows`)."""
+        return spaced_rows(self.survey.trel, HYPER_SPACING_S)
 
-        Along a survey line the samples are a metre apart and their errors are correlated over seconds
-        (paddle-wheel inertia, gusts, the sounder's 1 Hz updates, turns). Fed every sample, the marginal
-        likelihood reads that as fine spatial structure: it puts the position lengthscale at the basis's
-        limit, far below the line spacing, and the map then extrapolates wildly into any area it has not
-        seen. Samples HYPER_SPACING_S apart are close to independent, so their marginal likelihood sets the
-        hyperparameters; the posterior (the map) uses every sample."""
-        survey = self.survey
-        t = survey.trel
-        _, rows = np.unique(np.floor((t - t.min()) / HYPER_SPACING_S), return_index=True)
-        if len(rows) < MIN_HYPER_ROWS:
-            rows = np.unique(
-                np.linspace(0, survey.n - 1, min(MIN_HYPER_ROWS, survey.n)).astype(int)
-            )
-        return None if len(rows) >= survey.n else np.sort(rows)
+    def model(self, terms, **kw) -> Model:
+        """An unfitted model with the survey's hyperparameter spacing, sharing its Gram matrices."""
+        return Model(terms, hyper_spacing_s=HYPER_SPACING_S, memory=self.grams, **kw)
 
     @functools.cached_property
     def depth_map(self) -> Model:
         """The baseline model of depth over position: maps evaluate depth terms on it."""
         depth = survey_inputs(self.survey, {"depth"})["depth"]
-        model = Model(BASELINE, hyper_rows=self.hyper_rows)
-        return model.fit({"position": self.survey.xy}, depth)
+        return self.model(BASELINE).fit({"position": self.survey.xy, "t": self.survey.trel}, depth)
 
     def frame(self, vt: VectorTarget) -> tuple[Model, Model]:
         """Smooth models of a vector's east and north components (see `flow_frame`)."""
@@ -82,9 +80,9 @@ class SurveyFits:
             X = {"position": survey.xy, "t": survey.trel}
             e = finite_target(survey, e, f"{vt.prefix} east component")
             n = finite_target(survey, n, f"{vt.prefix} north component")
-            terms, rows = FRAME_TERMS[kind], self.hyper_rows
+            terms = FRAME_TERMS[kind]
             self._frames[key] = tuple(
-                Model(terms, max_basis=FRAME_MAX_BASIS, hyper_rows=rows).fit(X, c) for c in (e, n)
+                self.model(terms, max_basis=FRAME_MAX_BASIS).fit(X, c) for c in (e, n)
             )
         return self._frames[key]
 
@@ -92,8 +90,8 @@ class SurveyFits:
         """The baseline model of the flow-frame component a target's terms do not act on (`y`)."""
         key = (vt.prefix, primary_is_along)
         if key not in self._secondary:
-            model = Model(BASELINE, hyper_rows=self.hyper_rows)
-            self._secondary[key] = model.fit({"position": self.survey.xy}, y)
+            X = {"position": self.survey.xy, "t": self.survey.trel}
+            self._secondary[key] = self.model(BASELINE).fit(X, y)
         return self._secondary[key]
 
     def frame_cv(self, vt: VectorTarget, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

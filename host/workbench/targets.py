@@ -137,7 +137,7 @@ class SurveyModel:
             if isinstance(t, HilbertGPTerm) and n_basis and t.describe() in n_basis:
                 t.n_basis = int(n_basis[t.describe()])
                 t.max_basis = max(t.max_basis, t.n_basis)
-        return Model(built, max_basis=self.max_basis, hyper_rows=hyper_rows(self.survey))
+        return survey_fits(self.survey).model(built, max_basis=self.max_basis)
 
     def fit(
         self, theta: np.ndarray | None = None, n_basis: Mapping[str, int] | None = None
@@ -154,7 +154,8 @@ class SurveyModel:
         if theta is None:
             self.primary = primary.fit(self.X, self.y_primary)
         else:
-            self.primary = primary.fit(self.X, self.y_primary, init=theta, optimize=False)
+            primary.set_params(init=np.asarray(theta, float), optimize=False)
+            self.primary = primary.fit(self.X, self.y_primary)
         if self.vector and self.vector.aspect in ("speed", "dir"):
             fits = survey_fits(self.survey)
             self.secondary = fits.secondary(self.vector, self.primary_is_along, self.y_secondary)

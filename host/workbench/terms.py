@@ -49,6 +49,10 @@ class Term:
     inputs: tuple[str, ...] = ()
     is_mean = False
 
+    def hyper_index(self, name: str) -> int:
+        """Position of the hyperparameter `name` in this term's slice of the parameter vector."""
+        return [h.name for h in self.hypers()].index(name)
+
     def describe(self) -> str:
         raise NotImplementedError
 
@@ -223,17 +227,21 @@ class HilbertGPTerm(Term):
         self.l_min = L_MIN_FACTOR / self.omega.max()
         self.l_max = 4.0 * float(self.L.max())
 
-    def features(self, Z):
+    def angles(self, Z) -> list[np.ndarray]:
+        """u_d = (z_d + L_d) pi / 2 L_d per rotated input axis: feature j is prod_d sin(J_jd u_d) / sqrt(L_d)."""
         Zr = (Z - self.center) @ self.rot
-        out = np.ones((len(Z), len(self.J)))
-        for d in range(Zr.shape[1]):
-            # one sine per distinct frequency index, then gathered: a few hundred sines, not n x M
-            arg = (Zr[:, d : d + 1] + self.L[d]) * (math.pi / (2 * self.L[d]))
-            table = np.sin(arg * np.arange(1, self.J[:, d].max() + 1)[None, :]) / math.sqrt(
-                self.L[d]
-            )
-            out *= table[:, self.J[:, d] - 1]
-        return out
+        return [(Zr[:, d] + self.L[d]) * (math.pi / (2 * self.L[d])) for d in range(Zr.shape[1])]
+
+    def features(self, Z):
+        out = None
+        for d, arg in enumerate(self.angles(Z)):
+            # one sine per distinct frequency index, then gathered: a few hundred sines, not n x M; the table is
+            # (index, sample) so that the gather copies whole rows, and the features come out column-major
+            k = np.arange(1, self.J[:, d].max() + 1)
+            table = np.sin(k[:, None] * arg[None, :]) / math.sqrt(self.L[d])
+            rows = table[self.J[:, d] - 1]
+            out = rows if out is None else np.multiply(out, rows, out=out)
+        return out.T
 
     def hypers(self):
         l0 = max(0.3 * float(self.half.max()), 1.5 * self.l_min)

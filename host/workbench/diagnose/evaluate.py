@@ -96,8 +96,10 @@ class Evaluator:
         design = p.design_.augment(term.features(Z))
         feat = [t for t in p.terms_ if not t.is_mean]
         mean = [t for t in p.terms_ if t.is_mean]
-        model = Model(feat + [term] + mean, hyper_rows=p.hyper_rows)
-        return model.fit(X, self.sm.y_primary, init=theta, optimize=False, design=design)
+        model = Model(
+            feat + [term] + mean, hyper_spacing_s=p.hyper_spacing_s, init=theta, optimize=False
+        )
+        return model.fit_design(X, self.sm.y_primary, design)
 
     def blocked(self, model: Model) -> tuple[CVResult, float, float]:
         """Held-out predictions with `model` as the primary, its blocked-CV gain and p-value."""

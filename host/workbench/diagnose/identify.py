@@ -71,8 +71,8 @@ def predict_from_model_inputs(ev, name: str, values: np.ndarray) -> tuple[np.nda
         if np.ptp(y) < 1e-12:
             preds.append(y.copy())
             continue
-        m = Model([*feat, trend], hyper_rows=p.hyper_rows)
-        m.fit(ev.sm.X, y, design=design)
+        m = Model([*feat, trend], hyper_spacing_s=p.hyper_spacing_s)
+        m.fit_design(ev.sm.X, y, design)
         preds.append(m.cv_predict(ev.fold_id, return_std=False)[0])
     resid = sum(np.mean((y - q) ** 2) for y, q in zip(parts, preds, strict=True))
     total = sum(np.var(y) for y in parts) or 1.0
