@@ -90,12 +90,12 @@ class Design:
         return self.products(None)[0]
 
     @property
-    def fast_cols(self) -> tuple[np.ndarray, np.ndarray]:
-        """Columns of the fast block, and of every other block."""
+    def fast_cols(self) -> tuple[slice, np.ndarray]:
+        """Columns of the fast block (a slice), and of every other block (indices)."""
         start = sum(self.sizes[: self.fast[0]])
+        stop = start + self.sizes[self.fast[0]]
         cols = np.arange(self.M)
-        inside = (cols >= start) & (cols < start + self.sizes[self.fast[0]])
-        return cols[inside], cols[~inside]
+        return slice(start, stop), np.concatenate([cols[:start], cols[stop:]])
 
     def _pass(self, rows, r: np.ndarray | None, want_gram: bool):
         """Phi'Phi (if `want_gram`) and Phi'r (if `r`) over `rows`, in one pass over their features."""
@@ -118,7 +118,7 @@ class Design:
             G = np.zeros((self.M, self.M))
             G[:, slow], G[slow, :] = cross, cross.T
             Z = fast[2][as_rows(rows, self.n)]
-            G[np.ix_(fcols, fcols)] = fourier.gram(fast[1], Z)
+            G[fcols, fcols] = fourier.gram(fast[1], Z)
         return G, b
 
     def products(self, r: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, list | None]:

@@ -14,6 +14,7 @@ For terms on one or two inputs; the results equal the direct products to roundin
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 
@@ -43,12 +44,18 @@ def _cosines(term, Z: np.ndarray) -> list[np.ndarray]:
 
 def _combos(term) -> list[tuple[float, np.ndarray]]:
     """(sign, flat table index (M, M)) of every cosine product in phi_j phi_k."""
-    J = term.J.astype(np.int64)
+    J = np.ascontiguousarray(term.J, dtype=np.int32)
+    return _combos_of(J.tobytes(), J.shape)
+
+
+@functools.lru_cache(maxsize=2)
+def _combos_of(J_bytes: bytes, shape: tuple[int, int]) -> list[tuple[float, np.ndarray]]:
+    J = np.frombuffer(J_bytes, np.int32).reshape(shape)
     dims = J.shape[1]
     sizes = [2 * int(J[:, d].max()) + 1 for d in range(dims)]
     out = []
     for combo in itertools.product((0, 1), repeat=dims):
-        flat = np.zeros((len(J), len(J)), np.int64)
+        flat = np.zeros((len(J), len(J)), np.int32)
         for d, plus in enumerate(combo):
             a = J[:, d]
             idx = a[:, None] + a[None, :] if plus else np.abs(a[:, None] - a[None, :])
@@ -74,7 +81,8 @@ def gram(term, Z: np.ndarray) -> np.ndarray:
 
 
 def variance_table(term, C: np.ndarray) -> np.ndarray:
-    """The table D with phi' C phi = sum_pq D[p, q] cos(p u_1) cos(q u_2) for a symmetric C."""
+    """The table D with phi' C phi = sum_pq D[p, q] cos(p u_1) cos(q u_2); C may also be a symmetric matrix's
+    lower triangle with its off-diagonal entries doubled (phi_j phi_k and phi_k phi_j share a table entry)."""
     sizes = [2 * int(term.J[:, d].max()) + 1 for d in range(term.J.shape[1])]
     size = math.prod(sizes)
     D = np.zeros(size)

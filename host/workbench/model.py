@@ -469,19 +469,24 @@ class Model:
         """phi' Sigma phi with the GP block's part from a cosine table (`fourier`), not an M x M product per row."""
         fcols, slow = self.design_.fast_cols
         if "table" not in post:
-            # Sigma = diag(s) B^-1 diag(s), B = L L'
+            # Sigma = diag(s) B^-1 diag(s), B = L L' (dpotri fills the lower triangle)
             inv, info = linalg.lapack.dpotri(post["L"], lower=1)
             if info != 0:
                 raise np.linalg.LinAlgError("dpotri failed")
-            inv = np.tril(inv) + np.tril(inv, -1).T
-            post["cov"] = cov = inv * post["s"][:, None] * post["s"][None, :]
-            post["table"] = fourier.variance_table(self.design_.fast[1], cov[np.ix_(fcols, fcols)])
-        cov = post["cov"]
+            inv *= post["s"][:, None]
+            inv *= post["s"][None, :]
+            low = np.tril(inv)
+            ff = low[fcols, fcols]
+            weights = 2.0 * ff - np.diag(np.diag(ff))  # the lower triangle counts for the upper one too
+            post["table"] = fourier.variance_table(self.design_.fast[1], weights)
+            rows = low[slow] + low[:, slow].T
+            rows[np.arange(len(slow)), slow] -= np.diag(low)[slow]
+            post["cov_slow"] = rows
         var = fourier.quadratic_form(self.design_.fast[1], Zf, post["table"])
         if len(slow):
-            S = Phi[:, slow]
-            var += 2.0 * np.einsum("ij,ij->i", S @ cov[np.ix_(slow, fcols)], Phi[:, fcols])
-            var += np.einsum("ij,ij->i", S @ cov[np.ix_(slow, slow)], S)
+            S, C = Phi[:, slow], post["cov_slow"]
+            var += 2.0 * np.einsum("ij,ij->i", S @ C[:, fcols], Phi[:, fcols])
+            var += np.einsum("ij,ij->i", S @ C[:, slow], S)
         return var
 
     def predict(
