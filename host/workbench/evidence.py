@@ -43,7 +43,8 @@ CHUNK_ROWS = 4096
 DENSE_BYTES = 160 * 2**20
 
 
-def chunks(rows: np.ndarray, size: int = CHUNK_ROWS) -> Iterator[np.ndarray]:
+def chunks(rows: np.ndarray, size: int | None = None) -> Iterator[np.ndarray]:
+    size = size or CHUNK_ROWS
     for a in range(0, len(rows), size):
         yield rows[a : a + size]
 
@@ -84,6 +85,13 @@ class Design:
         self.fast = fast
         self._folds: dict[str, list[np.ndarray]] = {}
         self._fold_ids: dict[str, np.ndarray] = {}
+
+    @classmethod
+    def from_stats(cls, G: np.ndarray, n: int, sizes: list[int]) -> Design:
+        """A design known only by its Gram matrix (a fit from summed sufficient statistics): no rows."""
+        d = cls([])
+        d.G, d.sizes, d._n = G, list(sizes), n
+        return d
 
     @functools.cached_property
     def G(self) -> np.ndarray:
@@ -145,7 +153,7 @@ class Design:
 
     @property
     def n(self) -> int:
-        return self.blocks[0].shape[0]
+        return self.blocks[0].shape[0] if self.blocks else self._n
 
     @property
     def M(self) -> int:

@@ -20,6 +20,7 @@ from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.evidence import (
     Design,
     DesignCache,
+    SufficientStats,
     TermBlock,
     blas_threads,
     design_key,
@@ -27,73 +28,49 @@ from forcemap.host.workbench.evidence import (
     folds_key,
     small_blas,
 )
+from forcemap.host.workbench.hypersearch import (
+    FTOL,
+    HYPER_SPACING_S,
+    MIN_HYPER_ROWS,
+    NOISE_BOUNDS,
+    HyperSearch,
+    basis_stats,
+    fixed_basis,
+    spaced_rows,
+    term_inputs,
+)
 from forcemap.host.workbench.spec import BASELINE, build_term, parse_term
 from forcemap.host.workbench.table import is_circular
 from forcemap.host.workbench.terms import ConstTerm, HilbertGPTerm, Term, TermSpec
 from scipy import linalg
-from scipy.optimize import minimize
 
-NOISE_BOUNDS = (math.log(1e-8), math.log(10.0))
 CHUNK = 8192
 # where callers have always found them
 __all__ = [
+    "FTOL",
+    "HYPER_SPACING_S",
+    "MIN_HYPER_ROWS",
+    "NOISE_BOUNDS",
     "Design",
     "DesignCache",
     "Model",
     "NotFittedError",
+    "SufficientStats",
+    "basis_stats",
+    "fixed_basis",
     "blas_threads",
     "evidence",
     "small_blas",
     "spaced_rows",
     "term_inputs",
 ]
-# L-BFGS stops when an iteration gains less than this fraction of |log evidence| (scipy's default: 2.2e-9).
-# On a survey's ~10^4 nats that is ~10^-3 nats, far below what moves a map; it halves the iterations
-FTOL = 1e-7
-# a survey's hyperparameters come from samples this far apart in time (see `spaced_rows`)
-HYPER_SPACING_S = 5.0
-MIN_HYPER_ROWS = 300
-
-
-def spaced_rows(
-    t: np.ndarray, spacing_s: float, min_rows: int = MIN_HYPER_ROWS
-) -> np.ndarray | None:
-    """The first sample of every `spacing_s` seconds of `t` (at least `min_rows`, evenly spread; None: all).
-
-    Along a survey line the samples are a metre apart and their errors are correlated over seconds
-    (paddle-wheel inertia, gusts, the sounder's 1 Hz updates, turns). Fed every sample, the marginal
-    likelihood reads that as fine spatial structure: it puts the position lengthscale at the basis's
-    limit, far below the line spacing, and the map then extrapolates wildly into any area it has not
-    seen. Samples `spacing_s` apart are close to independent, so their marginal likelihood sets the
-    hyperparameters; the posterior (the map) uses every sample."""
-    t = np.asarray(t, float)
-    n = len(t)
-    _, rows = np.unique(np.floor((t - t.min()) / spacing_s), return_index=True)
-    if len(rows) < min_rows:
-        rows = np.unique(np.linspace(0, n - 1, min(min_rows, n)).astype(int))
-    return None if len(rows) >= n else np.sort(rows)
-
-
-def term_inputs(term: Term, X: Mapping[str, np.ndarray]) -> np.ndarray:
-    if not term.inputs:
-        n = len(np.asarray(next(iter(X.values()))))
-        return np.zeros((n, 0))
-    cols = []
-    for name in term.inputs:
-        if name not in X:
-            raise WorkbenchError(
-                f"term {term.describe()} needs input '{name}', which is not available"
-            )
-        v = np.asarray(X[name], float)
-        cols.append(v.reshape(len(v), -1))
-    return np.hstack(cols)
 
 
 class NotFittedError(ValueError, AttributeError):
     """The model is used before `fit` (the same bases as scikit-learn's NotFittedError)."""
 
 
-class Model:
+class Model(HyperSearch):
     """A sum of terms. Feature terms (GPs, linear, cosine) are Bayesian linear regression in fixed features;
     mean terms (power law, user functions) are subtracted with parameters fitted by marginal likelihood.
 
@@ -163,99 +140,6 @@ class Model:
         return built
 
     # ---- layout of the parameter vector: [log noise] + feature-term log-hypers + mean-term thetas
-    def _layout(self) -> None:
-        self.feat_terms_ = [t for t in self.terms_ if not t.is_mean]
-        self.mean_terms_ = [t for t in self.terms_ if t.is_mean]
-        self.h_slices_, i = [], 1
-        for t in self.feat_terms_:
-            k = len(t.hypers())
-            self.h_slices_.append(slice(i, i + k))
-            i += k
-        self.m_slices_ = []
-        for t in self.mean_terms_:
-            k = len(t.theta_init())
-            self.m_slices_.append(slice(i, i + k))
-            i += k
-        self._n_params = i
-
-    def _bounds(self) -> list[tuple[float, float]]:
-        b = [NOISE_BOUNDS]
-        for t in self.feat_terms_:
-            b += [(h.lo, h.hi) for h in t.hypers()]
-        for t in self.mean_terms_:
-            b += t.theta_bounds()
-        return b
-
-    def _clip(self, theta: np.ndarray) -> np.ndarray:
-        bounds = self._bounds()
-        return np.clip(theta, [b[0] for b in bounds], [b[1] for b in bounds])
-
-    def _init(self, y: np.ndarray) -> np.ndarray:
-        theta = [math.log(0.1)]
-        for t in self.feat_terms_:
-            hs = t.hypers()
-            vals = [h.init for h in hs]
-            if isinstance(t, ConstTerm):
-                vals[0] = math.log((np.mean(y) / self.y_scale_) ** 2 + 1.0)
-            theta += vals
-        for t in self.mean_terms_:
-            theta += list(t.theta_init())
-        return np.array(theta, float)
-
-    def _loglam(self, theta: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-        logs, ders = [], []
-        for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True):
-            lv, d = t.log_prior_var(theta[sl])
-            logs.append(lv)
-            ders.append(d)
-        return np.concatenate(logs), ders
-
-    def _mean(self, Zs: list[np.ndarray], theta: np.ndarray) -> np.ndarray:
-        out = np.zeros(len(Zs[0]) if Zs else 0)
-        for t, sl, Z in zip(self.mean_terms_, self.m_slices_, Zs, strict=True):
-            out = out + t.mean(Z, theta[sl])
-        return out
-
-    def _objective(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
-        """Negative log marginal likelihood of the hyperparameter rows, and its gradient."""
-        loglam, ders = self._loglam(theta)
-        hd = self._hdesign
-        if self.mean_terms_:
-            r = (self._hy - self._mean(self._hZmean, theta)) / self.y_scale_
-            b, rr = hd.rmatvec(r), float(r @ r)
-        else:
-            r, b, rr = None, self._hb, self._hrr
-        try:
-            logp, g_lam, g_sn2, post = evidence(hd.G, b, rr, hd.n, loglam, theta[0])
-        except (np.linalg.LinAlgError, ValueError):
-            return 1e25, np.zeros_like(theta)
-        grad = np.zeros_like(theta)
-        grad[0] = g_sn2
-        i = 0
-        for sl, d in zip(self.h_slices_, ders, strict=True):
-            m = d.shape[0]
-            grad[sl] = g_lam[i : i + m] @ d
-            i += m
-        if self.mean_terms_:
-            self._mean_gradient(theta, r, hd.matvec(post["mu"]), post["sn2"], grad)
-        if not np.isfinite(logp) or not np.all(np.isfinite(grad)):
-            return 1e25, np.zeros_like(theta)
-        return -logp, -grad
-
-    def _mean_gradient(self, theta, r, fitted, sn2, grad) -> None:
-        """The log evidence's gradient by the mean terms' parameters (into `grad`): the mean function's
-        derivative by forward finite differences, times the posterior residual."""
-        sinv_r = (r - fitted) / sn2
-        for t, sl, Z in zip(self.mean_terms_, self.m_slices_, self._hZmean, strict=True):
-            th = theta[sl]
-            base = t.mean(Z, th)
-            for k in range(len(th)):
-                step = 1e-6 * max(1.0, abs(th[k]))
-                th2 = th.copy()
-                th2[k] += step
-                dm = (t.mean(Z, th2) - base) / step / self.y_scale_
-                grad[sl.start + k] = sinv_r @ dm
-
     def _prepare(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design | None) -> None:
         """Scale the target, set the terms up (unless `design` is given: then they are), and gather what the
         hyperparameter search needs: the design of the hyperparameter rows holds its features, the design
@@ -308,36 +192,6 @@ class Model:
             raise WorkbenchError("hyper_spacing_s needs the input 't' (the samples' times)")
         return spaced_rows(X["t"], self.hyper_spacing_s)
 
-    def _search_lengthscale(self, theta: np.ndarray) -> np.ndarray:
-        """Start L-BFGS from the best of a few lengthscales for the first GP term (avoids poor local optima)."""
-        for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True):
-            if isinstance(t, HilbertGPTerm):
-                lo, hi = math.log(t.l_min * 1.1), math.log(2.0 * float(t.half.max()))
-                best, best_val = theta, self._objective(theta)[0]
-                for logl in np.linspace(lo, hi, 7):
-                    trial = theta.copy()
-                    trial[sl.start + t.hyper_index("lengthscale")] = logl
-                    val = self._objective(trial)[0]
-                    if val < best_val:
-                        best, best_val = trial, val
-                return best
-        return theta
-
-    def _optimize(self, theta: np.ndarray, search: bool) -> np.ndarray:
-        with small_blas():
-            if search:
-                theta = self._search_lengthscale(theta)
-            res = minimize(
-                self._objective,
-                theta,
-                jac=True,
-                method="L-BFGS-B",
-                bounds=self._bounds(),
-                options={"maxiter": self.max_iter, "ftol": FTOL},
-            )
-        self.n_iter_ = int(res.nit)
-        return res.x
-
     def fit(self, X: Mapping[str, np.ndarray], y: np.ndarray) -> Model:
         """Fit the hyperparameters by marginal likelihood (from `init` if given; kept as given without
         `optimize`) and the posterior over the weights."""
@@ -365,28 +219,6 @@ class Model:
         # the search's scratch: the hyperparameter rows' design and inputs
         del self._hdesign, self._hy, self._hZmean, self._hb, self._hrr
         return self
-
-    def _grow_basis(
-        self, X: Mapping[str, np.ndarray], y: np.ndarray, theta: np.ndarray
-    ) -> np.ndarray:
-        """The basis resolves lengthscales down to l_min: while the optimum sits there, double the highest
-        frequency (2^D times the functions) and resume the fit."""
-        for _ in range(3):
-            grow = [
-                t
-                for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True)
-                if isinstance(t, HilbertGPTerm)
-                and theta[sl.start + t.hyper_index("lengthscale")] < math.log(1.25 * t.l_min)
-                and t.n_basis < min(t.max_basis, len(y))
-            ]
-            if not grow:
-                break
-            for t in grow:
-                # never more basis functions than samples: there an exact GP would be cheaper
-                t.n_basis = min(2**t.dims * t.n_basis, t.max_basis, max(len(y), t.n_basis))
-            self._prepare(X, y, None)
-            theta = self._optimize(self._clip(theta), search=False)
-        return theta
 
     def _set_posterior(self, theta: np.ndarray) -> None:
         with small_blas():
@@ -477,7 +309,9 @@ class Model:
             inv *= post["s"][None, :]
             low = np.tril(inv)
             ff = low[fcols, fcols]
-            weights = 2.0 * ff - np.diag(np.diag(ff))  # the lower triangle counts for the upper one too
+            weights = 2.0 * ff - np.diag(
+                np.diag(ff)
+            )  # the lower triangle counts for the upper one too
             post["table"] = fourier.variance_table(self.design_.fast[1], weights)
             rows = low[slow] + low[:, slow].T
             rows[np.arange(len(slow)), slow] -= np.diag(low)[slow]
