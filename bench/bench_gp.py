@@ -5,9 +5,14 @@ sample) wall time for both, the ratio, and blocked 5-fold CV RMSE for both (hype
 fold, for both). The data are a synthetic 3-hour lawnmower survey of a river (bench.synth_survey), sampled at
 the rate that gives n samples over the whole survey; the target is depth (scalar, sand bars ~80 m).
 scikit-learn is run up to --sklearn-max samples (its cost grows as n^3; 43,000 samples would need a
-15 GB kernel matrix and hours). Finally every target of a 43,000-sample survey is fitted by forcemap.
+15 GB kernel matrix and hours). Finally every target of a 43,500-sample survey (vectors through their
+components) is fitted as `forcemap fit` does, with its blocked CV and the mean and predictive sd on a
+10,000-node grid, each in a fresh process: wall time and peak RSS per target, against the budget of 5 s and
+1 GiB; with --baseline-src, the same for another checkout of the code and the largest relative difference
+between the two versions' results.
 
     python bench/bench_gp.py [--sizes 1000,2000,4000,8000,16000,43000] [--sklearn-max 4000] [--target depth]
+    python bench/bench_gp.py --targets-only --baseline-src /tmp/before   # git worktree add /tmp/before d3cd597
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import argparse
 import os
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 from forcemap.host.workbench.cv import blocked_folds
@@ -67,43 +73,97 @@ def blocked_cv_rmse(fn, xy, y) -> float:
     return float(np.sqrt(np.mean((pred - y) ** 2)))
 
 
-def all_targets(n: int) -> None:
-    import tempfile
-    from pathlib import Path
+TARGETS = ["current_speed", "current_dir", "wind_speed", "wind_dir", "depth", "water_temp"]
+BUDGET_S, BUDGET_MB = 5.0, 1024.0
 
-    from forcemap.host.workbench.table import load_survey
-    from forcemap.host.workbench.targets import SurveyModel
 
-    from bench.synth_survey import make_survey
-
-    d = tempfile.mkdtemp()
-    path = make_survey("river", [], 3, n / 4.0, d)
-    path = Path(path)
-    # make_survey samples at 1 Hz; rewrite at 4 Hz for a real 43k-sample table
-    cols = simulate([], 3, n / 4.0, rate_hz=4.0)
+def write_table(n: int, out_dir: str) -> Path:
+    """A 3-hour survey at 4 Hz (bench.synth_survey), `n` samples, as a CSV table."""
     import csv
 
+    cols = simulate([], 3, n / 4.0, rate_hz=4.0)
+    path = Path(out_dir) / "survey.csv"
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(list(cols))
         for row in zip(*cols.values(), strict=True):
             w.writerow([f"{v:.7f}" for v in row])
-    t0 = time.perf_counter()
-    s = load_survey(path)
-    t_load = time.perf_counter() - t0
-    targets = ["current_speed", "current_dir", "wind_speed", "wind_dir", "depth", "water_temp"]
-    print(f"\nevery target of a {s.n}-sample survey (table read in {t_load:.1f} s):")
-    total = 0.0
-    with small_blas():
-        for target in targets:
-            t = time.perf_counter()
-            SurveyModel(s, target).fit()
-            dt = time.perf_counter() - t
-            total += dt
-            print(
-                f"  {target:<14} {dt:6.1f} s  (components and flow frame shared with the other aspect)"
+    return path
+
+
+def code_path(src: str, out_dir: str) -> str:
+    """A directory that makes `import forcemap` load the checkout `src` (for the before/after table)."""
+    pkg = Path(out_dir) / "baseline" / "forcemap"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    for sub in ("firmware_bridge", "protocol", "host", "sim_devices"):
+        (pkg / sub).symlink_to(Path(src).resolve() / sub)
+    return str(pkg.parent)
+
+
+def run_target(table: Path, target: str, save: Path, pythonpath: str | None) -> dict:
+    """`bench/fit_one_target.py` in a fresh process: fit, blocked CV, 10,000-node map; time and peak RSS."""
+    import json
+    import subprocess
+    import sys
+
+    env = dict(os.environ)
+    if pythonpath:
+        env["PYTHONPATH"] = pythonpath + os.pathsep + env.get("PYTHONPATH", "")
+    script = Path(__file__).with_name("fit_one_target.py")
+    cmd = [sys.executable, str(script), str(table), target, "--save", str(save)]
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def agreement(a: Path, b: Path) -> float:
+    """Largest relative difference between two runs' saved results (hyperparameters, CV, map mean and sd)."""
+    x, y = np.load(a), np.load(b)
+    worst = 0.0
+    for k in x.files:
+        u, v = x[k], y[k]
+        scale = float(np.nanmax(np.abs(u))) or 1.0
+        worst = max(worst, float(np.nanmax(np.abs(u - v))) / scale)
+    return worst
+
+
+def all_targets(n: int, baseline_src: str | None) -> None:
+    """Every target of an n-sample survey with its blocked CV and the predictive sd on a 10,000-node grid,
+    each in a fresh process; with `baseline_src` also the code before, and how far the results differ."""
+    import tempfile
+
+    d = tempfile.mkdtemp()
+    table = write_table(n, d)
+    old = code_path(baseline_src, d) if baseline_src else None
+    print(
+        f"\nevery target of a {n}-sample survey: fit + blocked 5-fold CV + mean and sd on 10,000 nodes"
+    )
+    head = f"{'target':<14} {'basis':>5} {'time s':>7} {'cpu s':>6} {'peak MB':>8}"
+    if old:
+        head += f" {'before s':>9} {'before MB':>10} {'speed-up':>9} {'max rel diff':>13}"
+    print(head)
+    print("-" * len(head))
+    worst_t, worst_m = 0.0, 0.0
+    for target in TARGETS:
+        new = run_target(table, target, Path(d) / f"{target}-new.npz", None)
+        worst_t, worst_m = max(worst_t, new["total_s"]), max(worst_m, new["peak_rss_mb"])
+        line = (
+            f"{target:<14} {new['n_basis']:>5} {new['total_s']:>7.2f} {new['cpu_s']:>6.2f} "
+            f"{new['peak_rss_mb']:>8.0f}"
+        )
+        if old:
+            before = run_target(table, target, Path(d) / f"{target}-old.npz", old)
+            diff = agreement(Path(d) / f"{target}-old.npz", Path(d) / f"{target}-new.npz")
+            line += (
+                f" {before['total_s']:>9.2f} {before['peak_rss_mb']:>10.0f}"
+                f" {before['total_s'] / new['total_s']:>8.1f}x {diff:>13.1e}"
             )
-    print(f"  total fit time for {len(targets)} targets: {total:.1f} s")
+        print(line, flush=True)
+    ok = worst_t <= BUDGET_S and worst_m <= BUDGET_MB
+    print(
+        f"worst target: {worst_t:.2f} s, {worst_m:.0f} MB peak RSS "
+        f"(budget {BUDGET_S:.0f} s, {BUDGET_MB:.0f} MB): {'within' if ok else 'OVER'}"
+    )
 
 
 def main() -> None:
@@ -114,7 +174,18 @@ def main() -> None:
     ap.add_argument("--sklearn-max", type=int, default=4000)
     ap.add_argument("--target", default="depth")
     ap.add_argument("--skip-all-targets", action="store_true")
+    ap.add_argument("--targets-only", action="store_true", help="only the every-target table")
+    ap.add_argument(
+        "--targets-n", type=int, default=43_500, help="samples of the every-target survey"
+    )
+    ap.add_argument(
+        "--baseline-src",
+        help="a checkout of the code to compare with (e.g. `git worktree add /tmp/before d3cd597`)",
+    )
     args = ap.parse_args()
+    if args.targets_only:
+        all_targets(args.targets_n, args.baseline_src)
+        return
     sizes = [int(s) for s in args.sizes.split(",")]
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
     print(
@@ -153,7 +224,7 @@ def main() -> None:
         f"\nload average at the end {os.getloadavg()[0]:.1f} (other work on the machine slows both methods)"
     )
     if not args.skip_all_targets:
-        all_targets(43_000)
+        all_targets(args.targets_n, args.baseline_src)
 
 
 if __name__ == "__main__":
