@@ -25,6 +25,7 @@ from forcemap.host.workbench.evidence import (
     blas_threads,
     design_key,
     evidence,
+    factor_blas,
     folds_key,
     small_blas,
 )
@@ -221,7 +222,7 @@ class Model(HyperSearch):
         return self
 
     def _set_posterior(self, theta: np.ndarray) -> None:
-        with small_blas():
+        with factor_blas(self.design_.M):
             self._set_posterior_inner(theta)
 
     def _set_posterior_inner(self, theta: np.ndarray) -> None:
@@ -328,7 +329,7 @@ class Model(HyperSearch):
     ):
         """Posterior mean (and standard deviation of the latent field, or of a new observation)."""
         self._check_fitted()
-        with small_blas():
+        with factor_blas(self.design_.M):
             return self._predict(X, return_std, include_noise)
 
     def _predict(self, X, return_std, include_noise):
@@ -367,7 +368,7 @@ class Model(HyperSearch):
         mean_part = self.target_ - self.scaled_residual_ * self.y_scale_
         mu_out = np.empty(self.design_.n)
         sd_out = np.empty(self.design_.n) if return_std else None
-        with small_blas():
+        with factor_blas(self.design_.M):
             self._cv_loop(folds, grams, loglam, sn2, mean_part, mu_out, sd_out)
         return mu_out, sd_out
 
