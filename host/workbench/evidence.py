@@ -9,7 +9,6 @@ import dataclasses
 import functools
 import hashlib
 import math
-import os
 import pickle
 from collections.abc import Iterator
 
@@ -36,16 +35,6 @@ def small_blas():
     """One BLAS thread for the many small (M x M) factorizations: threads only add overhead there, and a lot
     of it on a busy 2-core machine."""
     return blas_threads(1)
-
-
-# from this many features on, an M x M factorization is worth every core (M = 1,600: 2 x 0.05 s a call)
-BIG_M = 1024
-
-
-def factor_blas(M: int):
-    """BLAS threads for factorizations of M x M matrices: one below BIG_M, every core from there on (an
-    explicit limit: inside `small_blas` a limit of None would keep the one thread)."""
-    return blas_threads(1 if M < BIG_M else (os.cpu_count() or 1))
 
 
 # rows per chunk when features are computed on demand: 4096 x 2048 features are 64 MB
@@ -187,7 +176,9 @@ class Design:
         i = 0
         for b, m in zip(self.blocks, self.sizes, strict=True):
             if isinstance(b, np.ndarray) and b.T.flags.c_contiguous:
-                np.take(b.T, idx, axis=1, out=out[i : i + m])  # whole rows of the column-major block
+                np.take(
+                    b.T, idx, axis=1, out=out[i : i + m]
+                )  # whole rows of the column-major block
             else:
                 out[i : i + m] = b[idx].T
             i += m

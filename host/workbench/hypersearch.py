@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from forcemap.host.workbench import fourier
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.evidence import SufficientStats, evidence, factor_blas
+from forcemap.host.workbench.evidence import SufficientStats, evidence, small_blas
 from forcemap.host.workbench.terms import ConstTerm, HilbertGPTerm, Term
 from scipy.optimize import minimize
 
@@ -171,7 +171,7 @@ class HyperSearch:
         return theta
 
     def _optimize(self, theta: np.ndarray, search: bool) -> np.ndarray:
-        with factor_blas(self._hdesign.M):
+        with small_blas():
             if search:
                 theta = self._search_lengthscale(theta)
             res = minimize(

@@ -25,7 +25,6 @@ from forcemap.host.workbench.evidence import (
     blas_threads,
     design_key,
     evidence,
-    factor_blas,
     folds_key,
     small_blas,
 )
@@ -222,7 +221,7 @@ class Model(HyperSearch):
         return self
 
     def _set_posterior(self, theta: np.ndarray) -> None:
-        with factor_blas(self.design_.M):
+        with small_blas():
             self._set_posterior_inner(theta)
 
     def _set_posterior_inner(self, theta: np.ndarray) -> None:
@@ -329,7 +328,7 @@ class Model(HyperSearch):
     ):
         """Posterior mean (and standard deviation of the latent field, or of a new observation)."""
         self._check_fitted()
-        with factor_blas(self.design_.M):
+        with small_blas():
             return self._predict(X, return_std, include_noise)
 
     def _predict(self, X, return_std, include_noise):
@@ -368,7 +367,7 @@ class Model(HyperSearch):
         mean_part = self.target_ - self.scaled_residual_ * self.y_scale_
         mu_out = np.empty(self.design_.n)
         sd_out = np.empty(self.design_.n) if return_std else None
-        with factor_blas(self.design_.M):
+        with small_blas():
             self._cv_loop(folds, grams, loglam, sn2, mean_part, mu_out, sd_out)
         return mu_out, sd_out
 
