@@ -69,3 +69,27 @@ print(matplotlib.get_backend())
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "svg"
+
+
+def test_a_vectors_components_share_one_gram_and_cv_reuses_the_fit_pass(table):
+    """East and north frame components (same features, same inputs) share one design through the survey's
+    DesignCache, so one Gram matrix; with the folds planned, their fold Grams come from the fit's pass and
+    the held-out predictions equal those of a design that computes its fold Grams afresh."""
+    import copy
+
+    from forcemap.host.workbench.fitting import make_folds
+
+    survey = load_survey(table)
+    folds = make_folds(survey, "blocked")
+    survey_fits(survey).grams.plan = folds
+    sm = SurveyModel(survey, "current_speed").fit()
+    me, mn = survey_fits(survey).frame(sm.vector)
+    assert me.design_ is mn.design_ and me.design_.fast is not None
+    assert sm.primary.design_ is sm.secondary.design_  # along and across: the same basis here
+    assert sm.primary.fold_residuals_  # Phi_f'r_f of every fold, from the fit's pass
+    # the same model on a copy of its design that has no fold Grams: they are computed afresh by the CV
+    fresh = copy.copy(me)
+    fresh.design_ = copy.copy(me.design_)
+    fresh.design_._folds, fresh.design_._fold_ids, fresh.fold_residuals_ = {}, {}, {}
+    for a, b in zip(me.cv_predict(folds), fresh.cv_predict(folds), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-10)
