@@ -139,7 +139,6 @@ class Model(HyperSearch):
                     t.max_basis = min(t.max_basis, max(self.max_basis, t.n_basis))
         return built
 
-    # ---- layout of the parameter vector: [log noise] + feature-term log-hypers + mean-term thetas
     def _prepare(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design | None) -> None:
         """Scale the target, set the terms up (unless `design` is given: then they are), and gather what the
         hyperparameter search needs: the design of the hyperparameter rows holds its features, the design
