@@ -28,8 +28,8 @@ LIVE_SOURCE = Path("<live samples>")
 
 
 def _prior_logvar(model: Model) -> np.ndarray:
-    """The fitted prior log variances of the weights (the one model internal used here)."""
-    return model._loglam_
+    """The fitted prior log variances of the weights (`Model.loglam_`)."""
+    return model.loglam_
 
 
 @dataclass
