@@ -179,4 +179,3 @@ def true_fields(xy: np.ndarray, bar_shift_m: float = 0.0) -> dict[str, np.ndarra
     world.bars = world.bars + np.array([bar_shift_m, 0.0, 0.0, 0.0])
     ce, cn = world.current(xy[:, 0], xy[:, 1], 0.0)
     return {"depth": world.depth(xy[:, 0], xy[:, 1]), "current_east": ce, "current_north": cn}
-

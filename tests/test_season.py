@@ -101,7 +101,9 @@ def test_cli_season_writes_the_season_and_plan_reads_its_half_life(tmp_path, cap
     assert len(list(src.glob("survey-*/samples.parquet"))) == 4
     assert len(json.loads((src / "season_truth.json").read_text())["surveys"]) == 4
     out = tmp_path / "out"
-    code = main(["season", str(src / "*" / "samples.parquet"), "-o", str(out), "--quiet", "--no-cv"])
+    code = main(
+        ["season", str(src / "*" / "samples.parquet"), "-o", str(out), "--quiet", "--no-cv"]
+    )
     assert code == 0
     data = json.loads((out / "season.json").read_text())
     assert len(data["surveys"]) == 4 and data["rejected"] == []

@@ -75,7 +75,9 @@ def check_dir(out: Path, inputs: list[str], force: bool) -> None:
     if any(Path(p).resolve().parent == out.resolve() for p in inputs):
         raise CliError(f"the output folder {out} holds inputs; choose another folder")
     if out.is_dir() and any((out / f).exists() for f in FILES) and not force:
-        raise CliError(f"{out} already holds a season; pass --force to replace it, or choose another folder")
+        raise CliError(
+            f"{out} already holds a season; pass --force to replace it, or choose another folder"
+        )
     if not out.parent.is_dir() and str(out.parent):
         raise CliError(f"the folder {out.parent} does not exist; create it first")
 
@@ -84,12 +86,11 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from forcemap.host.errors import CliError
+    from forcemap.host.outputs import atomic_write, check_output
     from forcemap.host.season.engine import runner
     from forcemap.host.season.output import write
     from forcemap.host.season.run import run_season
     from forcemap.host.workbench.errors import WorkbenchError
-
-    from forcemap.host.outputs import atomic_write, check_output
 
     paths = expand(args.inputs)
     check_dir(args.output, paths, args.force)

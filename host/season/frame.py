@@ -54,7 +54,9 @@ def choose_frame(
     for g in groups[1:]:
         for i in g:
             f = fps[i]
-            x, y = local_frame(np.array([0.5 * sum(f.lat)]), np.array([0.5 * sum(f.lon)]), lat0, lon0)
+            x, y = local_frame(
+                np.array([0.5 * sum(f.lat)]), np.array([0.5 * sum(f.lon)]), lat0, lon0
+            )
             rejected.append(
                 Rejected(
                     f.path,
@@ -71,5 +73,10 @@ def choose_frame(
     wind = HilbertGPTerm(("position",), "matern32", n_basis=wind_basis, dims=2)
     for term in (space, wind):
         term.setup(corners)
-    extent = (float(b[:, 0].min()), float(b[:, 1].max()), float(b[:, 2].min()), float(b[:, 3].max()))
+    extent = (
+        float(b[:, 0].min()),
+        float(b[:, 1].max()),
+        float(b[:, 2].min()),
+        float(b[:, 3].max()),
+    )
     return Frame(lat0, lon0, space, wind, extent), acc, rejected

@@ -75,7 +75,9 @@ class CurrentFit:
     log_evidence: float
     rounds: int
     evidence_gain: float = 0.0  # log evidence with offsets minus without
-    own: list[Posterior] = field(default_factory=list)  # each survey's own map (season hyperparameters)
+    own: list[Posterior] = field(
+        default_factory=list
+    )  # each survey's own map (season hyperparameters)
 
 
 def fit_depth(frame: Frame, total: dict, results: list[SurveyResult]) -> StaticFit | None:
@@ -125,7 +127,9 @@ def _alternate(prior: Prior, full: list[Stats], hyper: list[Stats], y_scale: flo
     return theta, logp, post, s, rounds
 
 
-def fit_current(frame: Frame, results: list[SurveyResult], offsets: bool | None) -> CurrentFit | None:
+def fit_current(
+    frame: Frame, results: list[SurveyResult], offsets: bool | None
+) -> CurrentFit | None:
     """`offsets`: True / False, or None to let the evidence decide (BIC: a gain above p/2 log n)."""
     use = [r for r in results if r.has["current_east"] and r.has["current_north"]]
     if not use:
@@ -135,7 +139,7 @@ def fit_current(frame: Frame, results: list[SurveyResult], offsets: bool | None)
     y_scale = float(np.mean(target_scale(tree_sum(full))))
     prior = Prior(frame.space)
     fits = {}
-    for flag in ([False, True] if offsets is None else [offsets]):
+    for flag in [False, True] if offsets is None else [offsets]:
         f, h = (
             ([without_offset(st) for st in full], [without_offset(st) for st in hyper])
             if flag

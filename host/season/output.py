@@ -77,7 +77,11 @@ def summary(season: Season, m: dict[str, np.ndarray]) -> dict:
             }
         )
     out = {
-        "frame": {"lat0": season.frame.lat0, "lon0": season.frame.lon0, "extent_m": season.frame.extent},
+        "frame": {
+            "lat0": season.frame.lat0,
+            "lon0": season.frame.lon0,
+            "extent_m": season.frame.extent,
+        },
         "basis": {"space": len(season.frame.space.J) + 1, "wind": len(season.frame.wind.J) + 1},
         "runner": season.runner,
         "timings_s": season.timings,
@@ -87,7 +91,11 @@ def summary(season: Season, m: dict[str, np.ndarray]) -> dict:
     }
     if season.depth is not None:
         d = season.depth
-        out["depth"] = {"theta": d.theta.tolist(), "y_scale": d.y_scale, "log_evidence": d.log_evidence}
+        out["depth"] = {
+            "theta": d.theta.tolist(),
+            "y_scale": d.y_scale,
+            "log_evidence": d.log_evidence,
+        }
     if cur is not None:
         out["current"] = {
             "theta": cur.theta.tolist(),
@@ -116,7 +124,10 @@ def figures(season: Season, m: dict[str, np.ndarray]) -> dict[str, bytes]:
         ax.set_ylabel("current scale (1 = season mean)")
         ax.set_title("per-survey current scale (discharge)")
         figs["scales.png"] = png_bytes(fig)
-    for key, title in (("depth", "static depth (m)"), ("current_east", "current shape, east (m/s)")):
+    for key, title in (
+        ("depth", "static depth (m)"),
+        ("current_east", "current shape, east (m/s)"),
+    ):
         if key not in m:
             continue
         fig = new_figure((9, 5))
@@ -133,7 +144,9 @@ def figures(season: Season, m: dict[str, np.ndarray]) -> dict[str, bytes]:
     st = season.stale
     if st is not None:
         fig = new_figure((10, 3.5))
-        for i, (x, label) in enumerate(((st.age_days, "map age (days)"), (st.dscale, "|change in scale|"))):
+        for i, (x, label) in enumerate(
+            ((st.age_days, "map age (days)"), (st.dscale, "|change in scale|"))
+        ):
             ax = fig.add_subplot(1, 2, i + 1)
             ax.plot(x, st.rmse, ".", alpha=0.4)
             bx, by = binned(x, st.rmse)

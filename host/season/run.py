@@ -19,7 +19,15 @@ from forcemap.host.season.model import (
     fit_wind,
 )
 from forcemap.host.season.staleness import Staleness, staleness
-from forcemap.host.season.tasks import Bundle, Frame, Rejected, SurveyResult, depth_cv, footprint, survey_stats
+from forcemap.host.season.tasks import (
+    Bundle,
+    Frame,
+    Rejected,
+    SurveyResult,
+    depth_cv,
+    footprint,
+    survey_stats,
+)
 from forcemap.host.workbench.errors import WorkbenchError
 
 DEFAULT_BASIS = 400
@@ -57,7 +65,9 @@ def run_season(
     rejected = [f for f in fps if isinstance(f, Rejected)]
     good = [f for f in fps if not isinstance(f, Rejected)]
     if not good:
-        raise WorkbenchError("no usable log in the season: " + "; ".join(r.reason for r in rejected))
+        raise WorkbenchError(
+            "no usable log in the season: " + "; ".join(r.reason for r in rejected)
+        )
     frame, acc, far = choose_frame(good, n_basis, WIND_BASIS)
     rejected += far
     tm["footprints_s"] = time.perf_counter() - t
@@ -69,7 +79,9 @@ def run_season(
     rejected += [r for r in results if isinstance(r, Rejected)]
     surveys = [r for r in results if isinstance(r, SurveyResult)]
     if not surveys:
-        raise WorkbenchError("no usable log in the season: " + "; ".join(r.reason for r in rejected))
+        raise WorkbenchError(
+            "no usable log in the season: " + "; ".join(r.reason for r in rejected)
+        )
     order = np.argsort([s.t0 for s in surveys], kind="stable")
     surveys = [surveys[i] for i in order]
     t = time.perf_counter()
@@ -86,7 +98,9 @@ def run_season(
             [columns(s.stats["space"], [1, 2]) for s in cur],
         )
     tm["models_s"] = time.perf_counter() - t
-    season = Season(frame, surveys, rejected, total, depth, current, wind, stale, runner=runner.name)
+    season = Season(
+        frame, surveys, rejected, total, depth, current, wind, stale, runner=runner.name
+    )
     if cv and depth is not None and len(surveys) >= 2:
         t = time.perf_counter()
         out = runner.map(

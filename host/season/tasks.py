@@ -6,7 +6,6 @@ top-level function of small arguments: the same code runs in one process or on a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from forcemap.host.season.stats import Stats, chunk_stats
@@ -102,7 +101,9 @@ def _parquet_placement(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] |
 
     try:
         cols = pq.read_table(path, columns=["t", "lat", "lon"])
-        t, lat, lon = (np.asarray(cols[c].to_numpy(zero_copy_only=False), float) for c in ("t", "lat", "lon"))
+        t, lat, lon = (
+            np.asarray(cols[c].to_numpy(zero_copy_only=False), float) for c in ("t", "lat", "lon")
+        )
     except Exception:  # noqa: BLE001 - any failure here is reported by the full reader
         return None
     ok = np.isfinite(t) & np.isfinite(lat) & np.isfinite(lon)
@@ -206,7 +207,9 @@ def depth_cv(path: str, frame: Frame, season, k: int = 5) -> dict | Rejected:
     folds, _ = blocked_folds(s.xy, k)
     feats = frame.space_features
     own_all = chunk_stats(feats, Z, y[:, None])
-    own_hyper = chunk_stats(feats, Z[hyper_mask(s.columns["t"])], y[hyper_mask(s.columns["t"])][:, None])
+    own_hyper = chunk_stats(
+        feats, Z[hyper_mask(s.columns["t"])], y[hyper_mask(s.columns["t"])][:, None]
+    )
     scale = float(target_scale(own_all)[0])
     theta_own, _ = fit_hypers(season.prior, own_hyper, scale)
     sq_own = sq_static = 0.0
