@@ -3,7 +3,8 @@
 - depth: one static map over every survey (const + Matern 3/2 GP in position);
 - current: one spatial shape (east and north, const + GP) times a per-survey scale s_k (the discharge),
   normalised to mean 1; with a per-survey offset per component when the evidence asks for it (BIC);
-- wind: a map per survey on a coarse basis (it changes by the day), its hyperparameters from that survey.
+- wind: a map per survey on a coarse basis (it changes by the day), its hyperparameters from that survey,
+  fitted where the log is read (`tasks.fit_wind`).
 
 The scales and the shape are fitted by alternation: given the scales, the shape's hyperparameters and weights
 come from the scaled, summed statistics (sum s_k^2 G_k, sum s_k B_k); given the shape, each s_k is a
@@ -25,6 +26,7 @@ from forcemap.host.season.stats import (
     posterior,
     target_scale,
     tree_sum,
+    weighted_sum,
 )
 from forcemap.host.season.tasks import Frame, SurveyResult
 
@@ -94,7 +96,7 @@ def fit_depth(frame: Frame, total: dict, results: list[SurveyResult]) -> StaticF
 
 
 def _scaled_sum(stats: list[Stats], s: np.ndarray) -> Stats:
-    return tree_sum([st.scaled(float(k)) for st, k in zip(stats, s, strict=True)])
+    return weighted_sum(stats, s)
 
 
 def _alternate(prior: Prior, full: list[Stats], hyper: list[Stats], y_scale: float):
@@ -156,14 +158,3 @@ def fit_current(
             off[k] = (st.B[0] - s[k] * (st.G[0] @ post.mean)) / max(st.n, 1)
     own = [posterior(prior, theta, st, y_scale) for st in full]
     return CurrentFit(prior, theta, y_scale, post, s, off, chosen, logp, rounds, gain, own)
-
-
-def fit_wind(frame: Frame, r: SurveyResult) -> tuple[Posterior, np.ndarray] | None:
-    """One survey's wind map on the coarse wind basis, with its own hyperparameters."""
-    if not (r.has["wind_east"] and r.has["wind_north"]):
-        return None
-    prior = Prior(frame.wind)
-    full, hyper = r.stats["wind"], r.stats["wind_hyper"]
-    y_scale = float(np.mean(target_scale(full)))
-    theta, _ = fit_hypers(prior, hyper, y_scale)
-    return posterior(prior, theta, full, y_scale), theta

@@ -16,7 +16,6 @@ from forcemap.host.season.model import (
     columns,
     fit_current,
     fit_depth,
-    fit_wind,
 )
 from forcemap.host.season.staleness import Staleness, staleness
 from forcemap.host.season.tasks import (
@@ -87,7 +86,7 @@ def run_season(
     t = time.perf_counter()
     depth = fit_depth(frame, total, surveys)
     current = fit_current(frame, surveys, offsets)
-    wind = [fit_wind(frame, s) for s in surveys]
+    wind = [s.wind for s in surveys]
     stale = None
     if current is not None and len(current.own) >= 2:
         cur = [s for s in surveys if s.has["current_east"] and s.has["current_north"]]

@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from forcemap.host.workbench.evidence import evidence, small_blas
+from forcemap.host.workbench.evidence import LOG_2PI, small_blas
 from forcemap.host.workbench.model import FTOL, NOISE_BOUNDS
 from scipy import linalg
 from scipy.optimize import minimize
@@ -95,21 +95,47 @@ class Prior:
         return np.concatenate([lc, lg]), d
 
 
+def evidence_columns(G, B, rr, n, loglam, logsn2):
+    """`workbench.evidence.evidence` summed over the columns of B (independent targets with the same
+    features and hyperparameters): one Cholesky and one triangular inverse for all of them. Returns the log
+    evidence, its gradient by log(lam) and by log(sn2), and the posterior means (m x k) in scaled units."""
+    lam = np.exp(loglam)
+    s = np.sqrt(lam)
+    sn2 = math.exp(logsn2)
+    m, k = B.shape
+    t = s / math.sqrt(sn2)
+    A = G * t[:, None]
+    A *= t
+    A.flat[:: m + 1] += 1.0
+    L, _ = linalg.cho_factor(A, lower=True, check_finite=False)
+    C = s[:, None] * B
+    alpha = linalg.cho_solve((L, True), C, check_finite=False)
+    quad = (rr - np.einsum("ij,ij->j", C, alpha) / sn2) / sn2
+    logdet = n * logsn2 + 2.0 * np.log(np.diag(L)).sum()
+    logp = float(-0.5 * (quad.sum() + k * (logdet + n * LOG_2PI)))
+    Mu = s[:, None] * alpha / sn2
+    Linv, info = linalg.lapack.dtrtri(L, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("dtrtri failed")
+    Linv = np.tril(Linv)
+    dBinv = np.einsum("ij,ij->j", Linv, Linv)
+    g_lam = 0.5 * ((Mu**2).sum(axis=1) / lam + k * (dBinv - 1.0))
+    resid2 = rr - 2.0 * np.einsum("ij,ij->j", Mu, B) + np.einsum("ij,ij->j", Mu, G @ Mu)
+    g_sn2 = float(0.5 * (-k * n + resid2.sum() / sn2 + k * (m - dBinv.sum())))
+    return logp, g_lam, g_sn2, Mu, (L, s, sn2)
+
+
 def _objective(theta, prior: Prior, G, B, rr, n):
-    """Minus the summed log evidence of the columns of B (independent targets sharing G and hypers)."""
+    """Minus the summed log evidence of the columns of B, and its gradient."""
     loglam, d = prior.loglam(theta)
-    total, grad = 0.0, np.zeros_like(theta)
     try:
-        for j in range(B.shape[1]):
-            logp, g_lam, g_sn2, _ = evidence(G, B[:, j], rr[j], n, loglam, theta[0])
-            total += logp
-            grad[0] += g_sn2
-            grad[1:] += g_lam @ d
+        logp, g_lam, g_sn2, _, _ = evidence_columns(G, B, rr, n, loglam, theta[0])
     except (np.linalg.LinAlgError, ValueError):
         return 1e25, np.zeros_like(theta)
-    if not np.isfinite(total) or not np.all(np.isfinite(grad)):
+    grad = np.concatenate([[g_sn2], g_lam @ d])
+    if not np.isfinite(logp) or not np.all(np.isfinite(grad)):
         return 1e25, np.zeros_like(theta)
-    return -total, -grad
+    return -logp, -grad
 
 
 def target_scale(st: Stats) -> np.ndarray:
@@ -168,14 +194,24 @@ class Posterior:
 def posterior(prior: Prior, theta: np.ndarray, st: Stats, y_scale: float) -> Posterior:
     """The weights' posterior given the hyperparameters, from the statistics."""
     loglam, _ = prior.loglam(theta)
-    means = []
     with small_blas():
-        for j in range(st.B.shape[1]):
-            _, _, _, post = evidence(
-                st.G, st.B[:, j] / y_scale, st.R[j, j] / y_scale**2, st.n, loglam, theta[0], False
-            )
-            means.append(post["mu"] * y_scale)
-    return Posterior(np.column_stack(means), post["L"], post["s"], post["sn2"], y_scale)
+        _, _, _, Mu, (L, s, sn2) = evidence_columns(
+            st.G, st.B / y_scale, np.diag(st.R) / y_scale**2, st.n, loglam, theta[0]
+        )
+    return Posterior(Mu * y_scale, L, s, sn2, y_scale)
+
+
+def weighted_sum(stats: list[Stats], w: np.ndarray) -> Stats:
+    """sum_k of the statistics of survey k with its features times w_k (in place, one pass in order)."""
+    G, B = np.zeros_like(stats[0].G), np.zeros_like(stats[0].B)
+    R, n, buf = np.zeros_like(stats[0].R), 0, np.empty_like(stats[0].G)
+    for st, wk in zip(stats, w, strict=True):
+        np.multiply(st.G, float(wk) ** 2, out=buf)
+        G += buf
+        B += float(wk) * st.B
+        R += st.R
+        n += st.n
+    return Stats(G, B, R, n)
 
 
 def sq_error(st: Stats, W: np.ndarray) -> float:

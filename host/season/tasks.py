@@ -8,7 +8,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from forcemap.host.season.stats import Stats, chunk_stats
+from forcemap.host.season.stats import (
+    Prior,
+    Stats,
+    chunk_stats,
+    fit_hypers,
+    posterior,
+    target_scale,
+)
 from forcemap.host.workbench.cleaning import local_frame
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
@@ -79,6 +86,9 @@ class SurveyResult:
     has: dict[str, bool]
     stats: Bundle
     notes: list[str] = field(default_factory=list)
+    wind: object = (
+        None  # the survey's own wind map (`model.fit_wind`), fitted where the log was read
+    )
 
     @property
     def t_mid(self) -> float:
@@ -189,14 +199,25 @@ def survey_stats(path: str, frame: Frame) -> SurveyResult | Rejected:
         stats[key + "_hyper"] = chunk_stats(feats, Z[ok & hyper], Y[ok & hyper])
     if not has["depth"] and not has["current_east"]:
         return Rejected(path, f"{path}: neither depth nor current measured; nothing to map")
-    return SurveyResult(path, float(t.min()), float(t.max()), s.n, has, stats, notes)
+    result = SurveyResult(path, float(t.min()), float(t.max()), s.n, has, stats, notes)
+    result.wind = fit_wind(frame, result)
+    return result
+
+
+def fit_wind(frame: Frame, r: SurveyResult):
+    """One survey's wind map on the coarse wind basis, with its own hyperparameters: (posterior, theta)."""
+    if not (r.has["wind_east"] and r.has["wind_north"]):
+        return None
+    prior = Prior(frame.wind)
+    full, hyper = r.stats["wind"], r.stats["wind_hyper"]
+    y_scale = float(np.mean(target_scale(full)))
+    theta, _ = fit_hypers(prior, hyper, y_scale)
+    return posterior(prior, theta, full, y_scale), theta
 
 
 def depth_cv(path: str, frame: Frame, season, k: int = 5) -> dict | Rejected:
     """Blocked CV of one survey's depth: its own map (its own hyperparameters, fitted on its own statistics)
     against the season's static map, both refitted without the held-out blocks of this survey."""
-    from forcemap.host.season.stats import fit_hypers, posterior, target_scale
-
     try:
         s, Z = read_placed(path, frame)
     except WorkbenchError as e:
