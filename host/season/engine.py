@@ -74,7 +74,7 @@ class DaskRunner:
             raise CliError(f"--dask needs Dask and distributed: {INSTALL}") from None
         self.cluster = None
         if address == "local" or address.startswith("local:"):
-            n = int(address.split(":")[1]) if ":" in address else (os.cpu_count() or 1)
+            n = _workers(address)
             self.cluster = LocalCluster(
                 n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
             )
@@ -118,6 +118,15 @@ class DaskRunner:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+
+
+def _workers(address: str) -> int:
+    if ":" not in address:
+        return os.cpu_count() or 1
+    text = address.split(":", 1)[1]
+    if not text.isdigit() or int(text) < 1:
+        raise CliError(f"--dask {address}: give local, local:N (N workers, at least 1) or tcp://HOST:PORT")
+    return int(text)
 
 
 def _big(obj: Any) -> bool:

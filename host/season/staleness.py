@@ -102,5 +102,5 @@ def message(age_days: float, doubling_days: float | None) -> str:
         return f"this map is {age_days:.0f} days old; in this season a map's error did not grow with its age"
     return (
         f"this map is {age_days:.0f} days old; maps here lose half their skill in "
-        f"{doubling_days:.0f} (their error doubles)"
+        f"{doubling_days:.0f} days (their error doubles)"
     )
