@@ -41,9 +41,7 @@ def run_config(config: str, folder: Path) -> dict:
         season = run_season(paths, runner, cv=False)
         wall = time.perf_counter() - t0
         workers = (
-            []
-            if config == "one"
-            else sorted(runner.client.run(_peak_rss_mib).values())  # type: ignore[attr-defined]
+            [] if config == "one" else sorted(runner.client.run(_peak_rss_mib).values())  # type: ignore[attr-defined]
         )
     finally:
         runner.close()
@@ -80,7 +78,9 @@ def main() -> None:
         return
     folder = args.dir or Path(tempfile.mkdtemp(prefix="bench_season_"))
     if not list(folder.glob("survey-*/samples.parquet")):
-        print(f"simulating {args.surveys} x {args.samples} samples: {make(folder, args.surveys, args.samples):.0f} s")
+        print(
+            f"simulating {args.surveys} x {args.samples} samples: {make(folder, args.surveys, args.samples):.0f} s"
+        )
     rows = []
     for config in args.configs.split(","):
         env = dict(os.environ, **ONE_THREAD)
@@ -94,7 +94,9 @@ def main() -> None:
 def report(rows: list[dict]) -> None:
     base = next((r for r in rows if r["config"] == "one"), rows[0])
     print(f"\n{base['surveys']} surveys, {base['samples']:,} samples, basis {base['basis']}")
-    print("| run | wall s | statistics s | models s | speed-up | peak MiB per worker | client MiB |")
+    print(
+        "| run | wall s | statistics s | models s | speed-up | peak MiB per worker | client MiB |"
+    )
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         ph = r["phases_s"]

@@ -125,7 +125,9 @@ def _workers(address: str) -> int:
         return os.cpu_count() or 1
     text = address.split(":", 1)[1]
     if not text.isdigit() or int(text) < 1:
-        raise CliError(f"--dask {address}: give local, local:N (N workers, at least 1) or tcp://HOST:PORT")
+        raise CliError(
+            f"--dask {address}: give local, local:N (N workers, at least 1) or tcp://HOST:PORT"
+        )
     return int(text)
 
 
