@@ -8,7 +8,7 @@ import glob
 import sys
 from pathlib import Path
 
-from forcemap.host.cli.common import teach
+from forcemap.host.cli.common import add_json, add_output, add_quiet, human, teach
 
 EPILOG = """\
 examples:
@@ -33,7 +33,9 @@ SEASON_DIR` then says how old its map is and what that costs. Docs: docs/SEASON.
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
     parser.add_argument("inputs", nargs="+", metavar="LOG_OR_TABLE", help="logs or tables (globs)")
-    parser.add_argument("-o", "--output", type=Path, required=True, metavar="SEASON_DIR")
+    add_output(
+        parser, "the season's folder (created if missing)", required=True, metavar="SEASON_DIR"
+    )
     parser.add_argument("--dask", metavar="local[:N]|tcp://HOST:PORT", help="run on Dask")
     parser.add_argument(
         "--basis", type=int, default=400, help="basis functions of the spatial maps (default 400)"
@@ -45,9 +47,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a per-survey current offset: auto (the evidence decides), yes, no",
     )
     parser.add_argument("--no-cv", action="store_true", help="skip the depth map's blocked CV")
-    parser.add_argument("--json", metavar="OUT", help="write season.json here too (- for stdout)")
-    parser.add_argument("--force", action="store_true", help="replace an existing season")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_json(parser, "the season's summary (season.json)")
+    add_quiet(parser)
 
 
 def expand(inputs: list[str]) -> list[str]:
@@ -85,17 +86,17 @@ def check_dir(out: Path, inputs: list[str], force: bool) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
 
+    from forcemap.host.cli.common import check_json_output, write_json
     from forcemap.host.errors import CliError
-    from forcemap.host.outputs import atomic_write, check_output
     from forcemap.host.season.engine import runner
     from forcemap.host.season.output import write
     from forcemap.host.season.run import run_season
     from forcemap.host.workbench.errors import WorkbenchError
 
     paths = expand(args.inputs)
+    args.output = Path(args.output)
     check_dir(args.output, paths, args.force)
-    if args.json and args.json != "-":
-        check_output(args.json, paths, args.force)
+    check_json_output(args, paths)
     if args.basis < 16:
         raise CliError(f"--basis must be at least 16, not {args.basis}")
 
@@ -116,33 +117,32 @@ def run(args: argparse.Namespace) -> int:
     args.output.mkdir(exist_ok=True)
     written = write(season, args.output)
     data = json.loads((args.output / "season.json").read_text())
-    _print_summary(data)
+    out = human(args)
+    _print_summary(data, out)
     for p in written:
-        print(f"wrote {p}")
-    if args.json:
-        text = json.dumps(data, indent=1)
-        if args.json == "-":
-            print(text)
-        else:
-            with atomic_write(args.json) as f:
-                f.write(text + "\n")
+        print(f"wrote {p}", file=out)
+    write_json(args.json, data)
     return 0
 
 
-def _print_summary(data: dict) -> None:
-    print(f"{len(data['surveys'])} surveys, {data['samples']} samples ({data['runner']})")
+def _print_summary(data: dict, out) -> None:  # type: ignore[no-untyped-def]
+    print(f"{len(data['surveys'])} surveys, {data['samples']} samples ({data['runner']})", file=out)
     for s in data["surveys"]:
         sc = "" if s["current_scale"] is None else f"current x{s['current_scale']:.3f}"
-        print(f"  {s['start']}  {s['samples']:7d}  {sc}  {Path(s['path']).name}")
+        print(f"  {s['start']}  {s['samples']:7d}  {sc}  {s['path']}", file=out)
     st = data.get("staleness")
     if st:
         d = st["doubling_age_days"]
         print(
             "a map's error doubles after "
             + (f"{d:.1f} days" if d is not None else "- (it did not grow with age)")
-            + f" (fresh {st['fresh_map_rmse_mps']:.3f} m/s, +{st['rmse_growth_mps_per_day']:.4f} m/s per day)"
+            + f" (fresh {st['fresh_map_rmse_mps']:.3f} m/s, +{st['rmse_growth_mps_per_day']:.4f} m/s per day)",
+            file=out,
         )
     if data.get("depth_cv"):
         cv = data["depth_cv"]
         wins = sum(c["rmse_static"] < c["rmse_own"] for c in cv)
-        print(f"depth: the static map beats the survey's own in blocked CV on {wins} of {len(cv)}")
+        print(
+            f"depth: the static map beats the survey's own in blocked CV on {wins} of {len(cv)}",
+            file=out,
+        )

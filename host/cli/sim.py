@@ -87,7 +87,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     season.add_argument("--season", type=int, metavar="N", help="N surveys of the river")
     season.add_argument("--days", type=float, default=30.0, help="over D days (default 30)")
     season.add_argument(
-        "--samples", type=int, default=54_000, help="samples per survey at 5 Hz (default 54000: 3 h)"
+        "--samples",
+        type=int,
+        default=54_000,
+        help="samples per survey at 5 Hz (default 54000: 3 h)",
     )
     season.add_argument(
         "--bar-shift",
@@ -171,7 +174,9 @@ def run_season(args: argparse.Namespace) -> int:
     from forcemap.sim_devices.season import make_season
 
     if args.season < 1 or args.samples < 100 or not (math.isfinite(args.days) and args.days > 0):
-        raise CliError("--season needs N >= 1 surveys, --days above 0 and --samples of at least 100")
+        raise CliError(
+            "--season needs N >= 1 surveys, --days above 0 and --samples of at least 100"
+        )
     if args.output is None:
         raise CliError("--season writes a folder: give it with -o DIR")
     out = Path(args.output)
