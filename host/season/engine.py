@@ -76,7 +76,7 @@ class DaskRunner:
         if address == "local" or address.startswith("local:"):
             n = _workers(address)
             self.cluster = LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
             )
             self.client = Client(self.cluster)
         else:
