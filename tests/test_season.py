@@ -173,3 +173,16 @@ def test_nothing_usable_and_a_missing_dask_are_one_line_and_exit_2(tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'pip install "forcemap[dask]"' in err[0]
     shutil.rmtree(tmp_path / "sim")
+
+
+def test_plan_with_a_folder_that_holds_no_season_is_one_line_before_any_fit(tmp_path, capsys):
+    [table] = make_season(1, 1, tmp_path / "sim", samples=400, seed=1)
+    empty = tmp_path / "not-a-season"
+    empty.mkdir()
+    args = ["plan", str(table), "--mission", "lawnmower", "-o", str(tmp_path / "p")]
+    assert main([*args, "--season", str(empty)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a season" in err[0] and "forcemap season" in err[0]
+    assert not (tmp_path / "sim" / "survey-000" / "samples.parquet.forcemap").exists()
+    assert main([*args, "--season", str(empty), "--at", "June 3"]) == 2
+    assert "YYYY-MM-DD" in capsys.readouterr().err
