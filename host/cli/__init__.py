@@ -69,6 +69,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "forcemap.host.cli.diagnose",
         "find which physical effect the current model is missing",
     ),
+    "season": (
+        "forcemap.host.cli.season",
+        "many surveys of one river: static depth, the current's shape x discharge, map half-life",
+    ),
     "history": (
         "forcemap.host.cli.history",
         "show every fit of a survey with its CV error, as a table and a plot",

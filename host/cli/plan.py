@@ -69,6 +69,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_json(parser, "the per-line prediction")
     add_quiet(parser)
+    parser.add_argument(
+        "--season",
+        type=Path,
+        metavar="SEASON_DIR",
+        help="a `forcemap season` of this river: say how old the map is and what that costs",
+    )
+    parser.add_argument(
+        "--at",
+        metavar="YYYY-MM-DD",
+        help="when the mission will be flown, for the map's age (default: now)",
+    )
 
 
 def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
@@ -106,6 +117,26 @@ def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
             print(f"the {what} mission makes no headway toward waypoint {tr.stuck_at}")
 
 
+def map_age_note(args: argparse.Namespace, map_time: float) -> str:
+    """`--season`: how old the map is when the mission is flown, and how fast maps age on this river."""
+    import calendar
+
+    from forcemap.host.errors import CliError
+    from forcemap.host.season.staleness import plan_note
+    from forcemap.host.workbench.errors import WorkbenchError
+
+    at = time.time()
+    if args.at:
+        try:
+            at = float(calendar.timegm(time.strptime(args.at, "%Y-%m-%d")))
+        except ValueError:
+            raise CliError(f"--at {args.at}: give a date as YYYY-MM-DD") from None
+    try:
+        return plan_note(args.season, map_time, at)
+    except WorkbenchError as e:
+        raise CliError(str(e)) from None
+
+
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.errors import CliError
     from forcemap.host.outputs import check_output
@@ -129,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
     mission = read_mission(args.mission, args.scenario)
     try:
         survey = load_survey(args.table)
+        age_note = map_age_note(args, float(survey.columns["t"].max())) if args.season else None
         frame = Frame(survey.lat0, survey.lon0)
         wps = frame.to_local(mission.latlon)
         lines = frame.to_local(mission.lines_latlon)
@@ -150,8 +182,12 @@ def run(args: argparse.Namespace) -> int:
     result = plan_mission(wps, mission.speeds, lines, maps, boat, step)
     out = human(args)
     print(f"boat: {boat.describe()}", file=out)
+    if age_note:
+        print(age_note, file=out)
     print_table(result, out)
     report = result.to_json()
+    if age_note:
+        report["map_age"] = age_note
     plan = result.planned.plan
     paths = write_outputs(
         args.output,

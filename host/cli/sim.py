@@ -83,6 +83,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     add_output(parser, "folder for the ground truth (created if missing)", metavar="DIR")
     add_deprecated(parser, "--truth", "-o/--output DIR", "output")
+    season = parser.add_argument_group("a season of offline surveys (docs/SEASON.md), into -o DIR")
+    season.add_argument("--season", type=int, metavar="N", help="N surveys of the river")
+    season.add_argument("--days", type=float, default=30.0, help="over D days (default 30)")
+    season.add_argument(
+        "--samples",
+        type=int,
+        default=54_000,
+        help="samples per survey at 5 Hz (default 54000: 3 h)",
+    )
+    season.add_argument(
+        "--bar-shift",
+        type=float,
+        default=0.0,
+        metavar="M_PER_DAY",
+        help="the sand bars move this far downstream per day (default 0: fixed depth)",
+    )
 
 
 def print_list() -> None:
@@ -153,10 +169,42 @@ def check_arguments(args: argparse.Namespace) -> None:
         )
 
 
+def run_season(args: argparse.Namespace) -> int:
+    """N surveys over D days: a hydrograph, the wind by day, fixed depth (or slowly moving bars)."""
+    from forcemap.sim_devices.season import make_season
+
+    if args.season < 1 or args.samples < 100 or not (math.isfinite(args.days) and args.days > 0):
+        raise CliError(
+            "--season needs N >= 1 surveys, --days above 0 and --samples of at least 100"
+        )
+    if args.output is None:
+        raise CliError("--season writes a folder: give it with -o DIR")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise CliError(f"the output {out} is a file; give a folder (it is created if missing)")
+    if (out / "season_truth.json").exists() and not args.force:
+        raise CliError(f"{out} already holds a season; pass --force to replace it")
+    t0 = time.monotonic()
+
+    def progress(i: int, n: int) -> None:
+        if i == n or i % 10 == 0:
+            print(f"  survey {i} of {n} ({time.monotonic() - t0:.1f} s)", flush=True)
+
+    paths = make_season(
+        args.season, args.days, out, samples=args.samples, seed=args.seed,
+        bar_shift_per_day=args.bar_shift, progress=progress,
+    )  # fmt: skip
+    print(f"{len(paths)} surveys of {args.samples} samples over {args.days:g} days in {out}")
+    print(f"truth: {out / 'season_truth.json'} and survey-*/truth.json")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     if args.list:
         print_list()
         return 0
+    if args.season is not None:
+        return run_season(args)
     check_arguments(args)
     if not args.ports:
         return run_offline(args)

@@ -98,6 +98,11 @@ def _number(cell: object) -> float | None:
 
 def to_numeric(cells: list) -> NumericColumn | None:
     """Numbers with NaN for empty, non-numeric and infinite cells; None for a column of words."""
+    if isinstance(cells, np.ndarray) and cells.dtype.kind == "f":
+        values = cells.astype(float)
+        inf = np.isinf(values)
+        values[inf] = math.nan
+        return NumericColumn(values, [], np.flatnonzero(inf).tolist())
     values = np.empty(len(cells))
     not_numbers: list[tuple[int, str]] = []
     infinite: list[int] = []

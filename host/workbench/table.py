@@ -194,13 +194,22 @@ def _read_csv(path: Path) -> dict[str, list[str]]:
 
 
 def _read_parquet(path: Path) -> dict[str, list]:
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
     try:
         table = pq.read_table(path)
     except Exception as exc:  # pyarrow raises many types for a bad file
         raise WorkbenchError(f"{path}: not a readable Parquet file ({exc})") from None
-    return {name: table.column(name).to_pylist() for name in table.column_names}
+    out: dict[str, list] = {}
+    for name in table.column_names:
+        col = table.column(name)
+        # numeric columns as arrays (nulls as NaN): `to_numeric` takes them whole, not cell by cell
+        if pa.types.is_floating(col.type) or pa.types.is_integer(col.type):
+            out[name] = col.to_numpy(zero_copy_only=False).astype(float)  # type: ignore[assignment]
+        else:
+            out[name] = col.to_pylist()
+    return out
 
 
 def _read_mcap(path: Path) -> dict[str, list]:

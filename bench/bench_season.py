@@ -1,0 +1,122 @@
+"""Benchmark: a season of simulated surveys through `forcemap season`'s pass, in one process and on a
+LocalCluster of 1 and 2 single-threaded workers.
+
+Each configuration runs in a fresh Python process (clean peak memory), on the same Parquet tables: the
+footprints, the statistics pass with its tree reduction, the models (no depth CV). Reported: wall time per
+phase, the speed-up against one process, the peak RSS of every worker (and of the client), and the cost per
+log of the statistics pass, from which a 27 M-sample season on 16 workers is extrapolated. The one-process
+baseline runs with one BLAS thread, like the workers (OPENBLAS/OMP/MKL_NUM_THREADS=1): one core each.
+
+    python bench/bench_season.py [--surveys 100] [--samples 54000] [--dir DIR] [--configs one,1,2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ONE_THREAD = {k: "1" for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+def _peak_rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_config(config: str, folder: Path) -> dict:
+    """One configuration, in this process (called in a child by `main`)."""
+    from forcemap.host.season.engine import DaskRunner, LocalRunner
+    from forcemap.host.season.run import run_season
+
+    paths = sorted(str(p) for p in folder.glob("survey-*/samples.parquet"))
+    runner = LocalRunner() if config == "one" else DaskRunner(f"local:{config}")
+    t0 = time.perf_counter()
+    try:
+        season = run_season(paths, runner, cv=False)
+        wall = time.perf_counter() - t0
+        workers = (
+            [] if config == "one" else sorted(runner.client.run(_peak_rss_mib).values())  # type: ignore[attr-defined]
+        )
+    finally:
+        runner.close()
+    return {
+        "config": config,
+        "surveys": len(season.surveys),
+        "samples": int(sum(s.n for s in season.surveys)),
+        "wall_s": wall,
+        "phases_s": season.timings,
+        "client_peak_mib": _peak_rss_mib(),
+        "worker_peak_mib": workers,
+        "basis": len(season.frame.space.J) + 1,
+    }
+
+
+def make(folder: Path, surveys: int, samples: int) -> float:
+    from forcemap.sim_devices.season import make_season
+
+    t0 = time.perf_counter()
+    make_season(surveys, 30.0, folder, samples=samples, seed=7)
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--surveys", type=int, default=100)
+    ap.add_argument("--samples", type=int, default=54_000)
+    ap.add_argument("--dir", type=Path, help="reuse (or make) the season here")
+    ap.add_argument("--configs", default="one,1,2")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        print(json.dumps(run_config(args.child, args.dir)))
+        return
+    folder = args.dir or Path(tempfile.mkdtemp(prefix="bench_season_"))
+    if not list(folder.glob("survey-*/samples.parquet")):
+        print(
+            f"simulating {args.surveys} x {args.samples} samples: {make(folder, args.surveys, args.samples):.0f} s"
+        )
+    rows = []
+    for config in args.configs.split(","):
+        env = dict(os.environ, **ONE_THREAD)
+        cmd = [sys.executable, __file__, "--child", config, "--dir", str(folder)]
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
+        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        print(json.dumps(rows[-1]), flush=True)
+    report(rows)
+
+
+def report(rows: list[dict]) -> None:
+    base = next((r for r in rows if r["config"] == "one"), rows[0])
+    print(f"\n{base['surveys']} surveys, {base['samples']:,} samples, basis {base['basis']}")
+    print(
+        "| run | wall s | statistics s | models s | speed-up | peak MiB per worker | client MiB |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        ph = r["phases_s"]
+        name = "one process" if r["config"] == "one" else f"LocalCluster, {r['config']} worker(s)"
+        peaks = ", ".join(f"{p:.0f}" for p in r["worker_peak_mib"]) or "-"
+        print(
+            f"| {name} | {r['wall_s']:.1f} | {ph['statistics_s']:.1f} | {ph['models_s']:.1f} | "
+            f"{base['wall_s'] / r['wall_s']:.2f} | {peaks} | {r['client_peak_mib']:.0f} |"
+        )
+    one = next((r for r in rows if r["config"] == "1"), base)
+    per_log = (one["phases_s"]["statistics_s"] + one["phases_s"]["footprints_s"]) / one["surveys"]
+    per_sample = per_log / (one["samples"] / one["surveys"])
+    logs_27m = 27e6 / (one["samples"] / one["surveys"])
+    est = 27e6 * per_sample / 16 + one["phases_s"]["models_s"] * logs_27m / one["surveys"]
+    print(
+        f"\nper log (footprint + statistics, one worker): {per_log:.2f} s, {per_sample * 1e6:.1f} us/sample;"
+        f" 27 M samples ({logs_27m:.0f} logs) on 16 workers: ~{27e6 * per_sample / 16:.0f} s of statistics"
+        f" + models (scaled with the number of surveys from this run) = ~{est:.0f} s"
+    )
+
+
+if __name__ == "__main__":
+    main()

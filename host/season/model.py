@@ -1,0 +1,160 @@
+"""The season's model, fitted from the logs' sufficient statistics alone.
+
+- depth: one static map over every survey (const + Matern 3/2 GP in position);
+- current: one spatial shape (east and north, const + GP) times a per-survey scale s_k (the discharge),
+  normalised to mean 1; with a per-survey offset per component when the evidence asks for it (BIC);
+- wind: a map per survey on a coarse basis (it changes by the day), its hyperparameters from that survey,
+  fitted where the log is read (`tasks.fit_wind`).
+
+The scales and the shape are fitted by alternation: given the scales, the shape's hyperparameters and weights
+come from the scaled, summed statistics (sum s_k^2 G_k, sum s_k B_k); given the shape, each s_k is a
+least-squares ratio of survey k's own statistics. Hyperparameters are fitted on the statistics of the
+hyperparameter rows (one sample every 5 s, as a single survey's fit does), the maps on all rows.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from forcemap.host.season.stats import (
+    Posterior,
+    Prior,
+    Stats,
+    fit_hypers,
+    posterior,
+    target_scale,
+    tree_sum,
+    weighted_sum,
+)
+from forcemap.host.season.tasks import Frame, SurveyResult
+
+MAX_ROUNDS = 200
+HYPER_ROUNDS = 3
+SCALE_TOL = 1e-8
+
+
+def columns(st: Stats, idx: list[int]) -> Stats:
+    return Stats(st.G, st.B[:, idx], st.R[np.ix_(idx, idx)], st.n)
+
+
+def without_offset(st: Stats) -> Stats:
+    """The statistics with a free per-survey constant projected out of every target column (column 0 of
+    the basis is the constant): the offset's flat-prior profile."""
+    g, ysum, n = st.G[:, 0], st.B[0], max(st.n, 1)
+    return Stats(
+        st.G - np.outer(g, g) / n,
+        st.B - np.outer(g, ysum) / n,
+        st.R - np.outer(ysum, ysum) / n,
+        st.n,
+    )
+
+
+@dataclass
+class StaticFit:
+    """The depth map: hyperparameters, the summed statistics and the posterior."""
+
+    prior: Prior
+    theta: np.ndarray
+    total: Stats
+    y_scale: float
+    post: Posterior
+    log_evidence: float
+
+
+@dataclass
+class CurrentFit:
+    """The current's shared shape (east, north weights at scale 1), the per-survey scales and offsets."""
+
+    prior: Prior
+    theta: np.ndarray
+    y_scale: float
+    post: Posterior
+    scales: np.ndarray
+    offsets: np.ndarray  # (K, 2), zeros without offsets
+    with_offsets: bool
+    log_evidence: float
+    rounds: int
+    evidence_gain: float = 0.0  # log evidence with offsets minus without
+    own: list[Posterior] = field(
+        default_factory=list
+    )  # each survey's own map (season hyperparameters)
+
+
+def fit_depth(frame: Frame, total: dict, results: list[SurveyResult]) -> StaticFit | None:
+    if not any(r.has["depth"] for r in results):
+        return None
+    prior = Prior(frame.space)
+    full, hyper = columns(total["space"], [0]), columns(total["space_hyper"], [0])
+    if not all(r.has["depth"] for r in results):
+        full = tree_sum([columns(r.stats["space"], [0]) for r in results if r.has["depth"]])
+        hyper = tree_sum([columns(r.stats["space_hyper"], [0]) for r in results if r.has["depth"]])
+    y_scale = float(target_scale(full)[0])
+    theta, logp = fit_hypers(prior, hyper, y_scale)
+    return StaticFit(prior, theta, full, y_scale, posterior(prior, theta, full, y_scale), logp)
+
+
+def _scaled_sum(stats: list[Stats], s: np.ndarray) -> Stats:
+    return weighted_sum(stats, s)
+
+
+def _alternate(prior: Prior, full: list[Stats], hyper: list[Stats], y_scale: float):
+    """Shape and scales by alternation until the scales stop moving. The hyperparameters follow the scales
+    for the first HYPER_ROUNDS rounds (they settle at once) and once more at the end."""
+    s, theta, logp, prev = np.ones(len(full)), None, -math.inf, None
+    for rounds in range(1, MAX_ROUNDS + 1):
+        if rounds <= HYPER_ROUNDS:
+            theta, logp = fit_hypers(prior, _scaled_sum(hyper, s), y_scale, theta)
+        W = posterior(prior, theta, _scaled_sum(full, s), y_scale).mean
+        num = np.array([np.sum(W * st.B) for st in full])
+        den = np.array([np.sum(W * (st.G @ W)) for st in full])
+        new = num / np.maximum(den, 1e-300)
+        new = new / new.mean()
+        step = new - s
+        done = np.max(np.abs(step)) < SCALE_TOL
+        if prev is not None and rounds > HYPER_ROUNDS + 1 and not done:
+            # the alternation converges linearly (rate ~0.9: shape and scale trade off against the prior);
+            # Aitken's extrapolation along the step jumps to the limit of that geometric series
+            rho = float(step @ prev) / float(prev @ prev)
+            if 0.0 < rho < 0.99:
+                new = new + step * rho / (1.0 - rho)
+                new = new / new.mean()
+            step = None
+        prev, s = step, new
+        if done and rounds > HYPER_ROUNDS:
+            break
+    theta, logp = fit_hypers(prior, _scaled_sum(hyper, s), y_scale, theta)
+    post = posterior(prior, theta, _scaled_sum(full, s), y_scale)
+    return theta, logp, post, s, rounds
+
+
+def fit_current(
+    frame: Frame, results: list[SurveyResult], offsets: bool | None
+) -> CurrentFit | None:
+    """`offsets`: True / False, or None to let the evidence decide (BIC: a gain above p/2 log n)."""
+    use = [r for r in results if r.has["current_east"] and r.has["current_north"]]
+    if not use:
+        return None
+    full = [columns(r.stats["space"], [1, 2]) for r in use]
+    hyper = [columns(r.stats["space_hyper"], [1, 2]) for r in use]
+    y_scale = float(np.mean(target_scale(tree_sum(full))))
+    prior = Prior(frame.space)
+    fits = {}
+    for flag in [False, True] if offsets is None else [offsets]:
+        f, h = (
+            ([without_offset(st) for st in full], [without_offset(st) for st in hyper])
+            if flag
+            else (full, hyper)
+        )
+        fits[flag] = _alternate(prior, f, h, y_scale) + (f,)
+    gain = fits[True][1] - fits[False][1] if len(fits) == 2 else 0.0
+    n_hyper = sum(st.n for st in hyper)
+    chosen = offsets if offsets is not None else bool(gain > len(use) * math.log(n_hyper))
+    theta, logp, post, s, rounds, used = fits[chosen]
+    off = np.zeros((len(use), 2))
+    if chosen:
+        for k, st in enumerate(full):
+            off[k] = (st.B[0] - s[k] * (st.G[0] @ post.mean)) / max(st.n, 1)
+    own = [posterior(prior, theta, st, y_scale) for st in full]
+    return CurrentFit(prior, theta, y_scale, post, s, off, chosen, logp, rounds, gain, own)

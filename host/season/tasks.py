@@ -1,0 +1,291 @@
+"""The work done per log, on whichever worker gets it: read the log (MCAP or samples table), place it in the
+season's common frame, and reduce it to sufficient statistics. A log that cannot be used comes back as a
+`Rejected` with one line saying why; it never stops the season. Every function here is a plain, picklable
+top-level function of small arguments: the same code runs in one process or on a Dask worker."""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+from forcemap.host.season.stats import (
+    Prior,
+    Stats,
+    chunk_stats,
+    fit_hypers,
+    posterior,
+    target_scale,
+)
+from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.workbench.cv import blocked_folds
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.survey_fits import HYPER_SPACING_S, MIN_HYPER_ROWS
+from forcemap.host.workbench.table import Survey, VectorTarget, load_survey
+
+# the statistics' target columns: depth and the current's components share the spatial basis
+SPACE_TARGETS = ("depth", "current_east", "current_north")
+WIND_TARGETS = ("wind_east", "wind_north")
+# glibc's mallopt parameters
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+
+
+@dataclass
+class Rejected:
+    """A log left out of the season, and why (one line)."""
+
+    path: str
+    reason: str
+
+
+@dataclass
+class Footprint:
+    """Where and when a log was taken: enough to choose the season's frame and basis."""
+
+    path: str
+    lat: tuple[float, float]
+    lon: tuple[float, float]
+    t: tuple[float, float]
+    n: int
+
+
+@dataclass
+class Frame:
+    """The season's common local frame and the fixed bases of its maps (`HilbertGPTerm`s, set up once)."""
+
+    lat0: float
+    lon0: float
+    space: object
+    wind: object
+    extent: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x0, x1, y0, y1 of the tracks
+
+    def xy(self, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+        return np.column_stack(local_frame(lat, lon, self.lat0, self.lon0))
+
+    def space_features(self, Z: np.ndarray) -> np.ndarray:
+        return np.hstack([np.ones((len(Z), 1)), self.space.features(Z)])
+
+    def wind_features(self, Z: np.ndarray) -> np.ndarray:
+        return np.hstack([np.ones((len(Z), 1)), self.wind.features(Z)])
+
+
+class Bundle(dict):
+    """Named `Stats`, summed name by name (the unit of the tree reduction)."""
+
+    def __add__(self, other: Bundle) -> Bundle:
+        return Bundle({k: self[k] + other[k] for k in self})
+
+
+@dataclass
+class SurveyResult:
+    """One log's statistics. `space`: depth, current east, current north against the spatial basis (all rows,
+    and the hyperparameter rows); `wind`: its components against the wind basis. `has` names the targets the
+    log measured (a missing one has zero columns)."""
+
+    path: str
+    t0: float
+    t1: float
+    n: int
+    has: dict[str, bool]
+    stats: Bundle
+    notes: list[str] = field(default_factory=list)
+    wind: object = (
+        None  # the survey's own wind map (`model.fit_wind`), fitted where the log was read
+    )
+
+    @property
+    def t_mid(self) -> float:
+        return 0.5 * (self.t0 + self.t1)
+
+
+def _load(path: str) -> Survey:
+    try:
+        return load_survey(path)
+    except WorkbenchError:
+        raise
+    except (OSError, ValueError, KeyError, IndexError, EOFError) as e:
+        # a truncated or corrupt file: the readers' own errors, said in one line
+        raise WorkbenchError(f"{path}: cannot be read ({type(e).__name__}: {e})") from None
+
+
+def _parquet_placement(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """t, lat, lon of a Parquet table's placed rows, read as three columns (None: let the full reader say)."""
+    import pyarrow.parquet as pq
+
+    try:
+        cols = pq.read_table(path, columns=["t", "lat", "lon"])
+        t, lat, lon = (
+            np.asarray(cols[c].to_numpy(zero_copy_only=False), float) for c in ("t", "lat", "lon")
+        )
+    except Exception:  # noqa: BLE001 - any failure here is reported by the full reader
+        return None
+    ok = np.isfinite(t) & np.isfinite(lat) & np.isfinite(lon)
+    ok &= (np.abs(lat) <= 90) & (np.abs(lon) <= 180) & ((lat != 0) | (lon != 0))
+    if ok.mean() < 0.5 or ok.sum() < 30:
+        return None
+    return t[ok], lat[ok], lon[ok]
+
+
+def footprint(path: str) -> Footprint | Rejected:
+    """A log's extent and time span: three columns of a Parquet table, else the whole log, validated (the
+    statistics pass validates every log in full)."""
+    placed = _parquet_placement(path) if path.endswith(".parquet") else None
+    if placed is not None:
+        t, lat, lon = placed
+        return Footprint(
+            path, (float(lat.min()), float(lat.max())), (float(lon.min()), float(lon.max())),
+            (float(t.min()), float(t.max())), len(t),
+        )  # fmt: skip
+    try:
+        s = _load(path)
+    except WorkbenchError as e:
+        return Rejected(path, str(e))
+    lat, lon, t = s.columns["lat"], s.columns["lon"], s.columns["t"]
+    return Footprint(
+        path,
+        (float(lat.min()), float(lat.max())),
+        (float(lon.min()), float(lon.max())),
+        (float(t.min()), float(t.max())),
+        s.n,
+    )
+
+
+def hyper_mask(t: np.ndarray) -> np.ndarray:
+    """The rows whose marginal likelihood sets the hyperparameters: the first sample of every
+    HYPER_SPACING_S, as a single survey's fit uses (`workbench.survey_fits.SurveyFits.hyper_rows`)."""
+    _, rows = np.unique(np.floor((t - t.min()) / HYPER_SPACING_S), return_index=True)
+    if len(rows) < MIN_HYPER_ROWS:
+        rows = np.unique(np.linspace(0, len(t) - 1, min(MIN_HYPER_ROWS, len(t))).astype(int))
+    mask = np.zeros(len(t), bool)
+    mask[rows] = True
+    return mask
+
+
+def _targets(s: Survey, names: tuple[str, ...], vector: str) -> tuple[np.ndarray, dict[str, bool]]:
+    """The target columns (zeros where a log lacks one), and which it has."""
+    e, n = s.components(VectorTarget(vector, "east"))
+    cols = {f"{vector}_east": e, f"{vector}_north": n}
+    if "depth" in names:
+        cols["depth"] = s.columns.get("depth")
+    has = {k: cols[k] is not None and bool(np.isfinite(cols[k]).any()) for k in names}
+    Y = np.column_stack(
+        [cols[k] if has[k] else np.zeros(s.n) for k in names]
+    )  # fmt: skip
+    return Y, has
+
+
+def read_placed(path: str, frame: Frame) -> tuple[Survey, np.ndarray]:
+    s = _load(path)
+    return s, frame.xy(s.columns["lat"], s.columns["lon"])
+
+
+@contextlib.contextmanager
+def roomy_heap() -> Iterator[None]:
+    """Large temporaries from the heap, not fresh pages, while a log is reduced.
+
+    A Dask worker runs with MALLOC_TRIM_THRESHOLD_=65536 (distributed's default, to give memory back),
+    which makes glibc map every block over 128 kB afresh: each 8,192 x m feature chunk and its
+    temporaries are page-faulted and zeroed again, and the statistics pass ran 25-30 % slower on a
+    worker than in one process. For the length of a task the heap keeps up to 256 MB; after it, the
+    thresholds go back and the heap is trimmed. Elsewhere than glibc, nothing happens."""
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
+    except (OSError, AttributeError):
+        yield
+        return
+    trim = os.environ.get("MALLOC_TRIM_THRESHOLD_")
+    libc.mallopt(M_TRIM_THRESHOLD, 256 << 20)
+    libc.mallopt(M_MMAP_THRESHOLD, 64 << 20)
+    try:
+        yield
+    finally:
+        if trim is not None and trim.isdigit():
+            libc.mallopt(M_TRIM_THRESHOLD, int(trim))
+            libc.malloc_trim(0)
+
+
+def survey_stats(path: str, frame: Frame) -> SurveyResult | Rejected:
+    """A log's sufficient statistics in the season's frame (streamed over row chunks)."""
+    with roomy_heap():
+        return _survey_stats(path, frame)
+
+
+def _survey_stats(path: str, frame: Frame) -> SurveyResult | Rejected:
+    try:
+        s, Z = read_placed(path, frame)
+    except WorkbenchError as e:
+        return Rejected(path, str(e))
+    t = s.columns["t"]
+    hyper = hyper_mask(t)
+    stats, has, notes = Bundle(), {}, list(s.notes)
+    for key, names, vector, feats in (
+        ("space", SPACE_TARGETS, "current", frame.space_features),
+        ("wind", WIND_TARGETS, "wind", frame.wind_features),
+    ):
+        Y, h = _targets(s, names, vector)
+        has.update(h)
+        ok = np.isfinite(Y).all(axis=1)
+        if (~ok).any():
+            notes.append(f"{(~ok).sum()} row(s) with a missing {key} target left out")
+        Y = np.where(np.isfinite(Y), Y, 0.0)
+        stats[key] = chunk_stats(feats, Z[ok], Y[ok])
+        stats[key + "_hyper"] = chunk_stats(feats, Z[ok & hyper], Y[ok & hyper])
+    if not has["depth"] and not has["current_east"]:
+        return Rejected(path, f"{path}: neither depth nor current measured; nothing to map")
+    result = SurveyResult(path, float(t.min()), float(t.max()), s.n, has, stats, notes)
+    result.wind = fit_wind(frame, result)
+    return result
+
+
+def fit_wind(frame: Frame, r: SurveyResult):
+    """One survey's wind map on the coarse wind basis, with its own hyperparameters: (posterior, theta)."""
+    if not (r.has["wind_east"] and r.has["wind_north"]):
+        return None
+    prior = Prior(frame.wind)
+    full, hyper = r.stats["wind"], r.stats["wind_hyper"]
+    y_scale = float(np.mean(target_scale(full)))
+    theta, _ = fit_hypers(prior, hyper, y_scale)
+    return posterior(prior, theta, full, y_scale), theta
+
+
+def depth_cv(path: str, frame: Frame, season, k: int = 5) -> dict | Rejected:
+    """Blocked CV of one survey's depth: its own map (its own hyperparameters, fitted on its own statistics)
+    against the season's static map, both refitted without the held-out blocks of this survey."""
+    try:
+        s, Z = read_placed(path, frame)
+    except WorkbenchError as e:
+        return Rejected(path, str(e))
+    y = s.columns.get("depth")
+    if y is None or not np.isfinite(y).all():
+        return Rejected(path, f"{path}: no complete depth column for the blocked CV")
+    folds, _ = blocked_folds(s.xy, k)
+    feats = frame.space_features
+    own_all = chunk_stats(feats, Z, y[:, None])
+    own_hyper = chunk_stats(
+        feats, Z[hyper_mask(s.columns["t"])], y[hyper_mask(s.columns["t"])][:, None]
+    )
+    scale = float(target_scale(own_all)[0])
+    theta_own, _ = fit_hypers(season.prior, own_hyper, scale)
+    sq_own = sq_static = 0.0
+    for f in np.unique(folds):
+        test = folds == f
+        held = chunk_stats(feats, Z[test], y[test][:, None])
+        Phi = feats(Z[test])
+        own = posterior(season.prior, theta_own, _minus(own_all, held), scale)
+        static = posterior(season.prior, season.theta, _minus(season.total, held), season.y_scale)
+        sq_own += float(((y[test] - own.predict(Phi, False)[0][:, 0]) ** 2).sum())
+        sq_static += float(((y[test] - static.predict(Phi, False)[0][:, 0]) ** 2).sum())
+    return {
+        "path": path,
+        "rmse_own": (sq_own / len(y)) ** 0.5,
+        "rmse_static": (sq_static / len(y)) ** 0.5,
+        "n": len(y),
+    }
+
+
+def _minus(a: Stats, b: Stats) -> Stats:
+    return Stats(a.G - b.G, a.B - b.B, a.R - b.R, a.n - b.n)
