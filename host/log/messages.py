@@ -449,6 +449,7 @@ LIVE_TOPIC_TYPES: dict[str, type[Record]] = {
     "/health": Health,
     "/alerts": FoxgloveLog,
     "/map/info": MapInfo,
+    "/map/mission": GeoJSON,  # the mission on the Map panel (host/live/mission_layer.py)
 }
 MAP_TARGETS = ("current", "wind", "depth")
 
@@ -463,7 +464,7 @@ def record_type(topic: str) -> type[Record] | None:
         return RawChunk
     if topic.startswith("/map/layers/"):
         return GeoJSON
-    if topic.startswith("/map/") and topic != "/map/info":
+    if topic.startswith("/map/") and topic not in LIVE_TOPIC_TYPES:
         return Grid
     return TOPIC_TYPES.get(topic) or LIVE_TOPIC_TYPES.get(topic)
 
