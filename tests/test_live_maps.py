@@ -122,6 +122,7 @@ def test_health_alerts_raise_and_clear_on_the_logs_clock():
 def test_live_records_are_valid_json_schemas_and_their_messages_match():
     import jsonschema
     from forcemap.host.live.layers import map_messages
+    from forcemap.host.live.mission_layer import TOPIC, MissionLayer
     from forcemap.host.log.messages import LIVE_TOPIC_TYPES, as_json, record_type
 
     cols = simulate(duration_s=300, seed=6)
@@ -133,6 +134,9 @@ def test_live_records_are_valid_json_schemas_and_their_messages_match():
     h.observe("/daemon/status", 0, {"sources": {"nmea": {"bytes": 1}}})
     health, logs = h.update(6 * 10**9, {})  # silent for 6 s: an alert
     messages += [("/health", health), *(("/alerts", log) for log in logs)]
+    mission = MissionLayer()
+    mission.set_plan([[[47.0, 8.0], [47.001, 8.0]]], [[47.0, 8.0], [47.001, 8.0]])
+    messages.append((TOPIC, mission.message()))
     topics = {t for t, _ in messages}
     assert topics >= {"/map/current", "/map/info", "/map/layers/depth", "/map/layers/samples"}
     assert topics >= set(LIVE_TOPIC_TYPES)
