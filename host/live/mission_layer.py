@@ -76,9 +76,10 @@ class MissionLayer:
             self._changed = True
 
     def due(self, t_ns: int) -> bool:
-        """Whether something changed and the last publication is ``every_s`` old (or a plan is new)."""
+        """Whether something changed and the last publication is ``every_s`` old (or a plan is new);
+        never before a mission is known (``run --replan``)."""
         with self._lock:
-            if not self._changed or not (self.plan or self.track):
+            if not self._changed or not self.plan:  # without a mission /fix draws the track
                 return False
             if self._last_ns is not None and t_ns - self._last_ns < self.every_s * 1e9:
                 return False
