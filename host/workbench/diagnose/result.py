@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from forcemap.host.workbench.diagnose.catalogue import explain
 from forcemap.host.workbench.diagnose.null import NULL_MARGIN
+from forcemap.host.workbench.instruments import Instruments
 
 
 @dataclass
@@ -179,10 +180,16 @@ class Diagnosis:
 
 
 def explain_candidate(
-    c: Candidate, what: str, family: str, floor: float, others_confounded: list[str]
+    c: Candidate,
+    what: str,
+    family: str,
+    floor: float,
+    others_confounded: list[str],
+    instruments: Instruments | None = None,
 ) -> str:
-    """The candidate's line of text: its gain, the verdict and why, a likely cause and a term."""
-    cause, term = explain(c.covariate)
+    """The candidate's line of text: its gain, the verdict and why, a likely cause (naming only the
+    survey's own instruments) and a term."""
+    cause, term = explain(c.covariate, instruments, family)
     head = (
         f"adding {c.term}{' ' + what if what else ''} cuts the blocked-CV RMSE by {c.blocked_gain:.0%}"
         if c.blocked_gain >= 0

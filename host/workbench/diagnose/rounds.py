@@ -36,6 +36,7 @@ from forcemap.host.workbench.diagnose.result import (
     explain_candidate,
 )
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.instruments import Instruments
 from forcemap.host.workbench.spec import parse_term
 from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.table import Survey, family, is_circular
@@ -149,10 +150,11 @@ def diagnose_round(
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
     fam = ev.sm.vector.family if ev.sm.vector else "field"
+    inst = Instruments.of(survey)
     for c in results:
         rest = [o for o in others if o != c.covariate]
         w = "" if c.covariate == clock_offset.NAME else what
-        c.explanation = explain_candidate(c, w, fam, FLOOR, rest)
+        c.explanation = explain_candidate(c, w, fam, FLOOR, rest, inst)
     found = bool(results) and results[0].significant
     advice = None
     if results and results[0].identifiable is False:
@@ -181,7 +183,9 @@ def _evaluate_all(
 def _evaluate(ev: Evaluator, name: str) -> Candidate:
     if name == clock_offset.NAME:
         term, rmse, gain, p = ev.clock()
-        return Candidate(name, term, rmse, gain, p, gain, None, False)
+        c = Candidate(name, term, rmse, gain, p, gain, None, False)
+        c.note = clock_offset.scan_offset(ev.sm.survey, ev.sm.vector).edge_note()
+        return c
     if name != "t":
         derived_column(ev.survey, name)
     model = ev.extended(name)
