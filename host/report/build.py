@@ -161,11 +161,11 @@ def residuals_section(ctx: ReportContext) -> list[str]:
 
 
 def _target_residuals(ctx: ReportContext, target: str) -> list[str]:
-    survey = ctx.survey
     try:
         terms = latest_terms(ctx.history, target)
         note(f"report: residuals of {target} ...", ctx.progress)
         sm = ctx.model(target, terms)
+        survey = sm.survey  # the rows the model is fitted on: the target's spikes left out
         cv = sm.cv(blocked_folds(survey.xy)[0])
     except WorkbenchError as exc:
         return [f"<p class=small>{html.escape(target)}: {html.escape(str(exc))}</p>"]

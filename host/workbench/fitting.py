@@ -94,14 +94,15 @@ def fit_target(
         every = float(np.ptp(survey.trel)) / len(rows)
         hyper = f" (hyperparameters from {len(rows)} of them, one per {every:.1f} s)"
     note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples{hyper} ...", progress)
-    fold_ids = make_folds(survey, folds)
+    clean = without_spikes(survey, target)[0]  # the rows the model is fitted on
+    fold_ids = make_folds(clean, folds)
     # the Gram matrices are accumulated fold by fold: the CV then costs no second pass over the data
-    survey_fits(survey).grams.plan = fold_ids
+    survey_fits(clean).grams.plan = fold_ids
     sm = SurveyModel(survey, target, terms, max_basis=max_basis).fit()
     note(f"cross-validating ({folds} folds) ...", progress)
     cv = sm.cv(fold_ids)
     unit = " deg" if sm.circular else ""
-    return FitResult(sm, cv, folds, failure_summary(survey, cv.error, unit))
+    return FitResult(sm, cv, folds, failure_summary(sm.survey, cv.error, unit))
 
 
 def record(table: Path, result: FitResult) -> dict:

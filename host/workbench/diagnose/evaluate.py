@@ -40,7 +40,7 @@ class Evaluator:
         self.sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
         # the rows the model is fitted on: the target's spikes left out (the clock correction is the
         # model's own business)
-        self.survey = without_spikes(survey, target)[0]
+        self.survey = survey = without_spikes(survey, target)[0]
         self.fold_ids, self.blocks = repeated_blocked_folds(survey.xy, folds, seed, REPEATS)
         # the paired unit of every blocked comparison: the block, over all its assignments
         self.groups = np.tile(self.blocks, REPEATS)

@@ -205,6 +205,13 @@ def explain_candidate(
         )
     if c.null_gains:
         head += f"; the same term on time-shifted copies of {c.covariate} gains at most {max(c.null_gains):.0%}"
+    if c.identifiable is False and c.replaced_gain is None:
+        verdict = (
+            f"not identifiable: the survey is one pass, and {c.covariate} is a smooth function of the "
+            f"distance along it (a smoother over the map's length scale explains R^2 = "
+            f"{c.predictability:.2f} of it), like the map itself; do not read it as a cause"
+        )
+        return f"{head}; p = {c.p_value:.1e}, {verdict}."
     if c.identifiable is False:
         also = f" (so are {', '.join(others_confounded)})" if others_confounded else ""
         verdict = (

@@ -158,7 +158,8 @@ def diagnose_round(
     found = bool(results) and results[0].significant
     advice = None
     if results and results[0].identifiable is False:
-        advice = identify.advice(results[0].covariate, proxies)
+        one_pass = results[0].confounded_with == [identify.ONE_PASS]
+        advice = identify.advice(results[0].covariate, proxies, one_pass)
     return Round(
         target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds
     )
@@ -216,6 +217,12 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
             c.identifiable, c.significant = True, True
             continue
         values = survey_inputs(ev.survey, {c.covariate})[c.covariate]
+        scale = identify.map_length_scale(ev)
+        if identify.is_single_pass(ev.survey, scale):
+            c.predictability = identify.smooth_along_track(ev.survey, c.covariate, values, scale)
+            if c.predictability >= identify.SMOOTH_SHARE:
+                c.identifiable, c.confounded_with = False, [identify.ONE_PASS]
+                continue
         t0 = time.perf_counter()
         stand_in, c.predictability = identify.predict_from_model_inputs(ev, c.covariate, values)
         c.replaced_gain = float(ev.blocked(ev.extended(c.covariate, stand_in))[1])
