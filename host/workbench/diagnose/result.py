@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from forcemap.host.workbench.data_quality import DataFinding
 from forcemap.host.workbench.diagnose.catalogue import explain
 from forcemap.host.workbench.diagnose.null import NULL_MARGIN
 from forcemap.host.workbench.instruments import Instruments
@@ -117,6 +118,8 @@ class Diagnosis:
 
     target: str
     rounds: list[Round]
+    # problems of the log itself, listed ahead of the physics (host/workbench/data_quality.py)
+    data: list[DataFinding] = field(default_factory=list)
 
     @property
     def first(self) -> Round:
@@ -151,6 +154,7 @@ class Diagnosis:
             "missing_effect_found": first["missing_effect_found"],
             "candidates": first["candidates"],
             "advice": first["advice"],
+            "data_quality": [f.to_json() for f in self.data],
             "rounds": [r.to_json() for r in self.rounds],
         }
 
@@ -170,6 +174,9 @@ class Diagnosis:
 
     def summary(self) -> str:
         lines = []
+        if self.data:
+            lines.append("data quality (check these before the physics below):")
+            lines += [f"  {f.line()}" for f in self.data] + [""]
         for i, r in enumerate(self.rounds, 1):
             if len(self.rounds) > 1:
                 lines.append(f"== round {i}")

@@ -24,7 +24,7 @@ import re
 import time
 
 from forcemap.host.progress import Progress
-from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench import clock_offset, data_quality
 from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.diagnose import identify
 from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
@@ -118,7 +118,7 @@ def diagnose(
         if r.added is None:
             break
         terms = terms + [r.added.term]
-    return Diagnosis(target, done)
+    return Diagnosis(target, done, data_quality.findings(survey, [target]))
 
 
 def diagnose_round(
