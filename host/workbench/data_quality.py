@@ -25,10 +25,11 @@ from forcemap.host.workbench.spikes import target_spikes, without_spikes
 from forcemap.host.workbench.table import Survey
 
 # speed from positions over this span is compared with SOG
-SPAN_S = 5.0
+SPAN_S = 1.0
 # p95 of |speed from positions - SOG| beyond this: positions from more than one place (two receivers
-# interleaved, or a glitching one); one receiver stays well below it (0.17 m/s on a real capture)
-MAX_SPEED_MISMATCH = 1.5
+# interleaved, or a glitching one). One receiver stays well below it (0.17 m/s on a real capture), and
+# so does a 3-decimal-minute grid (at most 1.85 m in a second)
+MAX_SPEED_MISMATCH = 2.5
 # p99 of the turn rate from successive headings beyond this: two compasses interleaved (a small boat
 # turns at most some 30 deg/s; one compass in a seaway reached 24 deg/s at p99)
 MAX_TURN_RATE = 60.0

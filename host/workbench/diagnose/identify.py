@@ -98,8 +98,10 @@ def smooth_along_track(survey: Survey, name: str, values: np.ndarray, scale_m: f
     total = sum(float(np.var(p)) for p in parts)
     if total <= 0:
         return 0.0
-    # a Gaussian kernel smoother in s, by cumulative sums over an even grid of the distance
-    grid = np.arange(0.0, s[-1] + scale_m / 4, scale_m / 4)
+    # a Gaussian kernel smoother in s over an even grid of the distance (at most ~2000 steps: a map
+    # scale below a 500th of the track is no scale for this)
+    step = max(scale_m, float(s[-1]) / 500.0, 1.0) / 4
+    grid = np.arange(0.0, s[-1] + step, step)
     resid = 0.0
     for p in parts:
         k = np.clip(np.searchsorted(grid, s), 0, len(grid) - 1)
@@ -168,9 +170,10 @@ def advice(
 ) -> str:
     """The survey that would separate a confounded candidate from position."""
     if single_pass:
+        what = "time, a counter" + ("" if covariate == "t" else f", {covariate}")
         return (
-            "this survey is one pass: anything that drifts along it (time, a counter, "
-            f"{covariate}) is a function of the distance along the line, like the map itself; run the "
+            f"this survey is one pass: anything that drifts along it ({what}) is a function of the "
+            "distance along the line, like the map itself; run the "
             "line again later and in the other direction, or cross it, so that the same place is seen "
             "at different times and values"
         )
