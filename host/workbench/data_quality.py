@@ -3,8 +3,8 @@
 `diagnose` and the report list these ahead of the physical candidates: a map fitted to interleaved
 sources, false echoes or late time stamps explains the log, not the water. Four kinds:
 
-- source conflict: two sources feeding one column in turn (the log's ``columns`` metadata says so), seen
-  as a speed from successive positions far from SOG, or a heading that turns faster than a boat can;
+- source conflict: a speed from successive positions far from SOG, or a heading that turns faster than a
+  boat can: two sources feeding one column in turn (named from the log's ``columns`` metadata);
 - spikes: the target's readings flagged along the track (host/workbench/spikes.py);
 - latency: a wind or current vector steadiest in turns with the heading and ground velocity shifted
   (host/workbench/clock_offset.py), with a note when the estimate is at the edge of the range searched;
@@ -38,7 +38,6 @@ MIN_LATENCY_S = 0.5
 MIN_LATENCY_GAIN = 0.1
 # a position grid coarser than this is reported
 MIN_QUANTUM_M = 0.5
-SOURCE_COLUMNS = ("lat", "heading", "sog", "stw", "depth", "app_wind_speed", "water_temp")
 
 
 @dataclass
@@ -98,17 +97,9 @@ def turn_rate_p99(survey: Survey) -> float | None:
 
 
 def conflicts(survey: Survey, inst: Instruments) -> list[DataFinding]:
+    """Position and heading sources that disagree, measured: two sentences of one receiver (GGA and RMC)
+    feeding one column agree, and are no finding; the text names whatever fed the column."""
     out = []
-    for col in SOURCE_COLUMNS:
-        labels = [x for x in survey.provenance.get(col, "").split(";") if x.strip()]
-        if len(labels) > 1:
-            out.append(
-                DataFinding(
-                    "source conflict",
-                    f"'{col}' was fed by {inst.name(col, col)}",
-                    CHOOSE_SOURCE,
-                )
-            )
     mismatch = speed_mismatch(survey)
     if mismatch is not None and mismatch > MAX_SPEED_MISMATCH:
         out.append(
