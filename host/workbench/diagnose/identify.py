@@ -162,9 +162,6 @@ def confounders(ev) -> list[str]:
     return list(dict.fromkeys(["position", *[i for i in inputs if i != "position"]]))
 
 
-ONE_PASS = "position (one pass: the distance along it)"
-
-
 def advice(
     covariate: str, proxies_of_time: list[str] | None = None, single_pass: bool = False
 ) -> str:
@@ -173,9 +170,8 @@ def advice(
         what = "time, a counter" + ("" if covariate == "t" else f", {covariate}")
         return (
             f"this survey is one pass: anything that drifts along it ({what}) is a function of the "
-            "distance along the line, like the map itself; run the "
-            "line again later and in the other direction, or cross it, so that the same place is seen "
-            "at different times and values"
+            "distance along the line, like the map itself; repeat the line later, in the other "
+            "direction too, or cross it, so that the same place is seen at different times and values"
         )
     if covariate == "t" or covariate in (proxies_of_time or []):
         return (

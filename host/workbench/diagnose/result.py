@@ -31,6 +31,7 @@ class Candidate:
     replaced_gain: float | None = None  # gain with the candidate replaced by that prediction
     null_gains: list[float] = field(default_factory=list)
     time_proxies: list[str] = field(default_factory=list)  # counters and clocks folded into t
+    one_pass: bool = False  # confounded because the survey is one pass (identify.is_single_pass)
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
@@ -212,11 +213,12 @@ def explain_candidate(
         )
     if c.null_gains:
         head += f"; the same term on time-shifted copies of {c.covariate} gains at most {max(c.null_gains):.0%}"
-    if c.identifiable is False and c.replaced_gain is None:
+    if c.identifiable is False and c.one_pass:
         verdict = (
-            f"not identifiable: the survey is one pass, and {c.covariate} is a smooth function of the "
-            f"distance along it (a smoother over the map's length scale explains R^2 = "
-            f"{c.predictability:.2f} of it), like the map itself; do not read it as a cause"
+            f"not identifiable: {c.covariate} is confounded with position on this survey, which is one "
+            "pass: it is a smooth function of the distance along it (a smoother over the map's length "
+            f"scale explains R^2 = {c.predictability:.2f} of it), like the map itself; do not read it "
+            "as a cause"
         )
         return f"{head}; p = {c.p_value:.1e}, {verdict}."
     if c.identifiable is False:

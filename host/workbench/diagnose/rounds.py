@@ -158,8 +158,7 @@ def diagnose_round(
     found = bool(results) and results[0].significant
     advice = None
     if results and results[0].identifiable is False:
-        one_pass = results[0].confounded_with == [identify.ONE_PASS]
-        advice = identify.advice(results[0].covariate, proxies, one_pass)
+        advice = identify.advice(results[0].covariate, proxies, results[0].one_pass)
     return Round(
         target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds
     )
@@ -221,7 +220,7 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
         if identify.is_single_pass(ev.survey, scale):
             c.predictability = identify.smooth_along_track(ev.survey, c.covariate, values, scale)
             if c.predictability >= identify.SMOOTH_SHARE:
-                c.identifiable, c.confounded_with = False, [identify.ONE_PASS]
+                c.identifiable, c.one_pass, c.confounded_with = False, True, ["position"]
                 continue
         t0 = time.perf_counter()
         stand_in, c.predictability = identify.predict_from_model_inputs(ev, c.covariate, values)
