@@ -306,3 +306,19 @@ def test_two_receivers_interleaved_and_a_coarse_grid_are_data_findings(tmp_path)
         f for f in data_quality.findings(load_survey(coarse), ["depth"]) if f.kind == "quantisation"
     ]
     assert "0.001 minute (1.85 m steps" in q.text and "more decimals" in q.advice
+
+
+def test_the_report_lists_data_problems_before_the_maps_and_the_physics(tmp_path):
+    from forcemap.host.report import build
+
+    path, truth = _echo_survey(tmp_path, 7, duration_s=900.0)
+    order = [s.__name__ for s in build.SECTIONS]
+    assert order.index("data_quality_section") < order.index("maps_section")
+    assert order.index("data_quality_section") < order.index("diagnoses_section")
+    survey = load_survey(path)
+    text = build.build_report(
+        path, survey, progress=False, sections=[build.header_section, build.data_quality_section]
+    )
+    assert "Data quality: before the physics" in text
+    assert f"{len(truth)} of 900 soundings flagged as false shallow echoes" in text
+    assert "filter the sounder" in text
