@@ -131,7 +131,7 @@ def _running(values: np.ndarray, window: int, fn) -> np.ndarray:
 
 
 def resolution(values: np.ndarray) -> float:
-    """The column's step: the smallest departure from the running median that is not zero (0 if none)."""
+    """The column's step: the smallest change between successive readings that is not zero (0 if none)."""
     d = np.abs(np.diff(values[np.isfinite(values)]))
     d = d[d > 1e-9 * max(1.0, float(np.nanmax(np.abs(values))) if len(values) else 1.0)]
     return float(np.min(d)) if len(d) else 0.0
@@ -184,11 +184,17 @@ def _one_pass(
     return Spikes(name, flagged, dev, np.nan_to_num(ref), survey.trel, thr, survey.keep_outliers)
 
 
+def _name(survey: Survey, target: str) -> str:
+    """What a target's spikes belong to: its vector (wind, current) or its own column."""
+    vt = survey.vector_target(target)
+    return vt.prefix if vt else target
+
+
 def target_spikes(survey: Survey, target: str) -> Spikes | None:
     """The spikes of a model target (cached with the survey): a vector's for any aspect of wind or
     current, the column's for a scalar; None for a target the test does not apply to."""
     vt = survey.vector_target(target)
-    key = (Spikes, vt.prefix if vt else target)
+    key = (Spikes, _name(survey, target))
     if key in survey.cache:
         return survey.cache[key]
     if vt is not None:
@@ -203,9 +209,10 @@ def target_spikes(survey: Survey, target: str) -> Spikes | None:
 
 
 def without_spikes(survey: Survey, target: str) -> tuple[Survey, Spikes | None]:
-    """The survey the model of `target` is fitted on: without the target's spikes (with a note) unless
-    the survey keeps outliers; the full survey gets the flag column either way."""
-    if target in survey.spikes_removed:
+    """The survey the model of `target` is fitted on (one per vector: its speed, direction and components
+    share it): without the target's spikes unless the survey keeps outliers; the full survey gets the
+    flag column either way."""
+    if _name(survey, target) in survey.spikes_removed:
         return survey, None
     found = target_spikes(survey, target)
     if found is None or not found.count:
@@ -216,6 +223,6 @@ def without_spikes(survey: Survey, target: str) -> tuple[Survey, Spikes | None]:
     key = (Spikes, "clean", found.name)
     if key not in survey.cache:
         clean = survey.subset(~found.flagged)
-        clean.spikes_removed.add(target)
+        clean.spikes_removed.add(found.name)
         survey.cache[key] = clean
     return survey.cache[key], found

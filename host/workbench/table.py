@@ -98,7 +98,7 @@ class Survey:
     cache: dict = field(default_factory=dict, repr=False)
     # --keep-outliers: spikes are flagged but stay in the fits (host/workbench/spikes.py)
     keep_outliers: bool = False
-    # the targets whose spikes this survey has already left out
+    # the targets (a vector by its prefix) whose spikes this survey has already left out
     spikes_removed: set[str] = field(default_factory=set)
     # who fed each column (the MCAP's `columns` metadata; empty for a CSV): host/workbench/sources.py
     provenance: dict[str, str] = field(default_factory=dict)
