@@ -322,3 +322,32 @@ def test_the_report_lists_data_problems_before_the_maps_and_the_physics(tmp_path
     assert "Data quality: before the physics" in text
     assert f"{len(truth)} of 900 soundings flagged as false shallow echoes" in text
     assert "filter the sounder" in text
+
+
+def test_a_vectors_spikes_are_one_set_for_its_speed_direction_and_components(tmp_path):
+    from forcemap.host.workbench.spikes import without_spikes
+
+    path = make_survey("river", [], 8, 900.0, tmp_path / "s")
+    rows = list(csv.DictReader(path.open()))
+    bad = [100, 101, 400, 777]
+    for i in bad:  # a glitch: 3 m/s east added to the current, in all its columns
+        e, n = float(rows[i]["current_east"]) + 3.0, float(rows[i]["current_north"])
+        rows[i].update(current_east=repr(e), current_north=repr(n))
+        rows[i].update(current_speed=repr(math.hypot(e, n)))
+        rows[i].update(current_dir=repr(math.degrees(math.atan2(e, n)) % 360.0))
+    spiky = tmp_path / "spiky.csv"
+    with spiky.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    survey = load_survey(spiky)
+    found = target_spikes(survey, "current_dir")
+    assert list(np.flatnonzero(found.flagged)) == bad and found.column == "spike_current"
+    assert target_spikes(survey, "wind_speed").count == 0
+    clean, _ = without_spikes(survey, "current_speed")
+    assert clean.n == survey.n - len(bad)
+    assert without_spikes(survey, "current_north")[0] is clean
+    assert without_spikes(clean, "current_dir") == (clean, None)  # never left out twice
+    kept = load_survey(spiky, keep_outliers=True)
+    assert without_spikes(kept, "current_speed")[0] is kept
+    assert kept.columns["spike_current"].sum() == len(bad)
