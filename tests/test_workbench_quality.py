@@ -216,7 +216,11 @@ def test_diagnose_on_an_nmea_only_log_names_its_own_instruments(tmp_path, capsys
     for text in texts:
         assert not any(word in text for word in ABSENT), text
     clock = next(c for c in d["candidates"] if c["covariate"] == "clock_offset")
-    assert "speed log (" in clock["explanation"] and "RMC)" in clock["explanation"]
+    assert "the speed log (VW VHW)" in clock["explanation"]
+    assert (
+        "the GNSS (GP RMC" in clock["explanation"]
+        and "the compass (HE HDT)" in clock["explanation"]
+    )
     assert not any(word in out for word in ("autopilot", "bridge"))
 
 

@@ -31,11 +31,17 @@ MAVLINK_KINDS = {
 
 
 def _nmea_name(rest: str) -> str:
-    """'GP RMC' or 'VHW' (a '+variation' and the like dropped) -> 'the GNSS (GP RMC)'."""
-    words = re.sub(r"\+\S*", "", rest).split()
-    sentence = next((w[-3:] for w in reversed(words) if w[-3:].isupper() and len(w) >= 3), "")
+    """'GPRMC [hhmmss.ss 5dp]', 'GP RMC' or 'HDM+variation' -> 'the GNSS (GP RMC, hhmmss.ss 5dp)': the
+    talker apart from the sentence, the receiver's fingerprint (where two share a talker) after them."""
+    fingerprint = re.findall(r"\[([^\]]*)\]", rest)
+    words = re.sub(r"\[[^\]]*\]|\+\S*", "", rest).split()
+    sentence = next(
+        (w[-3:] for w in reversed(words) if len(w) >= 3 and w[-3:].isalpha() and w[-3:].isupper()),
+        "",
+    )
     kind = next((k for k, types in NMEA_KINDS.items() if sentence in types), "NMEA instrument")
-    return f"the {kind} ({' '.join(words)})"
+    words = [f"{w[:-3]} {w[-3:]}" if len(w) == 5 and w[-3:] == sentence else w for w in words]
+    return f"the {kind} ({', '.join([' '.join(words), *fingerprint])})"
 
 
 def source_name(label: str) -> str:
