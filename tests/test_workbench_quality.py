@@ -355,3 +355,22 @@ def test_a_vectors_spikes_are_one_set_for_its_speed_direction_and_components(tmp
     kept = load_survey(spiky, keep_outliers=True)
     assert without_spikes(kept, "current_speed")[0] is kept
     assert kept.columns["spike_current"].sum() == len(bad)
+
+
+def test_the_simulators_false_echoes_in_deep_water_are_left_out(tmp_path):
+    """The simulator's deep basin (70-100 m) with the sounder's false echoes (issue 20's fault, at its
+    `sources` rate of 0.1): every sounding of 3-20 m is flagged, and the map's noise is the clean survey's.
+    That noise is not the sounder's 0.03 m: the table holds each 1-Hz sounding over four rows while the
+    boat crosses a slope of ~0.4 m/m, so it is measured on the same survey without the fault."""
+    from forcemap.sim_devices.offline import make_survey as simulate_survey
+
+    noisy = simulate_survey("deep", [], 1, 600.0, tmp_path / "e", faults="false_echoes:rate=0.1")
+    clean = simulate_survey("deep", [], 1, 600.0, tmp_path / "c")
+    survey = load_survey(noisy)
+    with small_blas():
+        sm = SurveyModel(survey, "depth").fit()
+        ref = SurveyModel(load_survey(clean), "depth").fit()
+    shallow = survey.columns["depth"] < 21.0
+    assert shallow.sum() > 0.05 * survey.n
+    assert np.array_equal(sm.spikes.flagged, shallow)
+    assert abs(sm.primary.noise_std_ / ref.primary.noise_std_ - 1.0) < 0.2

@@ -154,18 +154,39 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
     The test is repeated with the spikes found so far left out of the neighbours' median, until the flags
     stop changing: a cluster of false echoes drags the median of the first pass towards it, so that some
     of them are missed and good soundings beside them look deep."""
-    flagged = np.zeros(len(parts[0]), bool)
+    group = _readings(parts)
+    first = np.flatnonzero(np.diff(group, prepend=-1))
+    readings = [p[first] for p in parts]
+    flagged = np.zeros(len(first), bool)
     for _ in range(MAX_PASSES):
-        masked = [np.where(flagged, np.nan, p) for p in parts]
-        found = _one_pass(survey, name, parts, masked, fam)
+        masked = [np.where(flagged, np.nan, p) for p in readings]
+        found = _one_pass(name, readings, masked, fam)
         if np.array_equal(found.flagged, flagged):
             break
         flagged = found.flagged
-    return found
+    return Spikes(
+        name,
+        found.flagged[group],
+        found.departure[group],
+        found.reference[group],
+        survey.trel,
+        found.threshold,
+        survey.keep_outliers,
+    )
+
+
+def _readings(parts: list[np.ndarray]) -> np.ndarray:
+    """Each row's reading: rows that repeat the row before (a table sampled faster than the sensor
+    holds its last reading) are one reading, so that the window counts readings, not rows (at 4 rows
+    a sounding, a run of two false echoes filled 8 of 9 rows and beat the median)."""
+    same = np.ones(len(parts[0]) - 1, bool) if len(parts[0]) else np.zeros(0, bool)
+    for p in parts:
+        same &= (p[1:] == p[:-1]) | (np.isnan(p[1:]) & np.isnan(p[:-1]))
+    return np.concatenate([[0], np.cumsum(~same)]) if len(parts[0]) else np.zeros(0, int)
 
 
 def _one_pass(
-    survey: Survey, name: str, parts: list[np.ndarray], masked: list[np.ndarray], fam: str | None
+    name: str, parts: list[np.ndarray], masked: list[np.ndarray], fam: str | None
 ) -> Spikes:
     dev, ref = _departure(parts, masked)
     absdev = np.abs(dev)
@@ -181,7 +202,7 @@ def _one_pass(
     threshold = np.fmax(np.fmax(Z * spread, floor), 3.0 * step)
     flagged = np.isfinite(absdev) & (absdev > threshold)
     thr = float(np.median(threshold[flagged] if flagged.any() else threshold))
-    return Spikes(name, flagged, dev, np.nan_to_num(ref), survey.trel, thr, survey.keep_outliers)
+    return Spikes(name, flagged, dev, np.nan_to_num(ref), np.zeros(0), thr)
 
 
 def _name(survey: Survey, target: str) -> str:
