@@ -356,7 +356,11 @@ def load_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
             f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
         )
     columns, non_numeric, notes = _numeric_columns(path, raw)
-    return survey_from_columns(path, columns, non_numeric, notes)
+    survey = survey_from_columns(path, columns, non_numeric, notes)
+    survey.keep_outliers = keep_outliers
+    if path.suffix.lower() == ".mcap":
+        survey.provenance = mcap_provenance(path)
+    return survey
 
 
 def survey_from_columns(
@@ -381,11 +385,7 @@ def survey_from_columns(
     columns["x"], columns["y"] = local_frame(lat, lon, lat0, lon0)
     if "heading" in columns and "cog" in columns:
         columns["crab"] = (columns["heading"] - columns["cog"] + 180.0) % 360.0 - 180.0
-    survey = Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
-    survey.keep_outliers = keep_outliers
-    if path.suffix.lower() == ".mcap":
-        survey.provenance = mcap_provenance(path)
-    return survey
+    return Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
 
 
 def prepare_column(
