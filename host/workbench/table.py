@@ -24,6 +24,8 @@ MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
 NOT_COVARIATES = {"t", "lat", "lon", "x", "y"}
+# flag columns (spike_depth, spike_current, ...): bookkeeping too
+FLAG_PREFIX = "spike_"
 # boat kinematics that respond to the current and wind pushing the boat (yaw_rate is not here: in a survey the
 # turns are commanded by the mission, see docs/WORKBENCH.md)
 KINEMATIC = ("sog", "cog", "throttle", "crab")
@@ -94,6 +96,12 @@ class Survey:
     notes: list[str] = field(default_factory=list)
     non_numeric: set[str] = field(default_factory=set)
     cache: dict = field(default_factory=dict, repr=False)
+    # --keep-outliers: spikes are flagged but stay in the fits (host/workbench/spikes.py)
+    keep_outliers: bool = False
+    # the targets (a vector by its prefix) whose spikes this survey has already left out
+    spikes_removed: set[str] = field(default_factory=set)
+    # who fed each column (the MCAP's `columns` metadata; empty for a CSV): host/workbench/sources.py
+    provenance: dict[str, str] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -108,7 +116,9 @@ class Survey:
         return self.columns["t"] - self.t0
 
     def numeric_columns(self) -> list[str]:
-        return [c for c in self.columns if c not in NOT_COVARIATES]
+        return [
+            c for c in self.columns if c not in NOT_COVARIATES and not c.startswith(FLAG_PREFIX)
+        ]
 
     def subset(self, mask: np.ndarray) -> Survey:
         cols = {k: v[mask] for k, v in self.columns.items()}
@@ -120,6 +130,9 @@ class Survey:
             self.source,
             list(self.notes),
             set(self.non_numeric),
+            keep_outliers=self.keep_outliers,
+            spikes_removed=set(self.spikes_removed),
+            provenance=dict(self.provenance),
         )
 
     def column(self, name: str) -> np.ndarray:
@@ -230,6 +243,28 @@ def _read_mcap(path: Path) -> dict[str, list]:
     return {c: table.column(c) for c in table.columns}
 
 
+def mcap_provenance(path: Path) -> dict[str, str]:
+    """Who fed each column: the last ``columns`` metadata record of an MCAP log (from its summary when
+    the file is complete, else by reading it through); empty when there is none."""
+    from forcemap.host.log.mcap import FileScan, iter_records
+    from mcap.reader import make_reader
+    from mcap.records import Metadata
+
+    found: dict[str, str] = {}
+    try:
+        with open(path, "rb") as f:
+            for m in make_reader(f).iter_metadata():
+                if m.name == "columns":
+                    found = dict(m.metadata)
+        return found
+    except Exception:  # no summary (a killed or truncated log): read the records themselves
+        pass
+    for record in iter_records(path, FileScan(path)):
+        if isinstance(record, Metadata) and record.name == "columns":
+            found = dict(record.metadata)
+    return found
+
+
 def read_raw(path: str | Path) -> dict[str, list]:
     """The table's cells by column, from CSV, Parquet or MCAP (chosen by the file's extension)."""
     path = Path(path)
@@ -291,7 +326,7 @@ def _placed_rows(path: Path, columns: dict[str, np.ndarray], notes: list[str]) -
             )
         if bad.any():
             notes.append(
-                f"dropped {bad.sum()} row(s) with missing '{c}' (no time or position: GPS or autopilot outage)"
+                f"dropped {bad.sum()} row(s) with missing '{c}' (no time or position: a GNSS or navigation-stream outage)"
             )
         keep &= ~bad
     rows = np.flatnonzero(keep)
@@ -310,8 +345,9 @@ def _placed_rows(path: Path, columns: dict[str, np.ndarray], notes: list[str]) -
     return rows[ok]
 
 
-def load_survey(path: str | Path) -> Survey:
-    """Read and validate a samples table; positions become metres east/north of the survey centre."""
+def load_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
+    """Read and validate a samples table; positions become metres east/north of the survey centre.
+    With `keep_outliers`, spikes are flagged but stay in the fits (host/workbench/spikes.py)."""
     path = Path(path)
     raw = read_raw(path)
     missing = [c for c in REQUIRED if c not in raw]
@@ -320,7 +356,11 @@ def load_survey(path: str | Path) -> Survey:
             f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
         )
     columns, non_numeric, notes = _numeric_columns(path, raw)
-    return survey_from_columns(path, columns, non_numeric, notes)
+    survey = survey_from_columns(path, columns, non_numeric, notes)
+    survey.keep_outliers = keep_outliers
+    if path.suffix.lower() == ".mcap":
+        survey.provenance = mcap_provenance(path)
+    return survey
 
 
 def survey_from_columns(
@@ -345,8 +385,7 @@ def survey_from_columns(
     columns["x"], columns["y"] = local_frame(lat, lon, lat0, lon0)
     if "heading" in columns and "cog" in columns:
         columns["crab"] = (columns["heading"] - columns["cog"] + 180.0) % 360.0 - 180.0
-    survey = Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
-    return survey
+    return Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
 
 
 def prepare_column(
