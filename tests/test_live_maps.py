@@ -126,7 +126,8 @@ def test_live_records_are_valid_json_schemas_and_their_messages_match():
     import jsonschema
     from forcemap.host.live.layers import map_messages
     from forcemap.host.live.mission_layer import TOPIC, MissionLayer
-    from forcemap.host.log.messages import LIVE_TOPIC_TYPES, as_json, record_type
+    from forcemap.host.log.live_messages import LIVE_TOPIC_TYPES
+    from forcemap.host.log.messages import as_json, record_type
 
     cols = simulate(duration_s=300, seed=6)
     maps = LiveMaps()

@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from forcemap.host.log.messages import FoxgloveLog, Health
+from forcemap.host.log.live_messages import Health
+from forcemap.host.log.record import FoxgloveLog
 
 SILENT_S = 5.0
 FIX_LOST_S = 5.0

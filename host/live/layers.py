@@ -9,9 +9,10 @@ import math
 from typing import Any
 
 import numpy as np
+from forcemap.host.contours import contour_lines
 from forcemap.host.live.growing import MapGrid
-from forcemap.host.log.messages import GeoJSON, Grid, MapInfo, Time
-from forcemap.host.log.record import FLOAT32
+from forcemap.host.log.live_messages import MapInfo
+from forcemap.host.log.record import FLOAT32, GeoJSON, Grid, Time
 from forcemap.host.workbench.cleaning import EARTH_RADIUS_M
 
 ARROWS = 12  # along the longer side
@@ -103,21 +104,14 @@ def arrows(g: MapGrid) -> dict[str, Any]:
 
 def contours(g: MapGrid, levels: int = 8) -> dict[str, Any]:
     """Depth contours (m) at round levels."""
-    import contourpy
-
     d = g.fields["depth"]
     ny, nx = d.shape
     lo, hi = float(np.nanmin(d)), float(np.nanmax(d))
     feats = []
-    if ny < 2 or nx < 2 or hi <= lo:
-        return {"type": "FeatureCollection", "features": feats}
-    step = 10 ** math.floor(math.log10((hi - lo) / levels))
-    step *= 5 if (hi - lo) / step > 5 * levels else (2 if (hi - lo) / step > 2 * levels else 1)
-    gen = contourpy.contour_generator(
-        g.x0 + g.step * np.arange(nx), g.y0 + g.step * np.arange(ny), d
-    )
-    for level in np.arange(math.ceil(lo / step) * step, hi, step):
-        for line in gen.lines(float(level)):
+    for level, lines in contour_lines(
+        g.x0 + g.step * np.arange(nx), g.y0 + g.step * np.arange(ny), d, levels
+    ):
+        for line in lines:
             lon, lat = to_lonlat(line[:, 0], line[:, 1], g.lat0, g.lon0)
             feats.append(_feature(
                 {"type": "LineString", "coordinates": np.column_stack([lon, lat]).round(7).tolist()},

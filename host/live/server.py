@@ -14,8 +14,9 @@ import threading
 from typing import Any
 
 from forcemap.host.errors import CliError
+from forcemap.host.log.live_messages import LIVE_TOPIC_TYPES, MAP_TARGETS
 from forcemap.host.log.mcap import schema_for
-from forcemap.host.log.messages import LIVE_TOPIC_TYPES, MAP_TARGETS, TOPIC_TYPES
+from forcemap.host.log.messages import TOPIC_TYPES
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
