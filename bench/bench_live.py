@@ -7,7 +7,8 @@
 map process and a WebSocket client reading everything, one plain daemon: the baseline. CPU is each
 process's own user+system time (psutil), the map process included, never wall time. `refit` feeds
 a synthetic 20-minute survey at 4 Hz (the daemon's sample rate with a bridge) through `LiveMaps` as
-the map process does, and times one full hyperparameter refit of all maps (current, wind, depth).
+the map process does, times one full hyperparameter refit of all maps (current, wind, depth), and
+checks every depth map published between refits against fresh fits on the same samples.
 """
 
 from __future__ import annotations
@@ -108,64 +109,80 @@ def cpu(duration: str, speed: float) -> dict:
     return res
 
 
-def refit() -> dict:
+def _drift(g, sofar, comp) -> tuple[float, float, float]:
+    """A depth map between refits against fresh fits on the same samples, on the cells within 20 m
+    of a sample (the rest is extrapolation): max and median |live - fresh| / the fresh map's range
+    there, for the fresh fit with the live map's hyperparameters (the basis's error), and the max for
+    `forcemap fit`'s fresh fit (new hyperparameters: their age)."""
     import numpy as np
     from forcemap.host.live.growing import Component, live_survey
     from forcemap.host.live.layers import to_lonlat
-    from forcemap.host.live.maps import LiveMaps
     from forcemap.host.workbench.cleaning import local_frame
     from forcemap.host.workbench.spec import BASELINE
     from scipy.spatial import cKDTree
+
+    ny, nx = g.shape
+    gx, gy = np.meshgrid(g.x0 + g.step * np.arange(nx), g.y0 + g.step * np.arange(ny))
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    survey = live_survey(sofar, "depth")
+    lon, lat = to_lonlat(xy[:, 0], xy[:, 1], g.lat0, g.lon0)
+    at = np.column_stack(local_frame(lat, lon, survey.lat0, survey.lon0))
+    sx, sy = local_frame(sofar["lat"], sofar["lon"], g.lat0, g.lon0)
+    near = cKDTree(np.column_stack([sx, sy])).query(xy)[0] <= 20.0
+    out = []
+    for like in (comp, None):
+        mu = Component.refit(survey, "depth", list(BASELINE), like=like).predict(at)[0]
+        err = np.abs(g.fields["depth"].ravel() - mu)[near] / np.ptp(mu[near])
+        out.append(err)
+    return float(out[0].max()), float(np.median(out[0])), float(out[1].max())
+
+
+def refit() -> dict:
+    import numpy as np
+    from forcemap.host.live.maps import LiveMaps
 
     from bench.synth_survey import simulate
 
     cols = simulate(duration_s=1200.0, seed=1, rate_hz=4.0)
     n = len(cols["t"])
     maps = LiveMaps(every_s=60.0)
-    diffs = []  # (target, |live - fresh fit| / range) just before each hyperparameter refit
+    diffs = []  # _drift of every depth map published between hyperparameter refits
+    t_checks = 0.0
     t_all = time.process_time()
     for i in range(n):
         maps.add({k: float(v[i]) for k, v in cols.items()})
-        grids = maps.step()
-        for g in grids:
-            if g.target == "depth" and "refitted" not in g.reason and i % 4 == 0:
-                x0, y0, step = g.x0, g.y0, g.step
-                ny, nx = g.shape
-                gx, gy = np.meshgrid(x0 + step * np.arange(nx), y0 + step * np.arange(ny))
-                xy = np.column_stack([gx.ravel(), gy.ravel()])
+        for g in maps.step():
+            if g.target == "depth" and "refitted" not in g.reason:
+                t = time.process_time()
                 sofar = {k: v[: i + 1] for k, v in cols.items()}
-                survey = live_survey(sofar, "depth")
-                fresh = Component.refit(survey, "depth", list(BASELINE))
-                lon, lat = to_lonlat(xy[:, 0], xy[:, 1], g.lat0, g.lon0)
-                mu, _ = fresh.predict(
-                    np.column_stack(local_frame(lat, lon, survey.lat0, survey.lon0))
-                )
-                # where the boat has been: cells within 20 m of a sample (the rest is extrapolation)
-                sx, sy = local_frame(sofar["lat"], sofar["lon"], g.lat0, g.lon0)
-                near = cKDTree(np.column_stack([sx, sy])).query(xy)[0] <= 20.0
-                err = np.abs(g.fields["depth"].ravel() - mu)
-                diffs.append(
-                    (float(err[near].max() / np.ptp(mu[near])), float(err.max() / np.ptp(mu)))
-                )
-    t_incremental = time.process_time() - t_all
+                diffs.append((*_drift(g, sofar, maps.state["depth"].comps[0]), g.hyper_age_s,
+                              g.basis_covers))  # fmt: skip
+                t_checks += time.process_time() - t
+    t_incremental = time.process_time() - t_all - t_checks
     t = time.process_time()
     maps.step(force="refit", refit=True)
     t_refit = time.process_time() - t
     t = time.process_time()
     maps.step(force="update")
     t_update = time.process_time() - t
+    d = np.array([x[:4] for x in diffs]) if diffs else np.zeros((0, 4))
     res = {
         "samples": n,
         "refit_all_maps_cpu_s": t_refit,
         "update_all_maps_cpu_s": t_update,
         "whole_survey_incremental_cpu_s": t_incremental,
         "refits": maps.refits,
+        "rebases": maps.rebases,
         "updates": maps.updates,
-        # |live - fresh fit| / the fresh map's range, on the cells near samples, and on the whole grid
-        "stale_depth_diff_near_max": max(d[0] for d in diffs) if diffs else None,
-        "stale_depth_diff_near_median": float(np.median([d[0] for d in diffs])) if diffs else None,
-        "stale_depth_diff_grid_max": max(d[1] for d in diffs) if diffs else None,
-        "stale_checks": len(diffs),
+        "between_refit_checks": len(diffs),
+        "all_basis_covers": all(x[4] for x in diffs),
+        # |live - fresh| / the fresh map's range, cells within 20 m of a sample
+        "same_hyper_max": float(d[:, 0].max()) if len(d) else None,
+        "same_hyper_median_of_medians": float(np.median(d[:, 1])) if len(d) else None,
+        "fresh_fit_max": float(d[:, 2].max()) if len(d) else None,
+        "fresh_fit_median_of_max": float(np.median(d[:, 2])) if len(d) else None,
+        "hyper_age_s_max": float(d[:, 3].max()) if len(d) else None,
+        "checks": [[round(float(v), 4) for v in row] for row in d],
     }
     print(json.dumps(res, indent=1))
     return res

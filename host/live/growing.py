@@ -1,14 +1,18 @@
 """A map that grows: one target's reduced-rank GP whose sufficient statistics take a rank-one update per sample.
 
 A hyperparameter refit is `forcemap fit`'s own path (`SurveyModel(...).fit()` on the samples so far):
-the map it gives is the one `forcemap fit` gives. Between refits the hyperparameters, the basis and the
-target's scale stay those of the last refit; each new sample adds its features to the Gram matrix
-(G += phi phi'), the feature-target products (b += phi y) and y'y, and the posterior is solved again
-from them (O(M^3), independent of the number of samples).
+the map it gives is the one `forcemap fit` gives. Between refits the hyperparameters stay those of the
+last refit. While the new samples lie inside the basis's box, each adds its features to the Gram
+matrix (G += phi phi'), the feature-target products (b += phi y) and y'y, and the posterior is solved
+again from them (O(M^3), independent of the number of samples). A sample outside the box rebuilds the
+basis on all samples with the kept hyperparameters (`Component.refit(..., like=)`: `forcemap fit`'s
+path without the optimiser, O(N M^2)): a Laplacian eigenbasis vanishes at its box's boundary, so a map
+of samples past it is the basis's error, not the data's (measured up to 181 % of the map's range).
 """
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,14 +20,16 @@ from pathlib import Path
 import numpy as np
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.evidence import evidence, small_blas
-from forcemap.host.workbench.model import Model
+from forcemap.host.workbench.model import Model, term_inputs
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import Survey, survey_from_columns
 from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.terms import HilbertGPTerm
 from scipy import linalg
 
 GRID_CELLS = 48  # along the longer side of the survey's box
 MARGIN = 0.1  # of the box, on every side
+BASIS_TOL = 0.003  # a fresh fit's box this close to the live basis's: the same basis
 LIVE_SOURCE = Path("<live samples>")
 
 
@@ -45,16 +51,53 @@ class Component:
     n: int
 
     @classmethod
-    def refit(cls, survey: Survey, column: str, terms: list[str]) -> Component:
-        """`forcemap fit`'s fit of ``column`` on ``survey`` (hyperparameters by marginal likelihood,
-        from scratch: a warm start from the previous refit keeps a basis sized for fewer samples,
-        and was measured up to half the map's range away from `forcemap fit`'s map)."""
-        sm = SurveyModel(survey, column, terms).fit()
+    def refit(
+        cls, survey: Survey, column: str, terms: list[str], like: Component | None = None
+    ) -> Component:
+        """`forcemap fit`'s fit of ``column`` on ``survey``: hyperparameters by marginal likelihood,
+        from scratch (a warm start from the previous refit keeps a basis sized for fewer samples,
+        and was measured up to half the map's range away from `forcemap fit`'s map); with ``like``,
+        ``like``'s hyperparameters and number of basis functions on a basis over all of ``survey``."""
+        sm = SurveyModel(survey, column, terms)
+        if like is None:
+            sm.fit()
+        else:
+            sm.fit(theta=like.model.theta_, n_basis=like.model.n_basis_)
         model, y = sm.primary, np.asarray(sm.y_primary, float)
         ys = model.y_scale_
         r = y / ys
         G = np.array(model.design_.G, copy=True)
         return cls(column, model, ys, G, model.design_.rmatvec(r), float(r @ r), len(y))
+
+    def covers(self, xy: np.ndarray) -> bool:
+        """Whether every point of ``xy`` lies inside the box the spatial basis was built on."""
+        if not len(xy):
+            return True
+        for t in self.model.terms_:
+            if isinstance(t, HilbertGPTerm):
+                Zr = (term_inputs(t, {"position": xy}) - t.center) @ t.rot
+                if np.any(np.abs(Zr) > t.half * (1.0 + 1e-9)):
+                    return False
+        return True
+
+    def same_basis(self, xy: np.ndarray, tol: float = BASIS_TOL) -> bool:
+        """Whether a fresh fit on the samples ``xy`` would build this basis (its box's centre, axes and
+        half-widths within ``tol``; an axis's sign does not change the basis's span). Only then is a
+        rank-one update the fresh fit's map: another box gives another reduced-rank approximation
+        (with a 1 % tolerance, measured up to 3 % of the map's range apart near the samples; with
+        0.3 %, within 1 %: tests/test_live_maps.py)."""
+        for t in self.model.terms_:
+            if isinstance(t, HilbertGPTerm):
+                fresh = copy.deepcopy(t)
+                fresh.setup(term_inputs(t, {"position": xy}))
+                scale = float(t.half.max())
+                if not (
+                    np.allclose(fresh.center, t.center, rtol=0.0, atol=tol * scale)
+                    and np.allclose(np.abs(fresh.rot), np.abs(t.rot), rtol=0.0, atol=tol)
+                    and np.allclose(fresh.half, t.half, rtol=tol, atol=tol * scale)
+                ):
+                    return False
+        return True
 
     def features(self, xy: np.ndarray) -> np.ndarray:
         return np.hstack(self.model.features({"position": xy}))
@@ -107,11 +150,18 @@ class MapGrid:
     t_fit: float  # UNIX s of the last sample in the map
     t_hyper: float  # UNIX s of the last sample of the latest hyperparameter refit
     reason: str = ""
+    n_hyper: int = 0  # samples the hyperparameters were fitted on
+    basis_covers: bool = True  # the basis's box holds every sample in the map
     terms: list[str] = field(default_factory=lambda: list(BASELINE))
 
     @property
     def shape(self) -> tuple[int, int]:
         return next(iter(self.fields.values())).shape
+
+    @property
+    def hyper_age_s(self) -> float:
+        """Seconds of samples since the hyperparameters were fitted (0 right after a refit)."""
+        return self.t_fit - self.t_hyper
 
     def age_s(self, now_s: float) -> float:
         """Seconds between the newest sample in the map and ``now_s``."""

@@ -66,8 +66,8 @@ def info_message(g: MapGrid) -> MapInfo:
     ny, nx = g.shape
     return MapInfo(
         g.target, g.t_fit, g.lat0, g.lon0, g.x0, g.y0, g.step, nx, ny, g.n_samples, 0.0,
-        g.t_fit - g.t_hyper, sorted(g.fields), float(np.nanmin(v)), float(np.nanmax(v)),
-        float(np.nanmax(sd)), g.reason,
+        g.hyper_age_s, sorted(g.fields), g.n_hyper, g.basis_covers, float(np.nanmin(v)),
+        float(np.nanmax(v)), float(np.nanmax(sd)), g.reason,
     )  # fmt: skip
 
 

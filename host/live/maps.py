@@ -3,8 +3,14 @@
 Time is the samples' own (their ``t``), so a replay at any speed and a test give the same maps. The
 policy: an update (rank-one statistics, new posterior, new grid) every ``every_s`` and at the end of a
 line; a hyperparameter refit (`forcemap fit`'s path) at the first update with enough samples, then
-every ``refit_every_s``, when the samples have doubled since the last one, or when the boat has left
-the box the basis was built for.
+every ``refit_every_s`` or when the samples have doubled since the last one. Between refits, an
+update adds the new samples as rank-one updates while a fresh fit on all samples would build the
+same basis (`Component.same_basis`: the box's centre, axes and half-widths within 0.3 %); otherwise
+(a sample past the box, or the samples' principal axes turned) it rebuilds the basis over all
+samples with the kept hyperparameters ("basis rebuilt"). So a published map's basis covers every
+sample in it (`MapGrid.basis_covers`), the map is the fresh fit's with these hyperparameters, and
+what differs from a fresh `forcemap fit` is the hyperparameters' age (`MapGrid.hyper_age_s`,
+`n_hyper`).
 """
 
 from __future__ import annotations
@@ -69,11 +75,11 @@ class TargetState:
     comps: list[Component]
     lat0: float
     lon0: float
-    box: tuple[np.ndarray, np.ndarray]
-    grid: tuple[float, float, float, int, int]
     t_hyper: float
-    n_refit: int
-    applied: int  # samples (rows of the columns) already in the statistics
+    n_refit: int  # rows of the columns at the last hyperparameter refit
+    n_hyper: int  # samples of this target the hyperparameters were fitted on
+    t_applied: float  # the newest sample's time in the statistics
+    rebases: int = 0
 
 
 @dataclass
@@ -91,6 +97,7 @@ class LiveMaps:
     last_update: float | None = None
     line_end: bool = False
     refits: int = 0
+    rebases: int = 0
     updates: int = 0
 
     @property
@@ -145,17 +152,7 @@ class LiveMaps:
     def _needs_refit(self, st: TargetState | None, cols: dict[str, np.ndarray]) -> bool:
         if st is None:
             return True
-        t = cols["t"][-1]
-        if t - st.t_hyper >= self.refit_every_s or self.n >= 2 * st.n_refit:
-            return True
-        x, y = local_frame(cols["lat"][st.applied :], cols["lon"][st.applied :], st.lat0, st.lon0)
-        lo, hi = st.box
-        span = np.maximum(hi - lo, 0.25 * float(np.max(hi - lo)))
-        return bool(
-            len(x)
-            and (np.any(x < lo[0] - 0.1 * span[0]) or np.any(x > hi[0] + 0.1 * span[0])
-                 or np.any(y < lo[1] - 0.1 * span[1]) or np.any(y > hi[1] + 0.1 * span[1]))
-        )  # fmt: skip
+        return cols["t"][-1] - st.t_hyper >= self.refit_every_s or self.n >= 2 * st.n_refit
 
     def _update(self, target, columns, cols, reason, refit=False) -> MapGrid | None:
         known = np.ones(self.n, bool)
@@ -165,27 +162,35 @@ class LiveMaps:
             self.notes[target] = f"{int(known.sum())} samples with {target} so far"
             return None
         st = self.state.get(target)
+        # the rows the workbench keeps (a position jump is dropped there, so here too)
+        survey = live_survey(cols, list(columns))
         if refit or self._needs_refit(st, cols):
-            survey = live_survey(cols, list(columns))
             comps = [Component.refit(survey, c, self.terms) for c in columns]
-            xy = survey.xy
-            st = TargetState(comps, survey.lat0, survey.lon0, (xy.min(axis=0), xy.max(axis=0)),
-                             grid_over(xy), cols["t"][-1], self.n, self.n)  # fmt: skip
+            st = TargetState(comps, survey.lat0, survey.lon0, float(cols["t"][-1]), self.n,
+                             survey.n, 0.0)  # fmt: skip
             self.state[target] = st
             self.refits += 1
             reason = f"{reason}; hyperparameters refitted"
         else:
-            new = slice(st.applied, self.n)
-            x, y = local_frame(cols["lat"][new], cols["lon"][new], st.lat0, st.lon0)
-            rows_ok = known[new]
-            xy = np.column_stack([x, y])[rows_ok]
-            for comp in st.comps:
-                comp.add(xy, cols[comp.column][new][rows_ok])
-            st.applied = self.n
-        return self._grid(target, st, cols, reason)
+            xy = np.column_stack(local_frame(survey.columns["lat"], survey.columns["lon"],
+                                             st.lat0, st.lon0))  # fmt: skip
+            new = survey.columns["t"] > st.t_applied
+            if all(comp.same_basis(xy) for comp in st.comps):
+                for comp in st.comps:
+                    comp.add(xy[new], survey.columns[comp.column][new])
+            else:  # a fresh fit's basis, over all samples, with the same hyperparameters
+                st.comps = [Component.refit(survey, c.column, self.terms, like=c) for c in st.comps]
+                st.lat0, st.lon0 = survey.lat0, survey.lon0
+                st.rebases += 1
+                self.rebases += 1
+                reason = f"{reason}; basis rebuilt"
+        st.t_applied = float(survey.columns["t"].max())
+        xy = np.column_stack(local_frame(survey.columns["lat"], survey.columns["lon"],
+                                         st.lat0, st.lon0))  # fmt: skip
+        return self._grid(target, st, cols, xy, reason)
 
-    def _grid(self, target: str, st: TargetState, cols, reason: str) -> MapGrid:
-        x0, y0, step, nx, ny = st.grid
+    def _grid(self, target: str, st: TargetState, cols, xy_all, reason: str) -> MapGrid:
+        x0, y0, step, nx, ny = grid_over(xy_all)  # the grid follows the samples
         gx, gy = np.meshgrid(x0 + step * np.arange(nx), y0 + step * np.arange(ny))
         xy = np.column_stack([gx.ravel(), gy.ravel()])
         fields: dict[str, np.ndarray] = {}
@@ -197,5 +202,7 @@ class LiveMaps:
             fields["speed"] = np.hypot(fields["east"], fields["north"])
             fields["speed_sd"] = np.hypot(fields["east_sd"], fields["north_sd"]) / math.sqrt(2.0)
         n = int(min(c.n for c in st.comps))
+        covers = all(comp.covers(xy_all) for comp in st.comps)
         return MapGrid(target, st.lat0, st.lon0, x0, y0, step, fields, n, float(cols["t"][-1]),
-                       float(st.t_hyper), reason, list(self.terms))  # fmt: skip
+                       float(st.t_hyper), reason, n_hyper=st.n_hyper, basis_covers=covers,
+                       terms=list(self.terms))  # fmt: skip
