@@ -24,6 +24,7 @@ from forcemap.host.live.growing import Component, MapGrid, grid_over, live_surve
 from forcemap.host.workbench.cleaning import local_frame
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.table import MIN_ROWS
 
 TARGETS: dict[str, tuple[str, ...]] = {
@@ -162,8 +163,8 @@ class LiveMaps:
             self.notes[target] = f"{int(known.sum())} samples with {target} so far"
             return None
         st = self.state.get(target)
-        # the rows the workbench keeps (a position jump is dropped there, so here too)
-        survey = live_survey(cols, list(columns))
+        # the rows `forcemap fit` keeps: a position jump and the target's spikes are left out
+        survey = without_spikes(live_survey(cols, list(columns)), columns[0])[0]
         if refit or self._needs_refit(st, cols):
             comps = [Component.refit(survey, c, self.terms) for c in columns]
             st = TargetState(comps, survey.lat0, survey.lon0, float(cols["t"][-1]), self.n,
