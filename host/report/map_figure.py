@@ -89,7 +89,7 @@ def grid_figure(grid: MapGrid, layer: Layer, track: tuple[np.ndarray, np.ndarray
         a1.quiver(
             X[sl], Y[sl], u[sl], v[sl], color="white", angles="xy", scale_units="xy", scale=scale
         )
-    elif finite.any() and hi > lo:
+    elif finite.any() and hi > lo and min(mean.shape) >= 2:  # a one-row grid has no contours
         cs = a1.contour(X, Y, mean, levels=np.linspace(lo, hi, 8), colors="k", linewidths=0.6)
         a1.clabel(cs, fontsize=7, fmt="%.1f")
     a1.plot(track[0] - sx, track[1] - sy, ",", color="0.6", alpha=0.3)
