@@ -6,9 +6,9 @@ import math
 import random
 from dataclasses import dataclass
 
+from forcemap.host.vessel.geodesy import LocalFrame
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from .geo import Geo
 from .mission_protocol import MissionReceiver
 
 # (message, period s): ArduPilot Rover's default SRx_ stream rates
@@ -56,7 +56,7 @@ class Autopilot:
 
     def __init__(
         self,
-        geo: Geo,
+        geo: LocalFrame,
         t0_unix: float,
         seed: int = 0,
         boot_before_s: float = 6.0,

@@ -17,17 +17,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel.boat import Boat, HullState
+from forcemap.host.vessel.control import Controller, Navigator
+from forcemap.host.vessel.geodesy import LocalFrame
 
 from . import effects as fx
 from . import faults as fl
-from . import mission as ms
-from . import scenario as sc
 from .autopilot import Autopilot, NavState
-from .boat import Boat, BoatParams, BoatState
+from .boat import JETYAK, ROVER_GAINS
 from .bridge_emu import EmulatedBridge
-from .control import Controller, Navigator
 from .fields import World
-from .geo import Geo
 from .instruments import InstrumentConfig, Readings, Sensors
 from .machine_emu import PWRON_RESET
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
@@ -73,7 +74,7 @@ class Simulation:
         # the NMEA-only boat's bus (nmea_bus.py) on the "nmea" port: on request or with its faults
         self.bus_faults = {f.kind for f in self.faults if f.kind in fl.BUS_KINDS}
         self.nmea_bus = nmea_bus or bool(self.bus_faults)
-        self.geo = Geo(self.scenario.lat0, self.scenario.lon0)
+        self.geo = LocalFrame(self.scenario.lat0, self.scenario.lon0)
         self.t0_ns = int(round(self.scenario.t0 * 1e9))
         self.world: World | None = None
         self.track: dict[str, np.ndarray] = {}
@@ -96,10 +97,10 @@ class Simulation:
         wps = self.mission.waypoints
         a, b = wps[0], wps[1]
         psi = math.atan2(b[0] - a[0], b[1] - a[1]) % (2 * math.pi)
-        self.boat = Boat(BoatParams(), BoatState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
+        self.boat = Boat(JETYAK, HullState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
         self.cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
-        self.nav = Navigator(wps, loop=self.mission.loop, speeds=self.mission.speeds)
-        self.ctl = Controller(self.cruise)
+        self.nav = Navigator(wps, ROVER_GAINS, loop=self.mission.loop, speeds=self.mission.speeds)
+        self.ctl = Controller(self.cruise, ROVER_GAINS)
         icfg = InstrumentConfig.from_table(tables.get("instruments", {}))
         mis = self._effect("wheel_misalignment")
         up = self._effect("anemometer_upwash")
@@ -380,7 +381,9 @@ class Simulation:
                 self.mission = ms.from_items(rx.accepted, self.geo, (s.x, s.y))
             except ValueError:
                 return  # nothing to fly: keep the current mission, as Rover does
-            self.nav = Navigator(self.mission.waypoints, loop=False, speeds=self.mission.speeds)
+            self.nav = Navigator(
+                self.mission.waypoints, ROVER_GAINS, loop=False, speeds=self.mission.speeds
+            )
 
     def advance(self, t_s: float, progress: Progress | None = None) -> None:
         """Step until sim time ``t_s`` (s since the start), capped at the run's duration."""

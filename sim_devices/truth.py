@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
 
 from .fields import World
-from .geo import Geo
 
 COLUMNS = (
     "t", "x", "y", "lat", "lon", "heading", "yaw_rate", "sog", "cog", "boat_east", "boat_north",
@@ -41,7 +41,7 @@ def track_arrays(rows: list, extra: list) -> dict[str, np.ndarray]:
     return out
 
 
-def samples_table(track: dict[str, np.ndarray], geo: Geo, t0: float) -> np.ndarray:
+def samples_table(track: dict[str, np.ndarray], geo: LocalFrame, t0: float) -> np.ndarray:
     """The samples.csv table from the true track: columns as ``COLUMNS``, UNIX time from ``t0``."""
     if not track:
         return np.empty((0, len(COLUMNS)))

@@ -17,10 +17,10 @@ from forcemap.host.cli.common import (
     parse_duration,
 )
 from forcemap.host.errors import CliError
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
 from forcemap.sim_devices import effects as fx
 from forcemap.sim_devices import faults as fl
-from forcemap.sim_devices import mission as ms
-from forcemap.sim_devices import scenario as sc
 
 EPILOG = """\
 examples:

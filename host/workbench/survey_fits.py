@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from forcemap.host.vessel.geodesy import wrap_from_minus180
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
 from forcemap.host.workbench.spec import BASELINE
@@ -14,10 +15,6 @@ from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, pre
 # hyperparameters come from samples this far apart in time (see hyper_rows), but never fewer than MIN_HYPER_ROWS
 HYPER_SPACING_S = 5.0
 MIN_HYPER_ROWS = 300
-
-
-def wrap180(a: np.ndarray) -> np.ndarray:
-    return (a + 180.0) % 360.0 - 180.0
 
 
 def circular_median(deg: np.ndarray) -> float:
@@ -191,7 +188,7 @@ def _derive(survey: Survey, name: str) -> np.ndarray:
     flow = np.degrees(np.arctan2(ue, un))
     if vt.is_from:
         flow = flow + 180.0
-    return wrap180(prepare_column(survey, "heading", "covariate") - flow)
+    return wrap_from_minus180(prepare_column(survey, "heading", "covariate") - flow)
 
 
 def covariate(survey: Survey, name: str) -> np.ndarray:
