@@ -14,10 +14,15 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `bench.*` when run as a script
+
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.model import Model, small_blas
 

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `bench.*` when run as a script
+
 from bench.closed_loop import fly, low_discharge_scenario, plan_files, survey
 
 SEED_A, SEED_B = 1, 2

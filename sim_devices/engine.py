@@ -33,7 +33,7 @@ from .instruments import InstrumentConfig, Readings, Sensors
 from .machine_emu import PWRON_RESET
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
-from .truth import samples_table, track_arrays, write_all, write_pulses
+from .truth import effects_meta, samples_table, track_arrays, write_all, write_pulses
 
 Sink = Callable[[str, int, bytes], Any]
 Progress = Callable[[float, float], Any]
@@ -157,7 +157,8 @@ class Simulation:
         self.damage = {
             s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES
         }
-        self._schedule_faults()
+        self.actions = fl.schedule(self.faults, self.duration)
+        self.garbler: Garbler | None = None
         self.t = 0.0
         self.k = 0
         self.next_sound = 1.0
@@ -169,25 +170,6 @@ class Simulation:
         self.psi_d, self.xte = psi, 0.0
         self.stats = dict.fromkeys(fl.SOURCES, 0)
         self._update_point()
-
-    def _schedule_faults(self) -> None:
-        """Time-ordered (t s, action, fault) list for the step loop."""
-        acts: list[tuple[float, str, fl.Fault]] = []
-        for f in self.faults:
-            a, b = f.start(self.duration), f.end(self.duration)
-            if f.kind == "pull":
-                acts += [(a, "unplug", f), (b, "plug", f)]
-            elif f.kind == "reset":
-                acts.append((a, "reset", f))
-            elif f.kind == "gps_loss":
-                acts += [(a, "gps_off", f), (b, "gps_on", f)]
-            elif f.kind == "clock_jump":
-                acts.append((a, "clock_jump", f))
-            elif f.kind == "nmea_garbage":
-                acts += [(a, "garble_on", f)] + ([(b, "garble_off", f)] if math.isfinite(b) else [])
-        acts.sort(key=lambda x: x[0])
-        self.actions = acts
-        self.garbler: Garbler | None = None
 
     # ---- time bases -----------------------------------------------------------------------
     def _ns(self, t_s: float) -> int:
@@ -276,9 +258,7 @@ class Simulation:
         self.ctl.cruise = self.nav.speed(self.cruise)
         sog = math.hypot(s.ve, s.vn)
         self.throttle, steer = self.ctl.update(dt, s.psi, s.r, psi_d, sog)
-        if (
-            self.nav.done
-        ):  # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
+        if self.nav.done:  # Rover's HOLD at a mission's end (MIS_DONE_BEHAVE 0): motor off, adrift
             self.throttle, steer = 0.0, 0.0
         t_prev = self.t
         self.k += 1
@@ -321,9 +301,7 @@ class Simulation:
             for ch, times in enumerate(self.sensors.edges(rates, u0, u1)):
                 if times:
                     self.bridge.add_edges(ch, times)
-                    if (
-                        self.truth_dir is not None
-                    ):  # the ledger is truth; a long live run keeps none
+                    if self.truth_dir is not None:  # the ledger is truth; a live run keeps none
                         self.pulses[ch].extend(self.sensors.primary[ch])
             self.bridge.set_vane_voltage(self.sensors.vane_volts(truth.app_angle))
         self.bridge.advance_to(u1)
@@ -423,30 +401,4 @@ class Simulation:
 
     def meta(self) -> dict[str, Any]:
         """What effects.json holds."""
-        return {
-            "scenario": self.scenario.name,
-            "scenario_path": self.scenario.path,
-            "mission": self.mission.name,
-            "seed": self.seed,
-            "lat0": self.scenario.lat0,
-            "lon0": self.scenario.lon0,
-            "t0": self.scenario.t0,
-            "duration": self.t,
-            "effects": [
-                {"name": e.name, "kind": e.spec.kind, "story": e.spec.story, "params": e.params}
-                for e in self.effects
-            ],
-            "faults": [f.resolved(self.duration) for f in self.faults],
-            "fault_log": [{"t": t, "action": a, "source": s} for t, a, s in self.fault_log],
-            "instruments": {
-                "wheel_angles_deg": list(self.sensors.cfg.wheel_angles_deg),
-                "wheel_pulses_per_m": list(self.sensors.cfg.wheel_pulses_per_m),
-                "anemo_hz_per_mps": self.sensors.cfg.anemo_hz_per_mps,
-                "bridge_clock_ppm": self.ppm,
-                "mavlink_latency_s": self.mav_latency_ns * 1e-9,
-                "sounder_offset_m": self.sounder.offset,
-                "sounder_noise_m": self.sounder.noise,
-                "false_echoes": self.sounder.false_echoes,
-                "nmea_bus": sorted(self.bus_faults) if self.nmea_bus else None,
-            },
-        }
+        return effects_meta(self)
