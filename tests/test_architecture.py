@@ -16,7 +16,12 @@ import importlib
 import sys
 from pathlib import Path
 
-PACKAGES = ("forcemap.host", "forcemap.protocol", "forcemap.sim_devices", "forcemap.firmware_bridge")
+PACKAGES = (
+    "forcemap.host",
+    "forcemap.protocol",
+    "forcemap.sim_devices",
+    "forcemap.firmware_bridge",
+)
 SIM_COMMANDS = {"forcemap.host.cli.sim", "forcemap.host.cli.demo"}
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
@@ -57,7 +62,9 @@ def imports_of(name: str, file: Path, known: set[str]) -> set[str]:
                 anchor = anchor[: len(anchor) - node.level + 1]
                 base = ".".join(anchor + ([base] if base else []))
             # `from pkg import mod` imports the module pkg.mod; `from mod import name` imports mod
-            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names]
+            targets = [
+                f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names
+            ]
         else:
             continue
         for t in targets:
@@ -139,7 +146,9 @@ def test_modules_and_functions_are_small():
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 length = node.end_lineno - node.lineno + 1  # type: ignore[operator]
                 if length > MAX_FUNCTION_LINES:
-                    long_functions.append(f"{name}.{node.name} (line {node.lineno}): {length} lines")
+                    long_functions.append(
+                        f"{name}.{node.name} (line {node.lineno}): {length} lines"
+                    )
     assert not long_modules and not long_functions, "\n".join(long_modules + long_functions)
 
 
