@@ -35,7 +35,7 @@ class BoatParams:
 
     @property
     def max_speed(self) -> float:
-        """Speed through the water at full throttle, straight ahead (m/s)."""
+        """Speed through the water at full throttle, straight ahead, from the hull's drag alone (m/s)."""
         return (-self.x_u + math.sqrt(self.x_u**2 + 4 * self.x_uu * self.thrust_max)) / (
             2 * self.x_uu
         )
