@@ -1,5 +1,6 @@
 """The shape of the package, read from its source with `ast`: imports point one way, modules stay small.
 
+- host's rooms import only the rooms above them on docs/ARCHITECTURE.md's page.
 - No cycle among the modules of `forcemap` (every import counts: top level, inside functions, under
   TYPE_CHECKING). A failure names the cycle.
 - `host` imports `sim_devices` only in the simulator's own commands (`host/cli/sim.py`, `host/cli/demo.py`).
@@ -23,6 +24,10 @@ PACKAGES = (
     "forcemap.firmware_bridge",
 )
 SIM_COMMANDS = {"forcemap.host.cli.sim", "forcemap.host.cli.demo"}
+# host's rooms in import order (docs/ARCHITECTURE.md): "host" is its top-level modules
+ROOMS = [
+    "host", "vessel", "log", "acquire", "decode", "fuse", "convert", "workbench", "plan", "report", "cli",
+]  # fmt: skip
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 80
 DOC = Path(__file__).resolve().parents[1] / "docs" / "ARCHITECTURE.md"
@@ -126,6 +131,32 @@ def test_host_uses_the_simulator_only_in_its_commands():
     assert not bad, "host imports the simulator outside cli/sim.py and cli/demo.py:\n" + "\n".join(
         bad
     )
+
+
+def room_of(module: str) -> str:
+    parts = module.split(".")
+    if parts[1] != "host":
+        return parts[1]
+    return parts[2] if len(parts) > 3 or f"host/{parts[2]}" in ROOM_PACKAGES else "host"
+
+
+ROOM_PACKAGES = {f"host/{r}" for r in ROOMS if r != "host"}
+
+
+def test_rooms_import_only_rooms_above_them():
+    """docs/ARCHITECTURE.md's order: a room imports its own modules and those of the rooms above it
+    (so the report, above the workbench and the plan, is imported by the commands alone)."""
+    graph = import_graph()
+    bad = sorted(
+        f"{m} -> {t}"
+        for m, ts in graph.items()
+        if m.startswith("forcemap.host")
+        for t in ts
+        if t.startswith("forcemap.host") and ROOMS.index(room_of(t)) > ROOMS.index(room_of(m))
+    )
+    assert not bad, "imports that point up docs/ARCHITECTURE.md's rooms:\n" + "\n".join(bad)
+    assert room_of("forcemap.host.workbench.diagnose.rounds") == "workbench"
+    assert room_of("forcemap.host.outputs") == "host"
 
 
 def test_the_simulator_commands_do_use_it():
