@@ -26,10 +26,10 @@ from forcemap.host.vessel.geodesy import LocalFrame
 from . import effects as fx
 from . import faults as fl
 from .autopilot import Autopilot, NavState
-from .boat import JETYAK, ROVER_GAINS
 from .bridge_emu import EmulatedBridge
 from .fields import World
 from .instruments import InstrumentConfig, Readings, Sensors
+from .jetyak import JETYAK, ROVER_GAINS
 from .machine_emu import PWRON_RESET
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart

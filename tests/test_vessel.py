@@ -10,7 +10,7 @@ import pytest
 from forcemap.host.plan.boat_model import BoatModel
 from forcemap.host.vessel import geodesy as g
 from forcemap.host.vessel.boat import Boat, HullState
-from forcemap.sim_devices.boat import JETYAK
+from forcemap.sim_devices.jetyak import JETYAK
 from pyproj import Geod
 
 WGS84 = Geod(ellps="WGS84")

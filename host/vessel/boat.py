@@ -1,6 +1,6 @@
 """A 3-DOF surface vessel (surge, sway, yaw) like a Jetyak: jet thrust and nozzle, pushed by current and wind.
 
-The equations only: the simulator's true hull is in `sim_devices.boat`, the planner's belief in
+The equations only: the simulator's true hull is in `sim_devices.jetyak`, the planner's belief in
 `plan.boat_model`; both are `BoatParams` values."""
 
 from __future__ import annotations

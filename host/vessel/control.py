@@ -1,6 +1,6 @@
 """Waypoint guidance and PID heading and speed control, like a stock ArduPilot Rover's AUTO mode.
 
-The laws only: the simulated autopilot's tuning is in `sim_devices.boat`, the planner's belief in
+The laws only: the simulated autopilot's tuning is in `sim_devices.jetyak`, the planner's belief in
 `plan.boat_model`; both are `Gains` values."""
 
 from __future__ import annotations
