@@ -1,4 +1,7 @@
-"""Scenarios: the TOML files that describe a world (river, lake), loaded by name or path."""
+"""Scenarios: the TOML files that describe a place (river, lake), loaded by name or path.
+
+The `[scenario]` table is what missions are laid out in (origin, survey box, flow direction); the other
+tables are the world the simulator builds there (`sim_devices.fields`), kept raw in `Scenario.tables`."""
 
 from __future__ import annotations
 
