@@ -33,7 +33,14 @@ from .jetyak import JETYAK, ROVER_GAINS
 from .machine_emu import PWRON_RESET
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
-from .truth import effects_meta, samples_table, track_arrays, write_all, write_pulses
+from .truth import (
+    effects_meta,
+    samples_table,
+    track_arrays,
+    write_all,
+    write_mission,
+    write_pulses,
+)
 
 Sink = Callable[[str, int, bytes], Any]
 Progress = Callable[[float, float], Any]
@@ -379,7 +386,7 @@ class Simulation:
         if self.truth_dir is not None:
             write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
             write_pulses(Path(self.truth_dir) / "pulses.npz", self.boots, self.pulses)
-            ms.write_truth(Path(self.truth_dir), self.mission, self.geo)
+            write_mission(Path(self.truth_dir), self.mission, self.geo)
 
     def _note_boot(self) -> None:
         self.boots.append((self.bridge.boot_id, self.bridge.boot_us))

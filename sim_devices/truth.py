@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.vessel import mission as ms
 from forcemap.host.vessel.geodesy import LocalFrame
 
 from .fields import World
@@ -135,3 +136,9 @@ def effects_meta(sim: Any) -> dict[str, Any]:
             "nmea_bus": sorted(sim.bus_faults) if sim.nmea_bus else None,
         },
     }
+
+
+def write_mission(folder: Path, mission: ms.Mission, frame: LocalFrame) -> None:
+    """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
+    ms.save_waypoints(folder / "mission.waypoints", mission, frame)
+    (folder / "mission.json").write_text(json.dumps(ms.to_json(mission, frame), indent=1) + "\n")

@@ -246,9 +246,3 @@ def describe_all() -> list[tuple[str, str]]:
         data, _ = _read(n)
         out.append((n, str(data.get("mission", {}).get("description", ""))))
     return out
-
-
-def write_truth(folder: Path, mission: Mission, geo: LocalFrame) -> None:
-    """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
-    save_waypoints(folder / "mission.waypoints", mission, geo)
-    (folder / "mission.json").write_text(json.dumps(to_json(mission, geo), indent=1) + "\n")
