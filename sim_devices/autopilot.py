@@ -6,6 +6,8 @@ import math
 import random
 from dataclasses import dataclass
 
+from forcemap.host.vessel.boat import HullState
+from forcemap.host.vessel.control import Navigator
 from forcemap.host.vessel.geodesy import LocalFrame
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
@@ -49,6 +51,30 @@ class NavState:
     nav_bearing_deg: float = 0.0  # the guidance's desired heading
     target_bearing_deg: float = 0.0  # bearing to the waypoint
     wp_dist: float = 0.0
+
+
+def nav_state(
+    t: float,
+    heading_deg: float,
+    s: HullState,
+    nav: Navigator,
+    seqs,
+    throttle: float,
+    xte: float,
+    psi_d: float,
+) -> NavState:  # type: ignore[no-untyped-def]
+    """What the autopilot knows at ``t``: the hull's state and where the navigator is on the mission
+    (``seqs``: the mission item of each waypoint, None for a mission not received over MAVLink)."""
+    wx, wy = nav.wps[nav.leg]
+    return NavState(
+        t, s.x, s.y, heading_deg, s.r, s.ve, s.vn, throttle,
+        wp_seq=int(seqs[nav.leg]) if seqs is not None else nav.leg + 1,
+        wp_total=int(seqs[-1]) + 1 if seqs is not None else len(nav.wps) + 1,
+        xtrack=xte,
+        nav_bearing_deg=math.degrees(psi_d) % 360.0,
+        target_bearing_deg=math.degrees(math.atan2(wx - s.x, wy - s.y)) % 360.0,
+        wp_dist=math.hypot(wx - s.x, wy - s.y),
+    )  # fmt: skip
 
 
 @dataclass

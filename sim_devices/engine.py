@@ -25,7 +25,8 @@ from forcemap.host.vessel.geodesy import LocalFrame
 
 from . import effects as fx
 from . import faults as fl
-from .autopilot import Autopilot, NavState
+from . import truth as truth_files
+from .autopilot import Autopilot, nav_state
 from .bridge_emu import EmulatedBridge
 from .fields import World
 from .instruments import InstrumentConfig, Readings, Sensors
@@ -33,14 +34,6 @@ from .jetyak import JETYAK, ROVER_GAINS
 from .machine_emu import PWRON_RESET
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
-from .truth import (
-    effects_meta,
-    samples_table,
-    track_arrays,
-    write_all,
-    write_mission,
-    write_pulses,
-)
 
 Sink = Callable[[str, int, bytes], Any]
 Progress = Callable[[float, float], Any]
@@ -90,10 +83,7 @@ class Simulation:
 
     # ---- set-up ---------------------------------------------------------------------------
     def _effect(self, name: str) -> dict[str, Any] | None:
-        for e in self.effects:
-            if e.name == name:
-                return e.params
-        return None
+        return next((e.params for e in self.effects if e.name == name), None)
 
     def start(self, duration_s: float, sink: Sink) -> None:
         """Build everything for a run of ``duration_s`` (the time-dependent effects scale with it)."""
@@ -108,6 +98,26 @@ class Simulation:
         self.cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
         self.nav = Navigator(wps, ROVER_GAINS, loop=self.mission.loop, speeds=self.mission.speeds)
         self.ctl = Controller(self.cruise, ROVER_GAINS)
+        self._build_devices(tables)
+        self.damage = {
+            s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES
+        }
+        self.actions = fl.schedule(self.faults, self.duration)
+        self.garbler: Garbler | None = None
+        self.t = 0.0
+        self.k = 0
+        self.next_sound = 1.0
+        self.next_progress = 0.0
+        self.pulled: set[str] = set()
+        self.rows: list[tuple[float, ...]] = []
+        self.extra: list[tuple[float, ...]] = []
+        self.throttle = 0.0
+        self.psi_d, self.xte = psi, 0.0
+        self.stats = dict.fromkeys(fl.SOURCES, 0)
+        self._update_point()
+
+    def _build_devices(self, tables: dict[str, Any]) -> None:
+        """The instruments, the bridge, the autopilot and their serial links, as the scenario sets them up."""
         icfg = InstrumentConfig.from_table(tables.get("instruments", {}))
         mis = self._effect("wheel_misalignment")
         up = self._effect("anemometer_upwash")
@@ -161,22 +171,6 @@ class Simulation:
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)
         self.uart_mav = Uart(MAVLINK_BYTES_PER_S, chunk=64)
-        self.damage = {
-            s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES
-        }
-        self.actions = fl.schedule(self.faults, self.duration)
-        self.garbler: Garbler | None = None
-        self.t = 0.0
-        self.k = 0
-        self.next_sound = 1.0
-        self.next_progress = 0.0
-        self.pulled: set[str] = set()
-        self.rows: list[tuple[float, ...]] = []
-        self.extra: list[tuple[float, ...]] = []
-        self.throttle = 0.0
-        self.psi_d, self.xte = psi, 0.0
-        self.stats = dict.fromkeys(fl.SOURCES, 0)
-        self._update_point()
 
     # ---- time bases -----------------------------------------------------------------------
     def _ns(self, t_s: float) -> int:
@@ -322,7 +316,17 @@ class Simulation:
                 self._push(t_ns, "depth", piece)
         if self.bus is not None:
             self._bus(t_new, heading_deg)
-        msgs = self.autopilot.messages(self._nav_state(t_new, heading_deg))
+        nav = (
+            t_new,
+            heading_deg,
+            s,
+            self.nav,
+            self.mission.seqs,
+            self.throttle,
+            self.xte,
+            self.psi_d,
+        )
+        msgs = self.autopilot.messages(nav_state(*nav))
         msgs += self.autopilot.uplink_due(t_new)
         if msgs:
             for t_ns, piece in self.uart_mav.send(self._ns(t_new), b"".join(msgs)):
@@ -337,20 +341,6 @@ class Simulation:
             data = "".join(x + "\r\n" for x in lines).encode("ascii")
             for t_ns, piece in self.uart_nmea.send(self._ns(t), data):
                 self._push(t_ns, "nmea", piece)
-
-    def _nav_state(self, t: float, heading_deg: float) -> NavState:
-        s, nav = self.boat.s, self.nav
-        wx, wy = nav.wps[nav.leg]
-        seqs = self.mission.seqs
-        return NavState(
-            t, s.x, s.y, heading_deg, s.r, s.ve, s.vn, self.throttle,
-            wp_seq=int(seqs[nav.leg]) if seqs is not None else nav.leg + 1,
-            wp_total=int(seqs[-1]) + 1 if seqs is not None else len(nav.wps) + 1,
-            xtrack=self.xte,
-            nav_bearing_deg=math.degrees(self.psi_d) % 360.0,
-            target_bearing_deg=math.degrees(math.atan2(wx - s.x, wy - s.y)) % 360.0,
-            wp_dist=math.hypot(wx - s.x, wy - s.y),
-        )  # fmt: skip
 
     def uplink(self, data: bytes) -> None:
         """Bytes a ground station wrote to the autopilot's port; a mission it completes is flown at once."""
@@ -382,11 +372,11 @@ class Simulation:
     def finish(self) -> None:
         """Flush every byte still queued and write the truth if a truth directory was given."""
         self._flush(2**62)
-        self.track = self._track()
+        self.track = truth_files.track_arrays(self.rows, self.extra)
         if self.truth_dir is not None:
-            write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
-            write_pulses(Path(self.truth_dir) / "pulses.npz", self.boots, self.pulses)
-            write_mission(Path(self.truth_dir), self.mission, self.geo)
+            truth_files.write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
+            truth_files.write_pulses(Path(self.truth_dir) / "pulses.npz", self.boots, self.pulses)
+            truth_files.write_mission(Path(self.truth_dir), self.mission, self.geo)
 
     def _note_boot(self) -> None:
         self.boots.append((self.bridge.boot_id, self.bridge.boot_us))
@@ -399,13 +389,11 @@ class Simulation:
         return self
 
     # ---- results --------------------------------------------------------------------------
-    def _track(self) -> dict[str, np.ndarray]:
-        return track_arrays(self.rows, self.extra)
-
     def truth_table(self) -> np.ndarray:
         """The samples.csv table: one row per 0.1 s, columns as ``truth.COLUMNS``."""
-        return samples_table(self.track or self._track(), self.geo, self.scenario.t0)
+        track = self.track or truth_files.track_arrays(self.rows, self.extra)
+        return truth_files.samples_table(track, self.geo, self.scenario.t0)
 
     def meta(self) -> dict[str, Any]:
         """What effects.json holds."""
-        return effects_meta(self)
+        return truth_files.effects_meta(self)
