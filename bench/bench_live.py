@@ -113,7 +113,7 @@ def refit() -> dict:
     from forcemap.host.live.growing import Component, live_survey
     from forcemap.host.live.layers import to_lonlat
     from forcemap.host.live.maps import LiveMaps
-    from forcemap.host.workbench.cleaning import local_frame
+    from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.spec import BASELINE
     from scipy.spatial import cKDTree
 
@@ -138,10 +138,10 @@ def refit() -> dict:
                 fresh = Component.refit(survey, "depth", list(BASELINE))
                 lon, lat = to_lonlat(xy[:, 0], xy[:, 1], g.lat0, g.lon0)
                 mu, _ = fresh.predict(
-                    np.column_stack(local_frame(lat, lon, survey.lat0, survey.lon0))
+                    np.column_stack(LocalFrame(survey.lat0, survey.lon0).to_local(lat, lon))
                 )
                 # where the boat has been: cells within 20 m of a sample (the rest is extrapolation)
-                sx, sy = local_frame(sofar["lat"], sofar["lon"], g.lat0, g.lon0)
+                sx, sy = LocalFrame(g.lat0, g.lon0).to_local(sofar["lat"], sofar["lon"])
                 near = cKDTree(np.column_stack([sx, sy])).query(xy)[0] <= 20.0
                 err = np.abs(g.fields["depth"].ravel() - mu)
                 diffs.append(

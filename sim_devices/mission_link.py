@@ -6,10 +6,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-
-from . import mission as ms
-from . import waypoints as wpl
-from .control import Navigator
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import waypoints as wpl
+from forcemap.host.vessel.control import Navigator
 
 
 class MissionLink:
@@ -83,5 +82,5 @@ class MissionLink:
         m.waypoints, m.seqs = m.waypoints[keep], seqs[keep]  # type: ignore[index]
         m.speeds = m.speeds[keep] if m.speeds is not None else None
         self.mission = m
-        self.nav = Navigator(m.waypoints, False, self.gains, m.speeds)
+        self.nav = Navigator(m.waypoints, self.gains, loop=False, speeds=m.speeds)
         self.autopilot.report_now("MISSION_CURRENT")

@@ -9,7 +9,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from . import clockfile
+from forcemap.host.acquire.arrival_clock import write_anchor
+
 from .engine import Simulation
 from .usb_cdc import HOST_BUFFER, UsbCdc
 
@@ -119,7 +120,7 @@ def run_live(
 
     def anchor(v: float) -> tuple[float, int]:
         mono = time.monotonic_ns()
-        clockfile.write_anchor(ports.clock_path, sim.t0_ns + int(v * 1e9), mono, speed)
+        write_anchor(ports.clock_path, sim.t0_ns + int(v * 1e9), mono, speed)
         return v, mono
 
     v_anchor, mono_anchor = anchor(0.0)

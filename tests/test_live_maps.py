@@ -27,10 +27,10 @@ def test_rank_one_updates_equal_the_batch_statistics():
     first = {k: v[:half] for k, v in cols.items()}
     comp = Component.refit(live_survey(first, "depth"), "depth", list(BASELINE))
     # the second half in the first half's frame, one sample at a time
-    from forcemap.host.workbench.cleaning import local_frame
+    from forcemap.host.vessel.geodesy import LocalFrame
 
     s0 = live_survey(first, "depth")
-    x, y = local_frame(cols["lat"], cols["lon"], s0.lat0, s0.lon0)
+    x, y = LocalFrame(s0.lat0, s0.lon0).to_local(cols["lat"], cols["lon"])
     for i in range(half, len(cols["t"])):
         comp.add(np.array([[x[i], y[i]]]), np.array([cols["depth"][i]]))
     Phi = comp.features(np.column_stack([x, y]))

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 from forcemap.host.live.growing import Component, MapGrid, grid_over, live_survey
-from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import MIN_ROWS
@@ -148,7 +148,9 @@ class LiveMaps:
         t = cols["t"][-1]
         if t - st.t_hyper >= self.refit_every_s or self.n >= 2 * st.n_refit:
             return True
-        x, y = local_frame(cols["lat"][st.applied :], cols["lon"][st.applied :], st.lat0, st.lon0)
+        x, y = LocalFrame(st.lat0, st.lon0).to_local(
+            cols["lat"][st.applied :], cols["lon"][st.applied :]
+        )
         lo, hi = st.box
         span = np.maximum(hi - lo, 0.25 * float(np.max(hi - lo)))
         return bool(
@@ -176,7 +178,7 @@ class LiveMaps:
             reason = f"{reason}; hyperparameters refitted"
         else:
             new = slice(st.applied, self.n)
-            x, y = local_frame(cols["lat"][new], cols["lon"][new], st.lat0, st.lon0)
+            x, y = LocalFrame(st.lat0, st.lon0).to_local(cols["lat"][new], cols["lon"][new])
             rows_ok = known[new]
             xy = np.column_stack([x, y])[rows_ok]
             for comp in st.comps:

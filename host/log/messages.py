@@ -14,6 +14,12 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
+from forcemap.host.log.live_records import (  # noqa: F401 - part of this API
+    LIVE_TOPIC_TYPES,
+    MAP_TARGETS,
+    Health,
+    MapInfo,
+)
 from forcemap.host.log.record import (  # noqa: F401 - part of this API
     FoxgloveLog,
     GeoJSON,
@@ -130,7 +136,7 @@ class RawChunk(Record):
 
 
 @dataclass(slots=True)
-class BoatState(Record):
+class BoatStateRecord(Record):
     NAME = "forcemap.BoatState"
     DESCRIPTION = "Navigation state; angles in compass degrees, speeds in m/s"
     t: float
@@ -343,50 +349,6 @@ class Sample(Record):
     wind_dir_instrument: Opt = None
 
 
-@dataclass(slots=True)
-class Health(Record):
-    """What `/health` carries, once a second: per source, the live server, the disk."""
-
-    NAME = "forcemap.Health"
-    DESCRIPTION = (
-        "Per source: state, bytes/s, seconds since the last reading, outages; the live "
-        "server's clients and drops; disk space left; the alerts now active"
-    )
-    t: float
-    sources: dict[str, Any]
-    live: dict[str, Any]
-    disk_free_bytes: int | None
-    alerts: list[str] = field(default_factory=list)
-
-
-@dataclass(slots=True)
-class MapInfo(Record):
-    """What one `/map/<target>` grid is: its frame, how many samples, how old, how uncertain."""
-
-    NAME = "forcemap.MapInfo"
-    DESCRIPTION = (
-        "A live map's grid: origin (x0, y0, m east/north of lat0, lon0), step, size; "
-        "samples so far, age of the fit and of its hyperparameters (s), value and sd ranges"
-    )
-    target: str
-    t: float
-    lat0: float
-    lon0: float
-    x0: float
-    y0: float
-    step: float
-    nx: int
-    ny: int
-    n_samples: int
-    age_s: float
-    hyper_age_s: float
-    fields: list[str]
-    value_min: Opt = None
-    value_max: Opt = None
-    sd_max: Opt = None
-    reason: str = ""
-
-
 SAMPLE_COLUMNS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Sample))
 
 
@@ -427,7 +389,7 @@ TOPIC_TYPES: dict[str, type[Record]] = {
     "/bridge/status": BridgeStatus,
     "/nmea/sentence": NmeaSentence,
     "/source/reading": SourceReading,
-    "/boat/state": BoatState,
+    "/boat/state": BoatStateRecord,
     "/wind/apparent": ApparentWind,
     "/wind/true": TrueWind,
     "/current": Current,
@@ -442,15 +404,6 @@ TOPIC_TYPES: dict[str, type[Record]] = {
     "/daemon/status": DaemonStatus,
     "/plan/replan": Replan,
 }
-
-# published live only (`forcemap run --live`), never logged: the MCAP is the same with or without
-# the live view; ``/map/<target>`` and ``/map/layers/<layer>`` are by prefix in `record_type`
-LIVE_TOPIC_TYPES: dict[str, type[Record]] = {
-    "/health": Health,
-    "/alerts": FoxgloveLog,
-    "/map/info": MapInfo,
-}
-MAP_TARGETS = ("current", "wind", "depth")
 
 
 def record_type(topic: str) -> type[Record] | None:

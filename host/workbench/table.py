@@ -8,12 +8,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.cleaning import (
-    EARTH_RADIUS_M,  # noqa: F401 - part of this module's interface
-    check_positions,
-    local_frame,
-    to_numeric,
-)
+from forcemap.host.vessel.geodesy import LocalFrame, wrap_from_minus180
+from forcemap.host.workbench.cleaning import check_positions, to_numeric
 from forcemap.host.workbench.errors import WorkbenchError
 
 MIN_ROWS = 30
@@ -342,9 +338,9 @@ def survey_from_columns(
     lat, lon = columns["lat"], columns["lon"]
     lat0 = 0.5 * (float(lat.min()) + float(lat.max()))
     lon0 = 0.5 * (float(lon.min()) + float(lon.max()))
-    columns["x"], columns["y"] = local_frame(lat, lon, lat0, lon0)
+    columns["x"], columns["y"] = LocalFrame(lat0, lon0).to_local(lat, lon)
     if "heading" in columns and "cog" in columns:
-        columns["crab"] = (columns["heading"] - columns["cog"] + 180.0) % 360.0 - 180.0
+        columns["crab"] = wrap_from_minus180(columns["heading"] - columns["cog"])
     survey = Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
     return survey
 
