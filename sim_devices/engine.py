@@ -261,27 +261,6 @@ class Simulation(MissionLink):
                 self.garbler = None
             self.fault_log.append((at, act, src))
 
-    def _steer(self, dt: float) -> tuple[float, float]:
-        """(throttle, steer) of the mode flown: the mission in AUTO, the mode's pilot otherwise."""
-        s = self.boat.s
-        while self.mode_changes and self.mode_changes[0].at_s <= self.t + 1e-9:
-            self.set_mode(self.mode_changes.pop(0).mode)
-        sog = math.hypot(s.ve, s.vn)
-        if self.mode == md.AUTO:
-            leg = self.nav.leg
-            self.psi_d, self.xte = self.nav.update(s.x, s.y)
-            if self.nav.leg != leg:  # Rover reports a new current item at once
-                self.autopilot.report_now("MISSION_CURRENT")
-            self.ctl.cruise = self.nav.speed(self.cruise)
-            out = self.ctl.update(dt, s.psi, s.r, self.psi_d, sog)
-            # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
-            return (0.0, 0.0) if self.nav.done else out
-        psi_d = self.pilot.heading(self.mode, s.x, s.y)
-        if psi_d is None:
-            return 0.0, 0.0
-        self.psi_d, self.ctl.cruise = psi_d, self.cruise
-        return self.ctl.update(dt, s.psi, s.r, psi_d, sog)
-
     def step(self) -> None:
         """Advance one boat step (DT) with every instrument."""
         dt = DT

@@ -28,6 +28,7 @@ SIM_COMMANDS = {"forcemap.host.cli.sim", "forcemap.host.cli.demo"}
 # host's rooms in import order (docs/ARCHITECTURE.md): "host" is its top-level modules
 ROOMS = [
     "host", "vessel", "log", "acquire", "decode", "fuse", "convert", "workbench", "plan", "gis", "report",
+    "season",
     "live", "api", "cli",
 ]  # fmt: skip
 MAX_MODULE_LINES = 400
