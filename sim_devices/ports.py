@@ -139,7 +139,7 @@ def run_live(
             if target - sim.t > max_lag:
                 v_anchor, mono_anchor = anchor(sim.t)
                 ports.reanchors += 1
-            if on_progress is not None and sim.t >= next_report:
+            if on_progress is not None and sim.t >= next_report and sim.t > 0:  # after a step
                 next_report = sim.t + 10.0
                 on_progress(sim.t, duration_s)
             if target <= sim.t:
