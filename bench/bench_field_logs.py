@@ -29,6 +29,9 @@ from forcemap.host.cli import main as forcemap
 from bench.field_sources import report as sources_report
 
 DEFAULT = Path(__file__).resolve().parents[2] / "shared/data/real/nmea/PacCupStartNMEA.txt"
+# every real NMEA capture that gives samples (NeutronDance is a corrupted stream kept for robustness)
+CAPTURES = ("PacCupStartNMEA.txt", "plaka.log", "bundg_zeus_9.log")
+SPIKE_TARGETS = ("depth", "current_speed", "wind_speed", "water_temp", "stw")
 TARGETS = ("current_speed", "wind_speed", "depth")
 COLUMNS = ("wind_speed", "wind_dir", "depth", "current_speed", "current_dir", "water_temp")
 
@@ -54,6 +57,28 @@ def filled(table: Path) -> tuple[int, dict[str, float]]:
     return len(rows), share
 
 
+def data_figures(capture: Path, out: Path) -> None:
+    """Spikes flagged per target, and the data-quality findings, of one capture (import, then the MCAP
+    read by the workbench, provenance and all)."""
+    from forcemap.host.workbench import data_quality
+    from forcemap.host.workbench.spikes import target_spikes
+    from forcemap.host.workbench.table import load_survey
+
+    mcap = out / (capture.stem + ".mcap")
+    step("import", str(capture), "-o", str(mcap))
+    survey = load_survey(mcap)
+    flagged = []
+    for target in SPIKE_TARGETS:
+        found = target_spikes(survey, target) if target in survey.columns else None
+        if found is not None:
+            kinds = ", ".join(f"{n} {why.split(' (')[0]}" for n, why, _ in found.kinds()) or "none"
+            flagged.append(f"{target} {found.count} ({kinds})")
+    print(f"\n{capture.name}: {survey.n} samples; spikes flagged: " + "; ".join(flagged))
+    for f in data_quality.findings(survey, [t for t in SPIKE_TARGETS if t in survey.columns]):
+        if f.kind != "spikes":
+            print(f"  {f.kind}: {f.text}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -63,12 +88,20 @@ def main() -> None:
         "-o", "--output", "--out", dest="out", type=Path, default=Path("/tmp/forcemap-bench-field")
     )
     ap.add_argument("--sources-only", action="store_true", help="only the sources' figures")
+    ap.add_argument(
+        "--data-only",
+        action="store_true",
+        help="only the spike and data-quality figures of every real capture",
+    )
     args = ap.parse_args()
     if args.sources_only:
         print("\n".join(sources_report(args.capture.parent)))
         return
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
+    if args.data_only:
+        data_only(args.capture.parent, args.out)
+        return
     mcap, table = args.out / "survey.mcap", args.out / "survey.csv"
 
     base, _ = step("import", str(args.capture), "-o", str(mcap))
@@ -103,6 +136,16 @@ def main() -> None:
         print(f"advice: {d['advice']}")
     print("\nsources of every real NMEA capture (issue 20):")
     print("\n".join(sources_report(args.capture.parent)))
+    for f in d.get("data_quality", []):
+        print(f"data quality, {f['kind']}: {f['text']}")
+    print()
+    data_only(args.capture.parent, args.out)
+
+
+def data_only(folder: Path, out: Path) -> None:
+    print("spikes and data-quality findings of the real NMEA captures:")
+    for name in CAPTURES:
+        data_figures(folder / name, out)
 
 
 if __name__ == "__main__":

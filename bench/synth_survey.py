@@ -176,10 +176,39 @@ def _wheels(F_meas: np.ndarray, h_meas: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
+# the sounder's noise (m, 1 sd): what a depth map's noise should come back as
+DEPTH_NOISE = 0.05
+
+
+def false_echoes(depth: np.ndarray, rng, rate: float) -> np.ndarray:
+    """Rows (a share `rate` of them, in short runs of 1-3 like a fish school or a thermocline) whose
+    sounding is a false shallow echo: 3 to 20 m in deep water, 10-60 % of the depth in shallow water."""
+    n = len(depth)
+    starts = rng.choice(n, size=max(1, int(rate * n / 2)), replace=False)
+    runs = rng.integers(1, 4, len(starts))
+    rows = np.unique(np.concatenate([s + np.arange(k) for s, k in zip(starts, runs, strict=True)]))
+    return rows[rows < n]
+
+
+def _echo_values(depth: np.ndarray, rows: np.ndarray, rng) -> np.ndarray:
+    d = depth[rows]
+    return np.where(
+        d > 30.0, rng.uniform(3.0, 20.0, len(rows)), d * rng.uniform(0.1, 0.6, len(rows))
+    )
+
+
 def simulate(
-    effects=(), seed=0, duration_s=2400.0, rate_hz=RATE_HZ, held_throttle=False
+    effects=(),
+    seed=0,
+    duration_s=2400.0,
+    rate_hz=RATE_HZ,
+    held_throttle=False,
+    deep_m=0.0,
+    false_echo_rate=0.0,
 ) -> dict[str, np.ndarray]:
-    """Run the lawnmower mission and return the samples-table columns."""
+    """Run the lawnmower mission and return the samples-table columns. `deep_m` adds that much water
+    under the whole reach (a deep-water survey); `false_echo_rate` replaces that share of the soundings
+    by false shallow echoes (their rows are in the returned ``_false_echo_rows``, not a column)."""
     rng = np.random.default_rng(seed)
     effects = set(effects)
     unknown = effects - set(EFFECTS)
@@ -198,11 +227,11 @@ def simulate(
     F_meas, vb_meas, C_meas = _water_and_ground(rng, effects, H, VB, C, dh, rate_hz)
     R_meas = _air(rng, effects, x, y, t, VB, dh, phase, duration_s)
     W_meas = R_meas + vb_meas
-    depth = depth_field(x, y) + 0.05 * rng.standard_normal(n)
+    depth = deep_m + depth_field(x, y) + DEPTH_NOISE * rng.standard_normal(n)
     app_from = np.degrees(np.arctan2(-R_meas[:, 0], -R_meas[:, 1]))
     lat, lon = LocalFrame(LAT0, LON0).to_latlon(x, y)
     lat = lat + 2e-6 * rng.standard_normal(n) * 0.1
-    return {
+    cols = {
         "t": T0 + t,
         "lat": lat,
         "lon": lon,
@@ -228,6 +257,11 @@ def simulate(
         **_wheels(F_meas, h_meas),
         "throttle": THR + 2.0 * rng.standard_normal(n),
     }
+    if false_echo_rate > 0:  # drawn after everything else: the other columns stay the same
+        rows = false_echoes(depth, rng, false_echo_rate)
+        cols["depth"][rows] = _echo_values(depth, rows, rng)
+        cols["_false_echo_rows"] = rows
+    return cols
 
 
 def make_survey(
@@ -238,12 +272,22 @@ def make_survey(
     out_dir,
     held_throttle: bool = False,
     extra: dict | None = None,
+    deep_m: float = 0.0,
+    false_echo_rate: float = 0.0,
 ) -> Path:
     """Write `survey.csv` and `truth/effects.json` into `out_dir`; return the CSV's path. `extra` maps more
     column names to functions of the columns (e.g. an instrument's ensemble counter)."""
     out = Path(out_dir)
     (out / "truth").mkdir(parents=True, exist_ok=True)
-    cols = simulate(effects, seed, duration_s, held_throttle=held_throttle)
+    cols = simulate(
+        effects,
+        seed,
+        duration_s,
+        held_throttle=held_throttle,
+        deep_m=deep_m,
+        false_echo_rate=false_echo_rate,
+    )
+    echo_rows = cols.pop("_false_echo_rows", np.zeros(0, int))
     for name, make in (extra or {}).items():
         cols[name] = np.asarray(make(cols), float)
     path = out / "survey.csv"
@@ -263,6 +307,9 @@ def make_survey(
         "t0": T0,
         "duration": duration_s,
         "generator": "bench.synth_survey",
+        "deep_m": deep_m,
+        "depth_noise": DEPTH_NOISE,
+        "false_echo_rows": [int(i) for i in echo_rows],
     }
     (out / "truth" / "effects.json").write_text(json.dumps(meta, indent=2))
     return path

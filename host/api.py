@@ -22,9 +22,10 @@ from forcemap.host.workbench.table import load_survey
 DEFAULT_RESOLUTION_M = 5.0
 
 
-def read_survey(path: str | Path) -> Survey:
-    """A samples table (CSV, Parquet, or an MCAP log from `forcemap run`), validated, as a `Survey`."""
-    return Survey(load_survey(path))
+def read_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
+    """A samples table (CSV, Parquet, or an MCAP log from `forcemap run`), validated, as a `Survey`;
+    with `keep_outliers`, the spikes flagged along the track stay in the fits (`--keep-outliers`)."""
+    return Survey(load_survey(path, keep_outliers=keep_outliers))
 
 
 class Survey:

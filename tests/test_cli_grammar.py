@@ -40,6 +40,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--baseline": (FLAG, "start a diagnosis from the paper's baseline"),
     "--rounds": (VALUE, "how many findings a diagnosis adds"),
     "--no-plots": (FLAG, "write no residual plots"),
+    "--keep-outliers": (FLAG, "fit the readings the spike test flagged too"),
     "--reset-history": (FLAG, "move a corrupt workspace history aside"),
     "--from": (VALUE, "the format of the input to import"),
     "--to": (VALUE, "the format of the export, where the output's name does not say"),

@@ -8,6 +8,7 @@ the turn depends on the machine's load (a late one is recorded as not sent, neve
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -15,7 +16,9 @@ from pathlib import Path
 
 import pytest
 from forcemap.host.cli import main
+from forcemap.host.live.mission_layer import TOPIC as MISSION
 from forcemap.host.log.mcap import read_messages
+from forcemap.host.plan.mission_io import read_mission
 from forcemap.host.report.mission_section import mission_section
 from forcemap.host.vessel import scenario as sc
 from forcemap.host.vessel.geodesy import LocalFrame
@@ -23,7 +26,9 @@ from forcemap.host.vessel.mission import save_waypoints
 from forcemap.host.workbench.table import load_survey
 
 from bench.inflight_loop import mission
+from bench.live_client import LiveClient
 from tests.test_daemon_support import ROOT, DaemonProcess, mcap_files
+from tests.test_live import mcap_messages
 
 SPEED = 10
 
@@ -55,7 +60,12 @@ def test_run_replan_on_ptys(tmp_path: Path, capsys, live: bool) -> None:  # type
          str(wpl), "--speed", str(SPEED), "--duration", "4m", "--ports", str(ports)],
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
+    client = None
     try:
+        if live:  # a viewer, from before the mission is read back
+            url = daemon.wait_for(lambda e: e.get("event") == "live", 60.0)["connect"]
+            client = LiveClient(url)
+            client.wait_ready()
         daemon.wait_for(lambda e: "following the autopilot" in e.get("message", ""), 120.0)
         assert sim.wait(600) == 0, sim.stderr.read()  # type: ignore[union-attr]
         daemon.wait_for(lambda e: "after line 1" in e.get("message", ""), 120.0)
@@ -64,8 +74,12 @@ def test_run_replan_on_ptys(tmp_path: Path, capsys, live: bool) -> None:  # type
         for p in (sim, daemon.proc):
             if p.poll() is None:
                 p.kill()
+        if client is not None:
+            client.close()
     [path] = mcap_files(out)
     recs = [m.message for m in read_messages(path, "/plan/replan")]
+    if client is not None:
+        _live_shows_the_decisions(client, path, read_mission(wpl).lines_latlon)
     assert recs and recs[0]["line_done"] == 0 and recs[0]["mode"] == "AUTO"
     assert recs[0]["reason"] and recs[0]["map_samples"] and recs[0]["old_remaining"]
     capsys.readouterr()
@@ -75,3 +89,26 @@ def test_run_replan_on_ptys(tmp_path: Path, capsys, live: bool) -> None:  # type
     # the report's mission section, from the log itself
     parts = "\n".join(mission_section(path, load_survey(path)))
     assert "<h3>In flight</h3>" in parts and parts.count("<tr><td>") == len(recs)
+
+
+def _live_shows_the_decisions(client: LiveClient, path: Path, lines) -> None:  # type: ignore[no-untyped-def]
+    """The viewer got every /plan/replan as logged, byte for byte, and /map/mission (not logged)."""
+    logged = mcap_messages(path)
+    replans = [m for m in logged if m[0] == "/plan/replan"]
+    assert replans and [m for m in client.messages if m[0] == "/plan/replan"] == replans
+    assert not client.invalid
+    assert MISSION not in {t for t, _, _ in logged}
+    shown = [json.loads(json.loads(p)["geojson"]) for t, _, p in client.messages if t == MISSION]
+    assert shown
+    parts = {f["properties"]["name"]: f["geometry"]["coordinates"] for f in shown[-1]["features"]}
+    assert sum(k.startswith("intended line") for k in parts) == len(lines)
+    assert parts["intended line 1"][0] == [round(lines[0][0][1], 7), round(lines[0][0][0], 7)]
+    plan = next(v for k, v in parts.items() if k.startswith("plan: "))
+    uploads = [json.loads(p) for _, _, p in replans if json.loads(p)["uploaded"]]
+    if uploads:  # the plan shown ends with the last accepted upload's remaining mission
+        tail = [[round(lon, 7), round(lat, 7)] for lat, lon, _ in uploads[-1]["new_remaining"]]
+        assert plan[-len(tail) :] == tail
+    fixes = [json.loads(p) for t, _, p in logged if t == "/fix"]
+    track = parts["flown track"]
+    assert 10 <= len(track) < len(fixes)  # decimated, 3 m apart
+    assert track[-1] in [[round(f["longitude"], 7), round(f["latitude"], 7)] for f in fixes]

@@ -143,7 +143,7 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
     )
     assert code == 0
     base = json.loads(out_json.read_text())
-    assert set(base) == {"target", "terms", "cv_rmse", "cv_mae", "coverage95"}
+    assert set(base) == {"target", "terms", "cv_rmse", "cv_mae", "coverage95", "spikes"}
     assert base["target"] == "current_speed" and base["terms"] == [
         "const",
         "gp(position, matern32)",
@@ -209,6 +209,7 @@ def test_diagnose_json_contract(survey_csv, tmp_path, capsys):
         "missing_effect_found",
         "candidates",
         "advice",
+        "data_quality",
         "rounds",
     }
     assert set(d["baseline"]) == {"terms", "cv_rmse"}

@@ -217,4 +217,4 @@ def test_a_heading_mostly_missing_is_a_one_line_error(late, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "Traceback" not in err
     lines = [ln for ln in err.strip().splitlines() if ln.startswith("forcemap")]
-    assert len(lines) == 1 and "autopilot column 'heading'" in lines[0], err
+    assert len(lines) == 1 and "heading/ground-velocity column 'heading'" in lines[0], err

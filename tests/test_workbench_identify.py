@@ -97,8 +97,8 @@ def test_two_effects_are_found_in_two_rounds(tmp_path, seed):
     assert d.to_json()["candidates"] == rounds[0]["candidates"]  # the top level is the first round
 
 
-# The gain of the same release varies between surveys (seeds 1-4: 15, 25, 26 and 17 %, bench/RESULTS.md);
-# the weak case is the surveys where it is 10-20 %, the hardest to find
+# The gain of the same release varies between surveys (seeds 1-4: 15, 25, 26 and 17 %, bench/RESULTS.md,
+# before spikes were left out); the weak case is the surveys where it is 10-25 %, the hardest to find
 WEAK_SEEDS = (1, 4)
 
 
@@ -109,7 +109,9 @@ def test_weak_effect_is_found(tmp_path, seed):
     d = diagnose(load_survey(table), "current_speed", rounds=1, progress=False)
     best = d.candidates[0]
     assert best.covariate == "t" and d.missing_effect_found, d.summary()
-    assert 0.10 <= best.improvement < 0.20, d.summary()  # the old fixed 25 % floor missed it
+    # the old fixed 25 % floor missed it. Seed 4 gains 24.6 % since the spike test leaves out 2 of its
+    # 4,768 current readings (0.64 m/s off the track around them); 17 % with them in
+    assert 0.10 <= best.improvement < 0.25, d.summary()
     assert best.improvement > max(best.null_gains), d.summary()
 
 

@@ -266,6 +266,14 @@ def add_workspace_options(parser: argparse.ArgumentParser, output: bool = True) 
         add_force(parser)
 
 
+def add_keep_outliers(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--keep-outliers",
+        action="store_true",
+        help="fit the spikes flagged along the track too (by default they are left out of the fits)",
+    )
+
+
 def teach(parser: argparse.ArgumentParser, epilog: str) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = epilog

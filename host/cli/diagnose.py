@@ -7,6 +7,7 @@ import argparse
 from forcemap.host.cli.common import (
     add_effects,
     add_json,
+    add_keep_outliers,
     add_quiet,
     add_table,
     add_target,
@@ -25,8 +26,9 @@ EPILOG = """\
 diagnose fits the current model of the target (the latest `forcemap fit` of it, or the paper's baseline),
 then adds a term in each candidate covariate in turn: every numeric column outside the target's own family,
 time (t), and derived ones (heading relative to the flow, speed through water stw, a vector's own direction
-for its speed). For wind and current it also tries clock_offset: the time offset between the autopilot
-and the bridge that makes the vector steadiest through the turns. It ranks them by how much the spatially
+for its speed). For wind and current it also tries clock_offset: the time offset (up to +-30 s) between the
+boat-frame reading (anemometer, paddle wheels, speed log) and the heading and ground velocity that
+makes the vector steadiest through the turns. It ranks them by how much the spatially
 blocked CV error falls (pooled over three assignments of the blocks to folds). A candidate is a finding
 when its error falls at least 10 %, a paired Wilcoxon test over spatial blocks passes Bonferroni over the
 candidates, it beats by 5 % the same term on time-shifted copies of itself (its null), and a stand-in
@@ -65,6 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="add each finding and diagnose again, at most N times (default 3)",
     )
     add_quiet(parser)
+    add_keep_outliers(parser)
     add_workspace_options(parser)
 
 
@@ -90,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         terms = current_terms(ws, target) or list(BASELINE)
     check_terms(terms)
-    survey = load_survey(args.table)
+    survey = load_survey(args.table, keep_outliers=args.keep_outliers)
     with small_blas():
         result = diagnose(survey, target, terms, rounds=args.rounds, progress=not args.quiet)
     print_notes(survey)

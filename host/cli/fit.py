@@ -7,6 +7,7 @@ import argparse
 from forcemap.host.cli.common import (
     add_effects,
     add_json,
+    add_keep_outliers,
     add_quiet,
     add_table,
     add_target,
@@ -34,7 +35,7 @@ examples:
 terms: gp(INPUTS, KERNEL) with kernel linear, rbf, matern12, matern32, matern52 or periodic (angles);
   linear(COV); power(COV) = a*COV^b; cos(ANGLE) = a*cos(ANGLE-phase); user(COV, module:function).
   A bare name is its default term: gp(NAME, periodic) for an angle, gp(NAME, matern32) otherwise.
-  clock_offset (wind and current) re-references the vector with the autopilot's data shifted by the
+  clock_offset (wind and current) re-references the vector with the heading and ground velocity shifted by the
   offset that makes it steadiest in turns; clock_offset(+1.5 s) uses a given offset.
 spec.toml:  terms = ["const", "gp(position, matern32)", "user(depth, mylaws:manning)"]
 
@@ -64,6 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_json(parser)
     parser.add_argument("--no-plots", action="store_true", help="do not write residual plots")
     add_quiet(parser)
+    add_keep_outliers(parser)
     add_workspace_options(parser)
 
 
@@ -78,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     check_terms(terms)
     check_json_output(args)
     ws = prepare_workspace(args)
-    survey = read_survey(args.table)
+    survey = read_survey(args.table, keep_outliers=args.keep_outliers)
     fit = Fit(target, terms=terms, folds=args.folds).fit(
         survey, record=True, progress=not args.quiet
     )

@@ -10,6 +10,7 @@ from pathlib import Path
 from forcemap.host.cli.common import (
     add_boat,
     add_json,
+    add_keep_outliers,
     add_output,
     add_quiet,
     add_table,
@@ -80,6 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="YYYY-MM-DD",
         help="when the mission will be flown, for the map's age (default: now)",
     )
+    add_keep_outliers(parser)
 
 
 def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
@@ -160,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
     boat = load_boat(args.boat)
     mission = read_mission(args.mission, args.scenario)
     try:
-        survey = load_survey(args.table)
+        survey = load_survey(args.table, keep_outliers=args.keep_outliers)
         age_note = map_age_note(args, float(survey.columns["t"].max())) if args.season else None
         frame = LocalFrame(survey.lat0, survey.lon0)
         wps = frame.points_to_local(mission.latlon)

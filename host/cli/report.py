@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from forcemap.host.cli.common import (
+    add_keep_outliers,
     add_output,
     add_quiet,
     add_table,
@@ -34,6 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser, "HTML file to write (default TABLE.forcemap/report.html)", force=False, type=Path
     )
     add_quiet(parser)
+    add_keep_outliers(parser)
     add_workspace_options(parser)
 
 
@@ -50,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         out = check_output(args.output, [args.table], force=args.force)
     else:
         out = check_output(ws / "report.html", [args.table], force=True)  # the workspace's own
-    survey = load_survey(args.table)
+    survey = load_survey(args.table, keep_outliers=args.keep_outliers)
     with small_blas():
         text = build_report(args.table, survey, progress=not args.quiet)
     print_notes(survey)

@@ -334,6 +334,8 @@ def _run_daemon(
     if svc is not None:
         if live is not None and not getattr(args, "no_maps", False):
             svc.board = live.board  # the live map process's grids, rather than refits of our own
+        if live is not None:
+            svc.on_plan = live.mission.set_plan  # /map/mission on the live Map panel
         svc.box["daemon"] = daemon
         svc.stop_event = daemon.stop_event
         svc.start()

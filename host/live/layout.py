@@ -15,14 +15,15 @@ LAYOUT_FILE = "foxglove_layout.json"
 # (title, panel type, topics) in the order drawn: the schematic and the docs use the same list
 PANELS: list[tuple[str, str, list[str]]] = [
     ("Map: track and live maps", "Map",
-     ["/fix", "/map/layers/current", "/map/layers/wind", "/map/layers/depth", "/map/layers/samples"]),
+     ["/fix", "/map/mission", "/map/layers/current", "/map/layers/wind", "/map/layers/depth",
+      "/map/layers/samples"]),
     ("Current (m/s) against time", "Plot", ["/current.speed", "/current/stw.speed"]),
     ("Wind (m/s) against time", "Plot", ["/wind/true.speed", "/wind/apparent.speed"]),
     ("Depth (m) against time", "Plot", ["/depth.depth"]),
     ("Health", "Table", ["/health"]),
     ("Alerts", "Log", ["/alerts"]),
 ]  # fmt: skip
-COLOURS = {"/fix": "#000000", "/map/layers/current": "#1f77b4", "/map/layers/wind": "#2ca02c",
+COLOURS = {"/fix": "#000000", "/map/mission": "#d62728", "/map/layers/current": "#1f77b4", "/map/layers/wind": "#2ca02c",
            "/map/layers/depth": "#8c564b", "/map/layers/samples": "#ff7f0e"}  # fmt: skip
 
 

@@ -13,6 +13,8 @@ from typing import Any
 
 from forcemap.host.live.health import HealthMonitor
 from forcemap.host.live.mapproc import MapBoard, MapProcess
+from forcemap.host.live.mission_layer import TOPIC as MISSION_TOPIC
+from forcemap.host.live.mission_layer import MissionLayer
 from forcemap.host.live.server import BACKLOG, DEFAULT_HOST, DEFAULT_PORT, LiveServer
 from forcemap.host.live.tee import QUEUE_MAX, Item, LiveTee
 from forcemap.host.log.mcap import encode_json
@@ -22,7 +24,7 @@ WATCHED = ("/fix", "/depth", "/daemon/status", "/samples")
 
 
 class LiveService:
-    """Serve every logged topic live, with `/health`, `/alerts` and the growing maps."""
+    """Serve every logged topic live, with `/health`, `/alerts`, the growing maps and `/map/mission`."""
 
     def __init__(
         self,
@@ -40,6 +42,7 @@ class LiveService:
         self.tee = LiveTee(queue_max)
         self.health = HealthMonitor(Path(disk_path) if disk_path is not None else None)
         self.board = MapBoard()
+        self.mission = MissionLayer()  # its plan comes from the replanner (run --replan)
         self.mapper = MapProcess(every_s, refit_every_s) if maps else None
         self.published: dict[str, int] = {}
         self.errors: dict[str, int] = {}
@@ -62,6 +65,8 @@ class LiveService:
                 self._guard("publish", self._item, item)
             if self.mapper is not None:
                 self._guard("maps", self._maps, self.mapper.poll())
+            if self._last_t and self.mission.due(self._last_t):  # a new plan, between fixes
+                self._guard("mission", self._mission)
             if self.tee.closed and not items:
                 return
 
@@ -86,6 +91,10 @@ class LiveService:
         if item.topic not in WATCHED:
             return
         msg = as_json(item.message) if item.message is not None else json.loads(item.data)
+        if item.topic == "/fix":
+            self.mission.fix(msg["latitude"], msg["longitude"])
+            if self.mission.due(item.log_time_ns):
+                self._mission()
         self.health.observe(item.topic, item.log_time_ns, msg)
         if item.topic == "/samples" and self.mapper is not None:
             self.mapper.offer(msg)
@@ -101,6 +110,9 @@ class LiveService:
             t_ns = int(max(g.t_fit for g in grids) * 1e9)
             for topic, record in messages:
                 self.publish(topic, t_ns, record)
+
+    def _mission(self) -> None:
+        self.publish(MISSION_TOPIC, self._last_t, self.mission.message())
 
     def live_stats(self) -> dict[str, Any]:
         """The live view's own counters, for `/health`."""
@@ -119,6 +131,8 @@ class LiveService:
         map process runs at a low priority and may be behind), then stop the server."""
         self.tee.close()
         self.thread.join(timeout=30.0)
+        if self.mission.due(self._last_t + 10**18):  # the track's last few metres
+            self._guard("mission", self._mission)
         if self.mapper is not None:
             self._guard("maps", self._maps, self.mapper.close(final_maps_s))
         self.server.stop()

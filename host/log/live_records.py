@@ -1,4 +1,5 @@
-"""The records the live view publishes and never logs (`forcemap run --live`): `/health`, `/map/info`.
+"""The records the live view publishes and never logs (`forcemap run --live`): `/health`, `/map/info`,
+`/map/mission`.
 
 The MCAP is the same with or without the live view; `messages.record_type` knows these topics too.
 """
@@ -8,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from forcemap.host.log.record import FoxgloveLog, Record
+from forcemap.host.log.record import FoxgloveLog, GeoJSON, Record
 
 Opt = float | None
 
@@ -63,5 +64,6 @@ LIVE_TOPIC_TYPES: dict[str, type[Record]] = {
     "/health": Health,
     "/alerts": FoxgloveLog,
     "/map/info": MapInfo,
+    "/map/mission": GeoJSON,  # the mission on the Map panel (host/live/mission_layer.py)
 }
 MAP_TARGETS = ("current", "wind", "depth")

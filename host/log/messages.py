@@ -387,7 +387,7 @@ def record_type(topic: str) -> type[Record] | None:
         return RawChunk
     if topic.startswith("/map/layers/"):
         return GeoJSON
-    if topic.startswith("/map/") and topic != "/map/info":
+    if topic.startswith("/map/") and topic not in LIVE_TOPIC_TYPES:
         return Grid
     return TOPIC_TYPES.get(topic) or LIVE_TOPIC_TYPES.get(topic)
 

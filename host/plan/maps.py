@@ -16,6 +16,7 @@ import numpy as np
 from forcemap.host.progress import note
 from forcemap.host.workbench.model import HYPER_SPACING_S, DesignCache, Model, small_blas
 from forcemap.host.workbench.spec import BASELINE, parse_term
+from forcemap.host.workbench.spikes import target_spikes, without_spikes
 from forcemap.host.workbench.table import Survey, is_circular
 from forcemap.host.workbench.workspace import current_terms, workspace_dir
 
@@ -120,7 +121,9 @@ def fit_field(
     bounds: tuple[float, float, float, float],
     step: float = GRID_STEP_M,
 ) -> Field:
-    """Fit the east and north components of ``prefix`` and predict them, with std, on a grid over ``bounds``."""
+    """Fit the east and north components of ``prefix`` and predict them, with std, on a grid over ``bounds``
+    (the vector's spikes left out unless the survey keeps outliers)."""
+    survey = without_spikes(survey, f"{prefix}_speed")[0]
     vt = survey.vector_target(f"{prefix}_speed")
     e, n = survey.components(vt)  # type: ignore[arg-type]
     ok = np.isfinite(e) & np.isfinite(n)
@@ -161,6 +164,8 @@ def survey_maps(
             notes.append(
                 f"{prefix}: left out {', '.join(dropped)} (not known along a future track)"
             )
+        spikes = target_spikes(survey, f"{prefix}_speed")
+        notes += [f"{prefix}: {line}" for line in (spikes.lines() if spikes else [])]
         note(f"mapping {prefix}: {' + '.join(terms)} on east and north components ...", progress)
         fields[prefix] = fit_field(survey, prefix, terms, bounds)
     return Maps(fields["current"], fields["wind"], survey.lat0, survey.lon0, notes)

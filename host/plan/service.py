@@ -150,6 +150,8 @@ class ReplanService(threading.Thread):
         self._pending: list[Decision] = []
         self._early: list[dict] = []
         self.last_t = 0.0  # the newest sample's time: the daemon's clock, for the map's age
+        # the live view's `/map/mission` (--live): the intended lines and the mission the autopilot holds
+        self.on_plan: Callable[[np.ndarray, np.ndarray], object] | None = None
 
     # called from the daemon's thread: quick, never blocking
     def feed(self, data: bytes) -> None:
@@ -208,11 +210,18 @@ class ReplanService(threading.Thread):
             for row in self._early:
                 self.maps.add(row)
         self._early = []
+        self.lines_latlon = np.asarray(lines, dtype=float)
         self.rp = Replanner(items, lines, frame, self.boat, provider, bound_m=self.bound_m,
                             log=self.log)  # fmt: skip
         self.log(f"replan: following the autopilot's mission ({len(items) - 1} items, "
                  f"{len(lines)} intended lines)")  # fmt: skip
+        self._show_plan()
         return True
+
+    def _show_plan(self) -> None:
+        """Hand the intended lines and the autopilot's waypoints to the live view, if there is one."""
+        if self.on_plan is not None and self.rp is not None:
+            self.on_plan(self.lines_latlon, self.rp.frame.to_latlon(self.rp.xy))
 
     def run(self) -> None:
         next_try = 0.0
@@ -229,6 +238,8 @@ class ReplanService(threading.Thread):
                     if d.items is not None:
                         apply(self.rp, d, self.link, time.time)
                     self.record(to_record(d, self.rp))
+                    if d.uploaded:
+                        self._show_plan()
                 except Exception as e:  # a bug in planning must never reach acquisition
                     self.log(f"replan: decision failed ({e!r}); mission kept")
 

@@ -20,7 +20,7 @@ from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
 from forcemap.host.report.map_figure import grid_figure
 from forcemap.host.report.mission_section import mission_section
-from forcemap.host.workbench import plots
+from forcemap.host.workbench import data_quality, plots
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
@@ -84,6 +84,30 @@ def header_section(ctx: ReportContext) -> list[str]:
         f"{survey.lat0:.5f}, {survey.lon0:.5f}. Generated {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}.</p>",
     ]
     parts += [f"<p class=small>note: {html.escape(n)}</p>" for n in survey.notes]
+    return parts
+
+
+def data_quality_section(ctx: ReportContext) -> list[str]:
+    """Problems of the log itself, ahead of every map and candidate: source conflicts, spikes, latency,
+    quantisation (host/workbench/data_quality.py)."""
+    targets = [t for t, _, _ in MAPPED] + [h["target"] for h in ctx.history] + list(ctx.diagnoses)
+    targets = [t for t in dict.fromkeys(targets) if t in ctx.survey.columns]
+    found = data_quality.findings(ctx.survey, targets)
+    parts = ["<h2>Data quality: before the physics</h2>"]
+    if not found:
+        return parts + [
+            "<p>No source conflict, spike, latency or coarse position grid found in the log.</p>"
+        ]
+    parts.append(
+        "<p>Problems of the log itself: fix them first, or the maps and the diagnosis explain the "
+        "log, not the water.</p><table><tr><th>kind</th><th>finding</th><th>what to do</th></tr>"
+    )
+    parts += [
+        f"<tr><td>{html.escape(f.kind)}</td><td>{html.escape(f.text)}</td>"
+        f"<td class=small>{html.escape(f.advice)}</td></tr>"
+        for f in found
+    ]
+    parts.append("</table>")
     return parts
 
 
@@ -161,11 +185,11 @@ def residuals_section(ctx: ReportContext) -> list[str]:
 
 
 def _target_residuals(ctx: ReportContext, target: str) -> list[str]:
-    survey = ctx.survey
     try:
         terms = latest_terms(ctx.history, target)
         note(f"report: residuals of {target} ...", ctx.progress)
         sm = ctx.model(target, terms)
+        survey = sm.survey  # the rows the model is fitted on: the target's spikes left out
         cv = sm.cv(blocked_folds(survey.xy)[0])
     except WorkbenchError as exc:
         return [f"<p class=small>{html.escape(target)}: {html.escape(str(exc))}</p>"]
@@ -253,6 +277,7 @@ Section = Callable[[ReportContext], list[str]]
 
 SECTIONS: list[Section] = [
     header_section,
+    data_quality_section,
     measurements_section,
     maps_section,
     residuals_section,

@@ -13,6 +13,7 @@ from forcemap.host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, r
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
+from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import Survey
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
@@ -51,6 +52,7 @@ class FitResult:
             "cv_rmse": self.cv.rmse,
             "cv_mae": self.cv.mae,
             "coverage95": self.cv.coverage95,
+            "spikes": self.model.spikes.to_json() if self.model.spikes else None,
         }
 
     def summary(self) -> str:
@@ -62,6 +64,10 @@ class FitResult:
             f"{self.folds} {DEFAULT_FOLDS}-fold CV: RMSE {self.cv.rmse:.4g}{unit}, MAE {self.cv.mae:.4g}{unit}, "
             f"95 % interval coverage {self.cv.coverage95:.1%}",
         ]
+        if self.model.spikes is not None:
+            lines += [f"spikes: {t}" for t in self.model.spikes.lines()] or [
+                "spikes: none flagged along the track"
+            ]
         if self.folds == "random":
             lines.append(
                 "  (random folds put along-track neighbours in the training set: they flatter every model)"
@@ -88,14 +94,15 @@ def fit_target(
         every = float(np.ptp(survey.trel)) / len(rows)
         hyper = f" (hyperparameters from {len(rows)} of them, one per {every:.1f} s)"
     note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples{hyper} ...", progress)
-    fold_ids = make_folds(survey, folds)
+    clean = without_spikes(survey, target)[0]  # the rows the model is fitted on
+    fold_ids = make_folds(clean, folds)
     # the Gram matrices are accumulated fold by fold: the CV then costs no second pass over the data
-    survey_fits(survey).grams.plan = fold_ids
+    survey_fits(clean).grams.plan = fold_ids
     sm = SurveyModel(survey, target, terms, max_basis=max_basis).fit()
     note(f"cross-validating ({folds} folds) ...", progress)
     cv = sm.cv(fold_ids)
     unit = " deg" if sm.circular else ""
-    return FitResult(sm, cv, folds, failure_summary(survey, cv.error, unit))
+    return FitResult(sm, cv, folds, failure_summary(sm.survey, cv.error, unit))
 
 
 def record(table: Path, result: FitResult) -> dict:
@@ -109,7 +116,10 @@ def record(table: Path, result: FitResult) -> dict:
         "log_marginal_likelihood": m.primary.log_marginal_likelihood_,
         "n": m.survey.n,
     }
-    entry = {**result.to_json(), "folds": result.folds, "n": m.survey.n}
+    entry = {k: v for k, v in result.to_json().items() if k != "spikes"}
+    entry.update(folds=result.folds, n=m.survey.n)
+    if m.spikes is not None:
+        entry["spikes_flagged"] = m.spikes.count
     return record_fit(ws, entry, model)
 
 
@@ -134,7 +144,7 @@ def refit_or_restore(
     for entry in reversed(history):
         if entry.get("target") != target or list(entry.get("terms", ())) != list(terms):
             continue
-        model = saved_model(ws, entry, survey)
+        model = saved_model(ws, entry, without_spikes(survey, target)[0])
         if model is None:
             break
         note(f"  from fit {entry['fit']}'s saved hyperparameters", progress)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -11,6 +10,7 @@ import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame, wrap_from_minus180
 from forcemap.host.workbench.cleaning import check_positions, to_numeric
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.table_files import mcap_provenance, read_raw  # noqa: F401 - part of this API
 
 MIN_ROWS = 30
 MAX_MISSING_FRACTION = 0.05
@@ -20,6 +20,8 @@ MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
 NOT_COVARIATES = {"t", "lat", "lon", "x", "y"}
+# flag columns (spike_depth, spike_current, ...): bookkeeping too
+FLAG_PREFIX = "spike_"
 # boat kinematics that respond to the current and wind pushing the boat (yaw_rate is not here: in a survey the
 # turns are commanded by the mission, see docs/WORKBENCH.md)
 KINEMATIC = ("sog", "cog", "throttle", "crab")
@@ -90,6 +92,12 @@ class Survey:
     notes: list[str] = field(default_factory=list)
     non_numeric: set[str] = field(default_factory=set)
     cache: dict = field(default_factory=dict, repr=False)
+    # --keep-outliers: spikes are flagged but stay in the fits (host/workbench/spikes.py)
+    keep_outliers: bool = False
+    # the targets (a vector by its prefix) whose spikes this survey has already left out
+    spikes_removed: set[str] = field(default_factory=set)
+    # who fed each column (the MCAP's `columns` metadata; empty for a CSV): host/workbench/sources.py
+    provenance: dict[str, str] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -104,7 +112,9 @@ class Survey:
         return self.columns["t"] - self.t0
 
     def numeric_columns(self) -> list[str]:
-        return [c for c in self.columns if c not in NOT_COVARIATES]
+        return [
+            c for c in self.columns if c not in NOT_COVARIATES and not c.startswith(FLAG_PREFIX)
+        ]
 
     def subset(self, mask: np.ndarray) -> Survey:
         cols = {k: v[mask] for k, v in self.columns.items()}
@@ -116,6 +126,9 @@ class Survey:
             self.source,
             list(self.notes),
             set(self.non_numeric),
+            keep_outliers=self.keep_outliers,
+            spikes_removed=set(self.spikes_removed),
+            provenance=dict(self.provenance),
         )
 
     def column(self, name: str) -> np.ndarray:
@@ -153,92 +166,6 @@ class Survey:
         sign = -1.0 if vt.is_from else 1.0
         rad = np.radians(d)
         return sign * s * np.sin(rad), sign * s * np.cos(rad)
-
-
-def _read_csv(path: Path) -> dict[str, list[str]]:
-    try:
-        # utf-8-sig: a byte-order mark (spreadsheets write one) is read, not taken for part of `t`
-        with path.open(newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            header = next(reader, None)
-            if header is None:
-                raise WorkbenchError(f"{path}: the file is empty")
-            header = [h.strip() for h in header]
-            rows = list(reader)
-    except UnicodeDecodeError:
-        raise WorkbenchError(
-            f"{path}: not UTF-8 text; is it a CSV? (save it from the spreadsheet as CSV UTF-8)"
-        ) from None
-    except csv.Error as exc:
-        raise WorkbenchError(f"{path}: not a readable CSV ({exc})") from None
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise WorkbenchError(
-            f"{path}: column name(s) {', '.join(repr(d) for d in dup)} appear more than once in the header"
-        )
-    cols: dict[str, list[str]] = {h: [] for h in header}
-    for i, row in enumerate(rows):
-        if len(row) != len(header):
-            if not any(cell.strip() for cell in row):
-                continue
-            raise WorkbenchError(
-                f"{path}: row {i + 2} has {len(row)} cells, the header has {len(header)}"
-            )
-        for h, cell in zip(header, row, strict=True):
-            cols[h].append(cell)
-    return cols
-
-
-def _read_parquet(path: Path) -> dict[str, list]:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    try:
-        table = pq.read_table(path)
-    except Exception as exc:  # pyarrow raises many types for a bad file
-        raise WorkbenchError(f"{path}: not a readable Parquet file ({exc})") from None
-    out: dict[str, list] = {}
-    for name in table.column_names:
-        col = table.column(name)
-        # numeric columns as arrays (nulls as NaN): `to_numeric` takes them whole, not cell by cell
-        if pa.types.is_floating(col.type) or pa.types.is_integer(col.type):
-            out[name] = col.to_numpy(zero_copy_only=False).astype(float)  # type: ignore[assignment]
-        else:
-            out[name] = col.to_pylist()
-    return out
-
-
-def _read_mcap(path: Path) -> dict[str, list]:
-    """The ``/samples`` rows through `forcemap export`'s reader: truncated logs are read up to their
-    last complete chunk, and rows repeated (same ``t``) are kept once."""
-    from forcemap.host.convert.export import check_logs, samples_table
-    from forcemap.host.errors import CliError
-
-    try:
-        check_logs([path])
-    except CliError as exc:
-        raise WorkbenchError(str(exc)) from None
-    table = samples_table([path])
-    if not len(table):
-        raise WorkbenchError(
-            f"{path}: the MCAP log has no /samples messages; was it written by `forcemap run`?"
-        )
-    return {c: table.column(c) for c in table.columns}
-
-
-def read_raw(path: str | Path) -> dict[str, list]:
-    """The table's cells by column, from CSV, Parquet or MCAP (chosen by the file's extension)."""
-    path = Path(path)
-    if not path.exists():
-        raise WorkbenchError(f"{path}: no such file")
-    if path.is_dir():
-        raise WorkbenchError(f"{path} is a folder; give a samples table (.csv, .parquet or .mcap)")
-    suffix = path.suffix.lower()
-    if suffix == ".parquet" or suffix == ".pq":
-        return _read_parquet(path)
-    if suffix == ".mcap":
-        return _read_mcap(path)
-    return _read_csv(path)
 
 
 def _fill_nearest_in_time(values: np.ndarray) -> np.ndarray:
@@ -287,7 +214,7 @@ def _placed_rows(path: Path, columns: dict[str, np.ndarray], notes: list[str]) -
             )
         if bad.any():
             notes.append(
-                f"dropped {bad.sum()} row(s) with missing '{c}' (no time or position: GPS or autopilot outage)"
+                f"dropped {bad.sum()} row(s) with missing '{c}' (no time or position: a GNSS or navigation-stream outage)"
             )
         keep &= ~bad
     rows = np.flatnonzero(keep)
@@ -306,8 +233,9 @@ def _placed_rows(path: Path, columns: dict[str, np.ndarray], notes: list[str]) -
     return rows[ok]
 
 
-def load_survey(path: str | Path) -> Survey:
-    """Read and validate a samples table; positions become metres east/north of the survey centre."""
+def load_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
+    """Read and validate a samples table; positions become metres east/north of the survey centre.
+    With `keep_outliers`, spikes are flagged but stay in the fits (host/workbench/spikes.py)."""
     path = Path(path)
     raw = read_raw(path)
     missing = [c for c in REQUIRED if c not in raw]
@@ -316,7 +244,11 @@ def load_survey(path: str | Path) -> Survey:
             f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
         )
     columns, non_numeric, notes = _numeric_columns(path, raw)
-    return survey_from_columns(path, columns, non_numeric, notes)
+    survey = survey_from_columns(path, columns, non_numeric, notes)
+    survey.keep_outliers = keep_outliers
+    if path.suffix.lower() == ".mcap":
+        survey.provenance = mcap_provenance(path)
+    return survey
 
 
 def survey_from_columns(
@@ -341,8 +273,7 @@ def survey_from_columns(
     columns["x"], columns["y"] = LocalFrame(lat0, lon0).to_local(lat, lon)
     if "heading" in columns and "cog" in columns:
         columns["crab"] = wrap_from_minus180(columns["heading"] - columns["cog"])
-    survey = Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
-    return survey
+    return Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
 
 
 def prepare_column(

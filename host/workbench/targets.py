@@ -18,6 +18,7 @@ from forcemap.host.workbench.cv import CVResult
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
 from forcemap.host.workbench.spec import BASELINE, build_term, parse_terms
+from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import (
     derived_column,
     finite_target,
@@ -49,11 +50,17 @@ class SurveyModel:
         terms, self.clock_offset = clock_offset.split_terms(list(terms or BASELINE))
         self.term_specs = parse_terms(terms or BASELINE, is_circular)
         self.vector = survey.vector_target(target)
+        self._check_target(survey)
+        # spikes first: a clock offset is judged on the readings the map will be fitted to
+        survey, self.spikes = without_spikes(survey, target)
         if self.clock_offset is not None:
             survey, self.clock_offset = clock_offset.corrected_for(
                 survey, self.vector, self.clock_offset
             )
         self.survey = survey
+
+    def _check_target(self, survey: Survey) -> None:
+        target = self.target
         if self.vector is None:
             if target in survey.non_numeric:
                 raise WorkbenchError(f"target '{target}' is not numeric")

@@ -1,11 +1,77 @@
-"""The effect catalogue: for a covariate that explains what the model misses, its likely physical cause and a term."""
+"""The effect catalogue: for a covariate that explains what the model misses, its likely physical cause and a term.
+
+Causes name instruments: only those the survey has (host/workbench/instruments.py), by the name its log
+gives them ("the speed log (VW VHW)"); a clause about an instrument the survey does not show is left out.
+"""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
+
+from forcemap.host.workbench.instruments import Instruments
+
+Cause = Callable[[Instruments, str], str]
+
+
+def _either(*clauses: str | None) -> str:
+    """'a, b, or c' of the clauses that apply."""
+    parts = [c for c in clauses if c]
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + ", or " + parts[-1]
+
+
+def _clock(i: Instruments, family: str) -> str:
+    return (
+        f"a clock offset or latency between {i.boat_frame(family)} and {i.navigation()}: the "
+        "boat-frame reading is turned by the heading of another moment, so the vector swings in every "
+        "turn (a buffering link, a serial port read late, a source stamped on arrival instead of at "
+        "measurement, an instrument bus that re-sends late)"
+    )
+
+
+def _heading_rel(i: Instruments, family: str) -> str:
+    flow = i.flow_sensor()
+    return "a sensor that reads differently depending on how the bow meets the flow: " + _either(
+        f"a misaligned or shadowed {_bare(flow)}" if flow else None,
+        "mast/hull shadow on the anemometer" if i.anemometer else None,
+        "compass deviation (in a steady flow the heading relative to it is the heading less a constant)",
+    )
+
+
+def _heading(i: Instruments, family: str) -> str:
+    return (
+        "a misaligned or shadowed sensor, or deviation of "
+        f"{i.name('heading', 'the compass')} (heading error A*sin(heading+phi)) that rotates every "
+        "compensated vector"
+    )
+
+
+def _speed(i: Instruments, family: str) -> str:
+    flow = i.flow_sensor()
+    return "a calibration or compensation error that grows with boat speed: " + _either(
+        "the anemometer in the bow wave's upwash" if i.anemometer else None,
+        f"the gain of {flow}" if flow else None,
+        "a wrong boat-velocity subtraction",
+    )
+
+
+def _app_angle(i: Instruments, family: str) -> str:
+    flow = i.flow_sensor()
+    return (
+        "a sensor that reads differently depending on how the bow meets the wind: mast or hull shadow "
+        "on the anemometer, a misaligned vane; on straight survey legs the apparent wind angle follows "
+        "the heading, so also "
+        + _either(f"a misaligned {_bare(flow)}" if flow else None, "compass deviation")
+    )
+
+
+def _bare(name: str | None) -> str:
+    """'the speed log (VHW)' -> 'speed log (VHW)', for 'a misaligned ...'."""
+    return (name or "").removeprefix("the ")
+
 
 # (pattern on the covariate name, likely cause, suggested term); the first match wins
-CATALOGUE: list[tuple[str, str, str]] = [
+CATALOGUE: list[tuple[str, str | Cause, str]] = [
     (
         "^depth$",
         "continuity and bed friction: the flow speeds up over shallows and slows in pools "
@@ -20,38 +86,14 @@ CATALOGUE: list[tuple[str, str, str]] = [
     ),
     (
         "^clock_offset$",
-        "a clock offset or latency between the autopilot and the bridge: the boat-frame reading is "
-        "turned by the heading of another moment, so the vector swings in every turn (a buffering "
-        "telemetry link, a serial port read late, a source stamped on arrival instead of at measurement)",
-        "clock_offset (re-references the vector with the autopilot's data at the fitted offset); "
-        "better still, fix the time stamps at the source",
+        _clock,
+        "clock_offset (re-references the vector at the fitted offset); better still, fix the time "
+        "stamps at the source",
     ),
-    (
-        "^heading_rel_",
-        "a sensor that reads differently depending on how the bow meets the flow: a misaligned or "
-        "shadowed paddle wheel, mast/hull shadow on the anemometer, or compass deviation (in a steady "
-        "flow the heading relative to it is the heading less a constant)",
-        "gp(HEADING_REL, periodic)",
-    ),
-    (
-        "^heading$",
-        "a misaligned or shadowed sensor, or compass deviation (heading error A*sin(heading+phi)) "
-        "that rotates every compensated vector",
-        "gp(heading, periodic), or cos(heading) for pure deviation",
-    ),
-    (
-        "^(sog|throttle|stw)$",
-        "a calibration or compensation error that grows with boat speed: anemometer in the bow "
-        "wave's upwash, paddle-wheel gain, or a wrong boat-velocity subtraction",
-        "gp(COV, matern32), or linear(COV)",
-    ),
-    (
-        "^app_wind_angle$",
-        "a sensor that reads differently depending on how the bow meets the wind: mast or hull "
-        "shadow on the anemometer, a misaligned vane; on straight survey legs the apparent wind "
-        "angle follows the heading, so also a misaligned paddle wheel or compass deviation",
-        "gp(app_wind_angle, periodic), or gp(heading, periodic)",
-    ),
+    ("^heading_rel_", _heading_rel, "gp(HEADING_REL, periodic)"),
+    ("^heading$", _heading, "gp(heading, periodic), or cos(heading) for pure deviation"),
+    ("^(sog|throttle|stw)$", _speed, "gp(COV, matern32), or linear(COV)"),
+    ("^app_wind_angle$", _app_angle, "gp(app_wind_angle, periodic), or gp(heading, periodic)"),
     (
         "^yaw_rate$",
         "an error that appears in turns: a sensor lever arm (the mast sweeps through the air), or a "
@@ -94,11 +136,15 @@ CATALOGUE: list[tuple[str, str, str]] = [
 ]
 
 
-def explain(covariate: str) -> tuple[str, str]:
-    """(likely cause, suggested term) for a covariate."""
+def explain(
+    covariate: str, instruments: Instruments | None = None, family: str = "current"
+) -> tuple[str, str]:
+    """(likely cause, suggested term) for a covariate, naming only the survey's own instruments."""
+    inst = instruments or Instruments(set())
     for pattern, cause, term in CATALOGUE:
         if re.search(pattern, covariate):
-            return cause, term.replace("COV", covariate).replace("HEADING_REL", covariate)
+            text = cause(inst, family) if callable(cause) else cause
+            return text, term.replace("COV", covariate).replace("HEADING_REL", covariate)
     return (
         f"an effect tied to '{covariate}' that the map model does not carry (check the sensor and its processing)",
         f"gp({covariate}, matern32)",

@@ -14,6 +14,7 @@ from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.cv import CVResult, paired_test, random_folds, repeated_blocked_folds
 from forcemap.host.workbench.model import Model, term_inputs
 from forcemap.host.workbench.spec import build_term, parse_term
+from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, survey_inputs
 
@@ -35,8 +36,11 @@ class Evaluator:
     def __init__(
         self, survey: Survey, target: str, terms: list[str], folds: int, seed: int
     ) -> None:
-        self.survey, self.target = survey, target
+        self.target = target
         self.sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
+        # the rows the model is fitted on: the target's spikes left out (the clock correction is the
+        # model's own business)
+        self.survey = survey = without_spikes(survey, target)[0]
         self.fold_ids, self.blocks = repeated_blocked_folds(survey.xy, folds, seed, REPEATS)
         # the paired unit of every blocked comparison: the block, over all its assignments
         self.groups = np.tile(self.blocks, REPEATS)
@@ -113,7 +117,8 @@ class Evaluator:
         return paired_test(self.base_r.error**2, cv.error**2, self.blocks)
 
     def clock(self) -> tuple[str, float, float, float]:
-        """(term, cv_rmse, gain, p) of correcting a clock offset between the autopilot and the bridge.
+        """(term, cv_rmse, gain, p) of correcting a clock offset between the boat-frame reading and the
+        heading and ground velocity.
 
         The offset acts in turns wherever they are, not at places: the paired unit is a stretch of track
         about one turn long, not a spatial block."""

@@ -23,6 +23,14 @@ MAX_BACKSTEPS = 0.005
 # ... and changes at least at this share of the samples (a 1-s clock at 10 Hz still does)
 MIN_MOVING = 0.05
 
+# a track is one pass when fewer than this share of its samples have a neighbour, within REVISIT_M, that
+# is far along the track from them (a parallel line, a crossing, the same line run again)
+MAX_REVISITED = 0.1
+REVISIT_M = 20.0
+# on one pass, a candidate is a smooth function of the distance along it when a smoother over the map's
+# own length scale explains at least this share of its variance
+SMOOTH_SHARE = 0.5
+
 SPEED_LIKE = ("sog", "stw", "throttle", "app_wind_speed")
 HEADING_LIKE = ("heading", "cog", "crab", "app_wind_angle")
 
@@ -44,6 +52,72 @@ def time_proxies(survey: Survey, names: list[str]) -> list[str]:
         if np.sum(np.sign(moving) != sign) <= MAX_BACKSTEPS * len(d):
             out.append(name)
     return out
+
+
+def along_track(xy: np.ndarray, step_m: float = 1.0) -> np.ndarray:
+    """Distance travelled along the track (m) at each sample; GNSS jitter below `step_m` at a standstill
+    adds nothing."""
+    s = np.zeros(len(xy))
+    anchor, run = xy[0], 0.0
+    for i in range(1, len(xy)):
+        d = float(np.hypot(*(xy[i] - anchor)))
+        if d >= step_m:
+            run, anchor = run + d, xy[i]
+        s[i] = run
+    return s
+
+
+def is_single_pass(survey: Survey, scale_m: float = REVISIT_M) -> bool:
+    """Whether the survey's positions are one curve at the map's length scale: hardly any sample has a
+    neighbour within `scale_m` (at least REVISIT_M) that is far from it along the track. Then position,
+    time and the distance along the track are one variable."""
+    radius = max(REVISIT_M, scale_m)
+    key = ("single_pass", survey.n, round(radius, 3))
+    if key not in survey.cache:
+        from scipy.spatial import cKDTree
+
+        xy = survey.xy
+        s = along_track(xy)
+        pairs = cKDTree(xy).query_pairs(radius, output_type="ndarray")
+        far = pairs[np.abs(s[pairs[:, 0]] - s[pairs[:, 1]]) > 3.0 * radius]
+        revisited = np.zeros(len(xy), bool)
+        revisited[far.ravel()] = True
+        survey.cache[key] = bool(revisited.mean() < MAX_REVISITED and s[-1] > 3.0 * radius)
+    return survey.cache[key]
+
+
+def smooth_along_track(survey: Survey, name: str, values: np.ndarray, scale_m: float) -> float:
+    """The share of a candidate's variance (an angle's through its unit vector) that a smoother along the
+    track over `scale_m` (the map's length scale) explains: near 1 for a drift, a clock or a counter."""
+    s = along_track(survey.xy)
+    parts = (
+        [np.sin(np.radians(values)), np.cos(np.radians(values))]
+        if is_circular(name)
+        else [np.asarray(values, float)]
+    )
+    total = sum(float(np.var(p)) for p in parts)
+    if total <= 0:
+        return 0.0
+    # a Gaussian kernel smoother in s over an even grid of the distance (at most ~2000 steps: a map
+    # scale below a 500th of the track is no scale for this)
+    step = max(scale_m, float(s[-1]) / 500.0, 1.0) / 4
+    grid = np.arange(0.0, s[-1] + step, step)
+    resid = 0.0
+    for p in parts:
+        k = np.clip(np.searchsorted(grid, s), 0, len(grid) - 1)
+        sums, counts = np.bincount(k, p, len(grid)), np.bincount(k, None, len(grid))
+        w = np.exp(-0.5 * (np.arange(-8, 9) / 2.0) ** 2)  # sd of 2 grid steps = scale_m / 2
+        smooth = np.convolve(sums, w, "same") / np.maximum(np.convolve(counts, w, "same"), 1e-12)
+        resid += float(np.mean((p - smooth[k]) ** 2))
+    return 1.0 - resid / total
+
+
+def map_length_scale(ev) -> float:
+    """The spatial GP's length scale (m) in the current model, or 5 % of the track when it has none."""
+    for term, params in ev.sm.primary.params_.items():
+        if term.startswith("gp(position") and "lengthscale" in params:
+            return float(params["lengthscale"])
+    return 0.05 * float(along_track(ev.survey.xy)[-1]) or 10.0
 
 
 def predict_from_model_inputs(ev, name: str, values: np.ndarray) -> tuple[np.ndarray, float]:
@@ -88,8 +162,17 @@ def confounders(ev) -> list[str]:
     return list(dict.fromkeys(["position", *[i for i in inputs if i != "position"]]))
 
 
-def advice(covariate: str, proxies_of_time: list[str] | None = None) -> str:
+def advice(
+    covariate: str, proxies_of_time: list[str] | None = None, single_pass: bool = False
+) -> str:
     """The survey that would separate a confounded candidate from position."""
+    if single_pass:
+        what = "time, a counter" + ("" if covariate == "t" else f", {covariate}")
+        return (
+            f"this survey is one pass: anything that drifts along it ({what}) is a function of the "
+            "distance along the line, like the map itself; repeat the line later, in the other "
+            "direction too, or cross it, so that the same place is seen at different times and values"
+        )
     if covariate == "t" or covariate in (proxies_of_time or []):
         return (
             "repeat a leg (or the whole line) later, over the same ground: a change in time then shows as a "

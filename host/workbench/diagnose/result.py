@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from forcemap.host.workbench.data_quality import DataFinding
 from forcemap.host.workbench.diagnose.catalogue import explain
 from forcemap.host.workbench.diagnose.null import NULL_MARGIN
+from forcemap.host.workbench.instruments import Instruments
 
 
 @dataclass
@@ -29,6 +31,7 @@ class Candidate:
     replaced_gain: float | None = None  # gain with the candidate replaced by that prediction
     null_gains: list[float] = field(default_factory=list)
     time_proxies: list[str] = field(default_factory=list)  # counters and clocks folded into t
+    one_pass: bool = False  # confounded because the survey is one pass (identify.is_single_pass)
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
@@ -116,6 +119,8 @@ class Diagnosis:
 
     target: str
     rounds: list[Round]
+    # problems of the log itself, listed ahead of the physics (host/workbench/data_quality.py)
+    data: list[DataFinding] = field(default_factory=list)
 
     @property
     def first(self) -> Round:
@@ -150,6 +155,7 @@ class Diagnosis:
             "missing_effect_found": first["missing_effect_found"],
             "candidates": first["candidates"],
             "advice": first["advice"],
+            "data_quality": [f.to_json() for f in self.data],
             "rounds": [r.to_json() for r in self.rounds],
         }
 
@@ -169,6 +175,9 @@ class Diagnosis:
 
     def summary(self) -> str:
         lines = []
+        if self.data:
+            lines.append("data quality (check these before the physics below):")
+            lines += [f"  {f.line()}" for f in self.data] + [""]
         for i, r in enumerate(self.rounds, 1):
             if len(self.rounds) > 1:
                 lines.append(f"== round {i}")
@@ -179,10 +188,16 @@ class Diagnosis:
 
 
 def explain_candidate(
-    c: Candidate, what: str, family: str, floor: float, others_confounded: list[str]
+    c: Candidate,
+    what: str,
+    family: str,
+    floor: float,
+    others_confounded: list[str],
+    instruments: Instruments | None = None,
 ) -> str:
-    """The candidate's line of text: its gain, the verdict and why, a likely cause and a term."""
-    cause, term = explain(c.covariate)
+    """The candidate's line of text: its gain, the verdict and why, a likely cause (naming only the
+    survey's own instruments) and a term."""
+    cause, term = explain(c.covariate, instruments, family)
     head = (
         f"adding {c.term}{' ' + what if what else ''} cuts the blocked-CV RMSE by {c.blocked_gain:.0%}"
         if c.blocked_gain >= 0
@@ -198,6 +213,14 @@ def explain_candidate(
         )
     if c.null_gains:
         head += f"; the same term on time-shifted copies of {c.covariate} gains at most {max(c.null_gains):.0%}"
+    if c.identifiable is False and c.one_pass:
+        verdict = (
+            f"not identifiable: {c.covariate} is confounded with position on this survey, which is one "
+            "pass: it is a smooth function of the distance along it (a smoother over the map's length "
+            f"scale explains R^2 = {c.predictability:.2f} of it), like the map itself; do not read it "
+            "as a cause"
+        )
+        return f"{head}; p = {c.p_value:.1e}, {verdict}."
     if c.identifiable is False:
         also = f" (so are {', '.join(others_confounded)})" if others_confounded else ""
         verdict = (

@@ -24,7 +24,7 @@ import re
 import time
 
 from forcemap.host.progress import Progress
-from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench import clock_offset, data_quality
 from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.diagnose import identify
 from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
@@ -36,6 +36,7 @@ from forcemap.host.workbench.diagnose.result import (
     explain_candidate,
 )
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.instruments import Instruments
 from forcemap.host.workbench.spec import parse_term
 from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.table import Survey, family, is_circular
@@ -117,7 +118,7 @@ def diagnose(
         if r.added is None:
             break
         terms = terms + [r.added.term]
-    return Diagnosis(target, done)
+    return Diagnosis(target, done, data_quality.findings(survey, [target]))
 
 
 def diagnose_round(
@@ -149,14 +150,15 @@ def diagnose_round(
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
     fam = ev.sm.vector.family if ev.sm.vector else "field"
+    inst = Instruments.of(survey)
     for c in results:
         rest = [o for o in others if o != c.covariate]
         w = "" if c.covariate == clock_offset.NAME else what
-        c.explanation = explain_candidate(c, w, fam, FLOOR, rest)
+        c.explanation = explain_candidate(c, w, fam, FLOOR, rest, inst)
     found = bool(results) and results[0].significant
     advice = None
     if results and results[0].identifiable is False:
-        advice = identify.advice(results[0].covariate, proxies)
+        advice = identify.advice(results[0].covariate, proxies, results[0].one_pass)
     return Round(
         target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds
     )
@@ -181,7 +183,9 @@ def _evaluate_all(
 def _evaluate(ev: Evaluator, name: str) -> Candidate:
     if name == clock_offset.NAME:
         term, rmse, gain, p = ev.clock()
-        return Candidate(name, term, rmse, gain, p, gain, None, False)
+        c = Candidate(name, term, rmse, gain, p, gain, None, False)
+        c.note = clock_offset.scan_offset(ev.sm.survey, ev.sm.vector).edge_note()
+        return c
     if name != "t":
         derived_column(ev.survey, name)
     model = ev.extended(name)
@@ -212,6 +216,12 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
             c.identifiable, c.significant = True, True
             continue
         values = survey_inputs(ev.survey, {c.covariate})[c.covariate]
+        scale = identify.map_length_scale(ev)
+        if identify.is_single_pass(ev.survey, scale):
+            c.predictability = identify.smooth_along_track(ev.survey, c.covariate, values, scale)
+            if c.predictability >= identify.SMOOTH_SHARE:
+                c.identifiable, c.one_pass, c.confounded_with = False, True, ["position"]
+                continue
         t0 = time.perf_counter()
         stand_in, c.predictability = identify.predict_from_model_inputs(ev, c.covariate, values)
         c.replaced_gain = float(ev.blocked(ev.extended(c.covariate, stand_in))[1])

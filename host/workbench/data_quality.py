@@ -1,0 +1,218 @@
+"""Data problems before physics: findings about the log itself, each with what the user can do about it.
+
+`diagnose` and the report list these ahead of the physical candidates: a map fitted to interleaved
+sources, false echoes or late time stamps explains the log, not the water. Four kinds:
+
+- source conflict: a speed from successive positions far from SOG, or a heading that turns faster than a
+  boat can: two sources feeding one column in turn (named from the log's ``columns`` metadata);
+- spikes: the target's readings flagged along the track (host/workbench/spikes.py);
+- latency: a wind or current vector steadiest in turns with the heading and ground velocity shifted
+  (host/workbench/clock_offset.py), with a note when the estimate is at the edge of the range searched;
+- quantisation: positions on a coarse grid (a 3-decimal-minute position moves in 1.85 m steps).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
+from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.instruments import Instruments
+from forcemap.host.workbench.spikes import target_spikes, without_spikes
+from forcemap.host.workbench.table import Survey
+
+# speed from positions over this span is compared with SOG
+SPAN_S = 1.0
+# p95 of |speed from positions - SOG| beyond this: positions from more than one place (two receivers
+# interleaved, or a glitching one). One receiver stays well below it (0.17 m/s on a real capture), and
+# so does a 3-decimal-minute grid (at most 1.85 m in a second)
+MAX_SPEED_MISMATCH = 2.5
+# p99 of the turn rate from successive headings beyond this: two compasses interleaved (a small boat
+# turns at most some 30 deg/s; one compass in a seaway reached 24 deg/s at p99)
+MAX_TURN_RATE = 60.0
+# a latency worth reporting: at least this offset, and this share of the vector's swing removed
+MIN_LATENCY_S = 0.5
+MIN_LATENCY_GAIN = 0.1
+# a position grid coarser than this is reported
+MIN_QUANTUM_M = 0.5
+
+
+@dataclass
+class DataFinding:
+    kind: str  # "source conflict", "spikes", "latency", "quantisation"
+    text: str
+    advice: str
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind, "text": self.text, "advice": self.advice}
+
+    def line(self) -> str:
+        return f"{self.kind}: {self.text}. Advice: {self.advice}"
+
+
+CHOOSE_SOURCE = (
+    "choose one source per quantity ([sources] in the boat TOML; `forcemap log info` lists the "
+    "sources and how they disagree), then import or run again"
+)
+
+
+def _span_pairs(t: np.ndarray, span: float) -> tuple[np.ndarray, np.ndarray]:
+    """Row pairs (i, j) with t[j] the first time at least `span` after t[i]."""
+    j = np.searchsorted(t, t + span)
+    ok = j < len(t)
+    return np.flatnonzero(ok), j[ok]
+
+
+def speed_mismatch(survey: Survey) -> float | None:
+    """p95 of |speed from positions over SPAN_S - mean SOG over the same span| (m/s); None without SOG."""
+    sog = survey.columns.get("sog")
+    if sog is None or not np.isfinite(sog).any():
+        return None
+    i, j = _span_pairs(survey.trel, SPAN_S)
+    if len(i) < 10:
+        return None
+    xy, t = survey.xy, survey.trel
+    v = np.hypot(*(xy[j] - xy[i]).T) / (t[j] - t[i])
+    csum = np.concatenate([[0.0], np.cumsum(np.nan_to_num(sog))])
+    mean_sog = (csum[j + 1] - csum[i]) / (j + 1 - i)
+    d = np.abs(v - mean_sog)
+    return float(np.nanpercentile(d, 95))
+
+
+def turn_rate_p99(survey: Survey) -> float | None:
+    """p99 of the turn rate (deg/s) between successive headings at least 0.1 s apart."""
+    h = survey.columns.get("heading")
+    if h is None or np.isfinite(h).sum() < 10:
+        return None
+    ok = np.isfinite(h)
+    t, h = survey.trel[ok], h[ok]
+    i, j = _span_pairs(t, 0.1)
+    if len(i) < 10:
+        return None
+    rate = np.abs((h[j] - h[i] + 180.0) % 360.0 - 180.0) / (t[j] - t[i])
+    return float(np.percentile(rate, 99))
+
+
+def conflicts(survey: Survey, inst: Instruments) -> list[DataFinding]:
+    """Position and heading sources that disagree, measured: two sentences of one receiver (GGA and RMC)
+    feeding one column agree, and are no finding; the text names whatever fed the column."""
+    out = []
+    mismatch = speed_mismatch(survey)
+    if mismatch is not None and mismatch > MAX_SPEED_MISMATCH:
+        out.append(
+            DataFinding(
+                "source conflict",
+                f"the speed from successive positions differs from SOG by {mismatch:.1f} m/s at p95 "
+                f"(over {SPAN_S:g} s; one receiver stays well under {MAX_SPEED_MISMATCH:g}): positions from "
+                f"more than one receiver interleaved ({inst.name('lat', 'the position source')})",
+                CHOOSE_SOURCE,
+            )
+        )
+    rate = turn_rate_p99(survey)
+    if rate is not None and rate > MAX_TURN_RATE:
+        out.append(
+            DataFinding(
+                "source conflict",
+                f"the heading turns at {rate:.0f} deg/s at p99 (no survey boat turns faster than "
+                f"{MAX_TURN_RATE:g}): two compasses interleaved? ({inst.name('heading', 'the heading')})",
+                CHOOSE_SOURCE,
+            )
+        )
+    return out
+
+
+def spikes(survey: Survey, targets: list[str]) -> list[DataFinding]:
+    out, seen = [], set()
+    for target in targets:
+        found = target_spikes(survey, target)
+        if found is None or not found.count or found.name in seen:
+            continue
+        seen.add(found.name)
+        out += [DataFinding("spikes", line, found.advice()) for line in found.lines()]
+    return out
+
+
+def latency(survey: Survey, targets: list[str], inst: Instruments) -> list[DataFinding]:
+    out, seen = [], set()
+    for target in targets:
+        vt = survey.vector_target(target)
+        if vt is None or vt.prefix in seen or not clock_offset.applicable(survey, vt):
+            continue
+        seen.add(vt.prefix)
+        clean = without_spikes(survey, target)[0]  # the survey the model's own scan runs on
+        try:
+            scan = clock_offset.scan_offset(clean, vt)
+        except WorkbenchError:
+            continue
+        tau = scan.offset_s
+        if abs(tau) < MIN_LATENCY_S or scan.reduction < MIN_LATENCY_GAIN:
+            continue
+        late, early = (
+            (inst.navigation(), inst.boat_frame(vt.family))
+            if tau > 0
+            else (inst.boat_frame(vt.family), inst.navigation())
+        )
+        text = (
+            f"the {vt.prefix} vector is steadiest in turns with the heading and ground velocity taken "
+            f"{tau:+.2f} s later ({scan.reduction:.0%} of its swing removed): {late} is stamped "
+            f"about {abs(tau):.1f} s late against {early}"
+        )
+        if scan.at_edge:
+            text += "; " + scan.edge_note()
+        out.append(
+            DataFinding(
+                "latency",
+                text,
+                "fix the time stamp at the source (stamp at measurement, not on arrival; a shorter "
+                "buffer); meanwhile the model term clock_offset undoes it",
+            )
+        )
+    return out
+
+
+def _m_per_minute(survey: Survey) -> float:
+    """Metres per minute of latitude at the survey's centre (WGS-84)."""
+    return LocalFrame(survey.lat0, survey.lon0).m_per_deg_lat / 60.0
+
+
+def position_quantum_m(survey: Survey) -> float | None:
+    """The step (m) of a position grid in decimal minutes the latitudes sit on, if it is coarse."""
+    lat = survey.columns["lat"]
+    minutes = np.abs(lat) * 60.0
+    for decimals in (1, 2, 3, 4):
+        scaled = minutes * 10.0**decimals
+        if np.all(np.abs(scaled - np.round(scaled)) < 0.01):
+            step = _m_per_minute(survey) * 10.0**-decimals
+            return step if step >= MIN_QUANTUM_M else None
+    return None
+
+
+def quantisation(survey: Survey, inst: Instruments) -> list[DataFinding]:
+    step = position_quantum_m(survey)
+    if step is None:
+        return []
+    decimals = round(-math.log10(step / _m_per_minute(survey)))
+    return [
+        DataFinding(
+            "quantisation",
+            f"positions are on a grid of 0.{'0' * (decimals - 1)}1 minute ({step:.2f} m steps in "
+            f"latitude) from {inst.name('lat', 'the position source')}: the speed from successive "
+            "positions jumps by a step, and the map cannot resolve less",
+            "take the position from a source that sends more decimals (the GNSS itself rather than an "
+            "instrument bus that re-sends it), or use SOG and COG rather than differences of positions",
+        )
+    ]
+
+
+def findings(survey: Survey, targets: list[str]) -> list[DataFinding]:
+    """Every data-quality finding about the survey and the given targets, conflicts first."""
+    inst = Instruments.of(survey)
+    return (
+        conflicts(survey, inst)
+        + spikes(survey, targets)
+        + latency(survey, targets, inst)
+        + quantisation(survey, inst)
+    )
