@@ -221,7 +221,7 @@ class ReplanService(threading.Thread):
     def _show_plan(self) -> None:
         """Hand the intended lines and the autopilot's waypoints to the live view, if there is one."""
         if self.on_plan is not None and self.rp is not None:
-            self.on_plan(self.lines_latlon, self.rp.frame.to_latlon(self.rp.xy))
+            self.on_plan(self.lines_latlon, self.rp.frame.points_to_latlon(self.rp.xy))
 
     def run(self) -> None:
         next_try = 0.0
