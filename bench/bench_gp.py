@@ -19,11 +19,16 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `bench.*` when run as a script
+
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.model import Model, small_blas
 
@@ -36,8 +41,7 @@ BASELINE = ["const", "gp(position, matern32)"]
 def survey(n: int, seed: int = 1) -> dict[str, np.ndarray]:
     cols = simulate([], seed, SURVEY_S, rate_hz=n / SURVEY_S)
     lat0, lon0 = cols["lat"].mean(), cols["lon"].mean()
-    cols["x"] = np.radians(cols["lon"] - lon0) * 6_371_008.8 * np.cos(np.radians(lat0))
-    cols["y"] = np.radians(cols["lat"] - lat0) * 6_371_008.8
+    cols["x"], cols["y"] = LocalFrame(lat0, lon0).to_local(cols["lat"], cols["lon"])
     return cols
 
 

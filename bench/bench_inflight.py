@@ -104,7 +104,7 @@ def cost(out: list, work: Path) -> None:
     from forcemap.host.plan.boat_model import BoatModel
     from forcemap.host.plan.inflight import MapSnapshot, Replanner
     from forcemap.host.plan.maps import survey_maps
-    from forcemap.host.plan.mission_io import Frame
+    from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.table import load_survey
     from forcemap.sim_devices.engine import Simulation
 
@@ -114,12 +114,12 @@ def cost(out: list, work: Path) -> None:
     table = survey("river", 1, work / "survey-river")
     sv = load_survey(table)
     m = mission("river")
-    frame = Frame(sv.lat0, sv.lon0)
+    frame = LocalFrame(sv.lat0, sv.lon0)
     sim = Simulation("river", m, [], seed=1, instruments=False)
     sim.start(10.0, lambda *a: None)
     items = sim.autopilot.uplink.accepted
     lines_ll = np.stack(sim.geo.to_latlon(m.lines[..., 0], m.lines[..., 1]), axis=-1)
-    lines = frame.to_local(lines_ll)
+    lines = frame.points_to_local(lines_ll)
     lo, hi = lines.reshape(-1, 2).min(axis=0) - 120, lines.reshape(-1, 2).max(axis=0) + 120
     maps = survey_maps(table, sv, (lo[0], hi[0], lo[1], hi[1]), progress=False)
     snap = MapSnapshot(maps, 0.0, sv.n)
@@ -136,7 +136,7 @@ def cost(out: list, work: Path) -> None:
     )
     out.append({"decision_cpu_s": times, "reason": d.reason})
     # a long mission: the lawnmower there and back 4 times (40 lines, about 95 minutes)
-    from forcemap.sim_devices import mission as ms
+    from forcemap.host.vessel import mission as ms
 
     wps = np.vstack([m.waypoints if k % 2 == 0 else m.waypoints[::-1] for k in range(8)])
     long = ms.Mission("long", "", wps, False, None, wps.reshape(-1, 2, 2))

@@ -117,7 +117,7 @@ def _drift(g, sofar, comp) -> tuple[float, float, float]:
     import numpy as np
     from forcemap.host.live.growing import Component, live_survey
     from forcemap.host.live.layers import to_lonlat
-    from forcemap.host.workbench.cleaning import local_frame
+    from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.spec import BASELINE
     from scipy.spatial import cKDTree
 
@@ -126,8 +126,8 @@ def _drift(g, sofar, comp) -> tuple[float, float, float]:
     xy = np.column_stack([gx.ravel(), gy.ravel()])
     survey = live_survey(sofar, "depth")
     lon, lat = to_lonlat(xy[:, 0], xy[:, 1], g.lat0, g.lon0)
-    at = np.column_stack(local_frame(lat, lon, survey.lat0, survey.lon0))
-    sx, sy = local_frame(sofar["lat"], sofar["lon"], g.lat0, g.lon0)
+    at = np.column_stack(LocalFrame(survey.lat0, survey.lon0).to_local(lat, lon))
+    sx, sy = LocalFrame(g.lat0, g.lon0).to_local(sofar["lat"], sofar["lon"])
     near = cKDTree(np.column_stack([sx, sy])).query(xy)[0] <= 20.0
     out = []
     for like in (comp, None):

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `bench.*` when run as a script
+
 from bench.closed_loop import fly, low_discharge_scenario, plan_files, survey
 
 SEED_A, SEED_B = 1, 2
@@ -84,22 +86,23 @@ def closed_loop(
 def speed(work: Path) -> None:
     from forcemap.host.plan.boat_model import BoatModel
     from forcemap.host.plan.maps import survey_maps
-    from forcemap.host.plan.mission_io import Frame, read_mission
+    from forcemap.host.plan.mission_io import read_mission
     from forcemap.host.plan.planner import plan_mission
+    from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.table import load_survey
 
     table = survey("river", SEED_A, work / "survey-river")
     m = read_mission("lawnmower", "river")
     sv = load_survey(table)
-    frame = Frame(sv.lat0, sv.lon0)
-    one = frame.to_local(m.latlon)
+    frame = LocalFrame(sv.lat0, sv.lon0)
+    one = frame.points_to_local(m.latlon)
     passes = [one if k % 2 == 0 else one[::-1] for k in range(16)]
     wps = np.concatenate(passes)
     lines = np.concatenate(
         [
-            frame.to_local(m.lines_latlon)
+            frame.points_to_local(m.lines_latlon)
             if k % 2 == 0
-            else frame.to_local(m.lines_latlon)[::-1, ::-1]
+            else frame.points_to_local(m.lines_latlon)[::-1, ::-1]
             for k in range(16)
         ]
     )

@@ -16,10 +16,11 @@ import numpy as np
 from forcemap.host.plan.boat_model import BoatModel
 from forcemap.host.plan.maps import survey_maps
 from forcemap.host.plan.metrics import distance_to_path, score_lines, summary
-from forcemap.host.plan.mission_io import Frame, read_mission, write_outputs
+from forcemap.host.plan.mission_io import read_mission, write_outputs
 from forcemap.host.plan.planner import PlanResult, plan_mission
 from forcemap.host.plan.workspace_io import save_plan
-from forcemap.sim_devices import scenario as sc
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.sim_devices.engine import Simulation
 from forcemap.sim_devices.offline import make_survey
 
@@ -52,8 +53,8 @@ def plan_files(
     boat = boat or BoatModel()
     m = read_mission(mission, scenario)
     sv = load_survey(table)
-    frame = Frame(sv.lat0, sv.lon0)
-    wps, lines = frame.to_local(m.latlon), frame.to_local(m.lines_latlon)
+    frame = LocalFrame(sv.lat0, sv.lon0)
+    wps, lines = frame.points_to_local(m.latlon), frame.points_to_local(m.lines_latlon)
     lo, hi = wps.min(axis=0) - 120.0, wps.max(axis=0) + 120.0
     maps = survey_maps(table, sv, (lo[0], hi[0], lo[1], hi[1]), progress=False)
     result = plan_mission(wps, m.speeds, lines, maps, boat)
@@ -63,9 +64,9 @@ def plan_files(
     for name, o in (("original", result.original), ("planned", result.planned)):
         paths = write_outputs(
             out / name,
-            frame.to_latlon(o.plan.wps),
+            frame.points_to_latlon(o.plan.wps),
             o.plan.speeds,
-            frame.to_latlon(result.planned.plan.lines),
+            frame.points_to_latlon(result.planned.plan.lines),
             o.to_json(),
             name,
         )

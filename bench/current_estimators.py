@@ -23,7 +23,8 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from forcemap.host import compensation as comp  # noqa: E402
+from forcemap.host.fuse import compensation as comp
+from forcemap.host.vessel.geodesy import boat_to_world, velocity, world_to_boat
 
 WHEELS = (45.0, 135.0, -135.0, -45.0)
 ANGLES = (0, 15, 30, 45, 60, 90, 135, 180)
@@ -39,11 +40,11 @@ def synthetic(n: int = 2000, seed: int = 1) -> dict[tuple[int, float], dict[str,
             for _ in range(n):
                 rel = ang * rng.choice((-1, 1))  # the water comes from rel deg off the bow
                 heading = rng.uniform(0, 360)
-                c = comp.velocity(0.5, rng.uniform(0, 360))
+                c = velocity(0.5, rng.uniform(0, 360))
                 f = -sp * math.cos(math.radians(rel))
                 s = -sp * math.sin(math.radians(rel))
                 # boat velocity over ground: the water's, minus the flow past the hull
-                fe, fn = comp.boat_to_world(f, s, heading)
+                fe, fn = boat_to_world(f, s, heading)
                 v = (c[0] - fe, c[1] - fn)
                 m = []
                 for r in comp.wheel_readings(f, s, WHEELS):
@@ -84,11 +85,11 @@ def from_sim(duration: float, seed: int = 1):
         t = r["t"]
         tru = {k: float(np.interp(t, cols["t"], v)) for k, v in cols.items() if k != "heading"}
         h = math.degrees(float(np.interp(t, cols["t"], hs)))
-        f, s = comp.world_to_boat(
+        f, s = world_to_boat(
             tru["current_east"] - tru["boat_east"], tru["current_north"] - tru["boat_north"], h
         )
         ang = abs(math.degrees(math.atan2(-s, -f)))
-        pe, pn = comp.velocity(r["current_speed_paper"], r["current_dir_paper"])
+        pe, pn = velocity(r["current_speed_paper"], r["current_dir_paper"])
         e_l = math.hypot(
             r["current_east"] - tru["current_east"], r["current_north"] - tru["current_north"]
         )

@@ -21,15 +21,16 @@ from forcemap.host.log.messages import as_json
 from forcemap.host.plan.boat_model import BoatModel
 from forcemap.host.plan.inflight import Decision, Replanner
 from forcemap.host.plan.metrics import score_lines, summary
-from forcemap.host.plan.mission_io import Frame
 from forcemap.host.plan.refit_maps import RefitMaps
 from forcemap.host.plan.service import apply
-from forcemap.sim_devices import mission as ms
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel.boat import BoatParams
+from forcemap.host.vessel.control import Gains
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.sim_devices import modes as md
-from forcemap.sim_devices import scenario as sc
-from forcemap.sim_devices.boat import BoatParams
-from forcemap.sim_devices.control import Gains
 from forcemap.sim_devices.engine import DT, Simulation
+from forcemap.sim_devices.jetyak import JETYAK, ROVER_GAINS
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 LATENCY_S = 2.0
@@ -87,7 +88,7 @@ def perturbed(draw: int) -> tuple[BoatParams, Gains, dict]:
     factor in [0.8, 1.2] (seeded draw)."""
     rng = np.random.default_rng(1000 + draw)
     f = {k: float(rng.uniform(0.8, 1.2)) for k in ("drag", "thrust", "turn", "gains")}
-    p, g = BoatParams(), Gains()
+    p, g = JETYAK, ROVER_GAINS
     from dataclasses import replace
 
     p = replace(
@@ -145,7 +146,7 @@ def fly(
     scen = sc.load(scenario)
     sim = Simulation(scen, m, effects or [], seed=seed, boat_params=boat and boat[0],
                      gains=boat and boat[1])  # fmt: skip
-    frame = Frame(scen.lat0, scen.lon0)
+    frame = LocalFrame(scen.lat0, scen.lon0)
     lo, hi = m.waypoints.min(axis=0) - 120.0, m.waypoints.max(axis=0) + 120.0
     maps = RefitMaps(scen.lat0, scen.lon0, (lo[0], hi[0], lo[1], hi[1]))
     samples = _Samples(maps)
@@ -178,7 +179,7 @@ def fly(
     if configure is not None:
         configure(sim)
     if replan:
-        lines_ll = frame.to_latlon(m.lines)
+        lines_ll = frame.points_to_latlon(m.lines)
         rp = Replanner(list(sim.autopilot.uplink.accepted), lines_ll, frame, BoatModel(),
                        provider or maps, bound_m=bound_m, log=log.append)  # fmt: skip
     decisions: list[Decision] = []

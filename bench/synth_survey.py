@@ -18,6 +18,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
 
 EFFECTS = (
     "depth_current",
@@ -228,8 +229,8 @@ def simulate(
     W_meas = R_meas + vb_meas
     depth = deep_m + depth_field(x, y) + DEPTH_NOISE * rng.standard_normal(n)
     app_from = np.degrees(np.arctan2(-R_meas[:, 0], -R_meas[:, 1]))
-    lat = LAT0 + np.degrees(y / 6_371_008.8) + 2e-6 * rng.standard_normal(n) * 0.1
-    lon = LON0 + np.degrees(x / (6_371_008.8 * math.cos(math.radians(LAT0))))
+    lat, lon = LocalFrame(LAT0, LON0).to_latlon(x, y)
+    lat = lat + 2e-6 * rng.standard_normal(n) * 0.1
     cols = {
         "t": T0 + t,
         "lat": lat,

@@ -181,11 +181,11 @@ class Fit:
 
     def predict(self, lat, lon) -> dict[str, np.ndarray]:
         """The model at positions (degrees): `mean` and `std` (and east/north/speed for a vector)."""
-        from forcemap.host.workbench.cleaning import local_frame
+        from forcemap.host.vessel.geodesy import LocalFrame
 
         model = self._fitted()
         s = model.survey
-        x, y = local_frame(np.atleast_1d(lat), np.atleast_1d(lon), s.lat0, s.lon0)
+        x, y = LocalFrame(s.lat0, s.lon0).to_local(np.atleast_1d(lat), np.atleast_1d(lon))
         return model.predict_grid(np.column_stack([x, y]))
 
     def diagnose(self, rounds: int = 1, progress: bool = False):

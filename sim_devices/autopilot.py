@@ -6,9 +6,11 @@ import math
 import random
 from dataclasses import dataclass
 
+from forcemap.host.vessel.boat import HullState
+from forcemap.host.vessel.control import Navigator
+from forcemap.host.vessel.geodesy import LocalFrame
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from .geo import Geo
 from .mission_protocol import MissionReceiver
 from .modes import AUTO
 
@@ -49,12 +51,49 @@ class NavState:
     wp_dist: float = 0.0
 
 
+def nav_state(
+    t: float,
+    heading_deg: float,
+    s: HullState,
+    nav: Navigator,
+    seqs,
+    throttle: float,
+    xte: float,
+    psi_d: float,
+) -> NavState:  # type: ignore[no-untyped-def]
+    """What the autopilot knows at ``t``: the hull's state and where the navigator is on the mission
+    (``seqs``: the mission item of each waypoint, None for a mission not received over MAVLink)."""
+    wx, wy = nav.wps[nav.leg]
+    return NavState(
+        t, s.x, s.y, heading_deg, s.r, s.ve, s.vn, throttle,
+        wp_seq=int(seqs[nav.leg]) if seqs is not None else nav.leg + 1,
+        wp_total=int(seqs[-1]) + 1 if seqs is not None else len(nav.wps) + 1,
+        xtrack=xte,
+        nav_bearing_deg=math.degrees(psi_d) % 360.0,
+        target_bearing_deg=math.degrees(math.atan2(wx - s.x, wy - s.y)) % 360.0,
+        wp_dist=math.hypot(wx - s.x, wy - s.y),
+    )  # fmt: skip
+
+
+@dataclass
+class _Fix:
+    """The autopilot's clocks and estimate at one instant, shared by the messages it sends then."""
+
+    boot_ms: int
+    unix_us: int
+    has_fix: bool
+    gx: float | None
+    gy: float | None
+    heading: float
+    sog: float
+
+
 class Autopilot:
     """Encodes the boat's state as the Pixhawk would send it; time fields are on the autopilot's clocks."""
 
     def __init__(
         self,
-        geo: Geo,
+        geo: LocalFrame,
         t0_unix: float,
         seed: int = 0,
         boot_before_s: float = 6.0,
@@ -117,7 +156,19 @@ class Autopilot:
 
     def messages(self, s: NavState) -> list[bytes]:
         """Every message due at ``s.t``, encoded."""
+        fix = self._fix(s)
         out: list[bytes] = []
+        for name, period in RATES.items():
+            if s.t + 1e-9 >= self.next_due[name]:
+                self.next_due[name] = max(self.next_due[name] + period, s.t)
+            elif name not in self._now:
+                continue
+            self._now.discard(name)
+            out.append(self._pack(getattr(self, f"_{name.lower()}")(s, fix)))
+        return out
+
+    def _fix(self, s: NavState) -> _Fix:
+        """The autopilot's clocks and its position estimate at ``s.t`` (the GPS error wanders on)."""
         dt = s.t - self._last_t
         self._last_t = s.t
         k = min(dt / 30.0, 1.0)
@@ -139,87 +190,56 @@ class Autopilot:
         else:
             gx = gy = None
         heading = self._heading(s.heading_deg + self.rng.gauss(0.0, 0.3))
-        sog = math.hypot(s.ve, s.vn)
-        for name, period in RATES.items():
-            if s.t + 1e-9 < self.next_due[name]:
-                if name not in self._now:
-                    continue
-            else:
-                self.next_due[name] = max(self.next_due[name] + period, s.t)
-            self._now.discard(name)
-            if name == "HEARTBEAT":
-                flags = AUTO_FLAGS if self.mode == AUTO else MANUAL_FLAGS
-                msg = self.mav.heartbeat_encode(
-                    mavlink2.MAV_TYPE_SURFACE_BOAT,
-                    mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                    BASE_MODE | flags,
-                    self.mode,
-                    mavlink2.MAV_STATE_ACTIVE,
-                )
-            elif name == "SYSTEM_TIME":
-                msg = self.mav.system_time_encode(unix_us, boot_ms)
-            elif name == "GPS_RAW_INT":
-                if has_fix:
-                    lat, lon = self.geo.to_latlon(gx, gy)
-                    cog = math.degrees(math.atan2(s.ve, s.vn)) % 360.0
-                    msg = self.mav.gps_raw_int_encode(
-                        unix_us,
-                        3,
-                        int(round(float(lat) * 1e7)),
-                        int(round(float(lon) * 1e7)),
-                        45_000,
-                        90,
-                        150,
-                        int(round(sog * 100)),
-                        int(round(cog * 100)) % 36000,
-                        14,
-                    )
-                else:
-                    msg = self.mav.gps_raw_int_encode(unix_us, 1, 0, 0, 0, 9999, 9999, 0, 65535, 0)
-            elif name == "GLOBAL_POSITION_INT":
-                if gx is None:
-                    lat = lon = 0.0
-                else:
-                    lat, lon = self.geo.to_latlon(gx, gy)
-                msg = self.mav.global_position_int_encode(
-                    boot_ms,
-                    int(round(float(lat) * 1e7)),
-                    int(round(float(lon) * 1e7)),
-                    45_000,
-                    0,
-                    int(round(s.vn * 100)),
-                    int(round(s.ve * 100)),
-                    0,
-                    int(round(heading * 100)) % 36000,
-                )
-            elif name == "ATTITUDE":
-                yaw = math.radians(heading)
-                if yaw > math.pi:
-                    yaw -= 2 * math.pi
-                msg = self.mav.attitude_encode(
-                    boot_ms,
-                    self.rng.gauss(0.0, 0.02),
-                    self.rng.gauss(0.0, 0.02),
-                    yaw,
-                    0.0,
-                    0.0,
-                    s.yaw_rate,
-                )
-            elif name == "MISSION_CURRENT":
-                state = (
-                    mavlink2.MISSION_STATE_ACTIVE
-                    if s.wp_total
-                    else mavlink2.MISSION_STATE_NO_MISSION
-                )
-                msg = self.mav.mission_current_encode(s.wp_seq, s.wp_total, state, 0)
-            elif name == "NAV_CONTROLLER_OUTPUT":
-                msg = self.mav.nav_controller_output_encode(
-                    0.0, 0.0, int(round(s.nav_bearing_deg)), int(round(s.target_bearing_deg)),
-                    min(int(round(s.wp_dist)), 65535), 0.0, 0.0, s.xtrack,
-                )  # fmt: skip
-            else:
-                msg = self.mav.vfr_hud_encode(
-                    sog, sog, int(round(heading)) % 360, int(round(s.throttle * 100)), 0.0, 0.0
-                )
-            out.append(self._pack(msg))
-        return out
+        return _Fix(boot_ms, unix_us, has_fix, gx, gy, heading, math.hypot(s.ve, s.vn))
+
+    def _heartbeat(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        return self.mav.heartbeat_encode(
+            mavlink2.MAV_TYPE_SURFACE_BOAT,
+            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            BASE_MODE | (AUTO_FLAGS if self.mode == AUTO else MANUAL_FLAGS),
+            self.mode,
+            mavlink2.MAV_STATE_ACTIVE,
+        )
+
+    def _system_time(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        return self.mav.system_time_encode(f.unix_us, f.boot_ms)
+
+    def _gps_raw_int(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        if not f.has_fix:
+            return self.mav.gps_raw_int_encode(f.unix_us, 1, 0, 0, 0, 9999, 9999, 0, 65535, 0)
+        lat, lon = self.geo.to_latlon(f.gx, f.gy)
+        cog = math.degrees(math.atan2(s.ve, s.vn)) % 360.0
+        return self.mav.gps_raw_int_encode(
+            f.unix_us, 3, int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)), 45_000,
+            90, 150, int(round(f.sog * 100)), int(round(cog * 100)) % 36000, 14,
+        )  # fmt: skip
+
+    def _global_position_int(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        lat, lon = (0.0, 0.0) if f.gx is None else self.geo.to_latlon(f.gx, f.gy)
+        return self.mav.global_position_int_encode(
+            f.boot_ms, int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)), 45_000, 0,
+            int(round(s.vn * 100)), int(round(s.ve * 100)), 0,
+            int(round(f.heading * 100)) % 36000,
+        )  # fmt: skip
+
+    def _attitude(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        yaw = math.radians(f.heading)
+        if yaw > math.pi:
+            yaw -= 2 * math.pi
+        roll, pitch = self.rng.gauss(0.0, 0.02), self.rng.gauss(0.0, 0.02)
+        return self.mav.attitude_encode(f.boot_ms, roll, pitch, yaw, 0.0, 0.0, s.yaw_rate)
+
+    def _vfr_hud(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        return self.mav.vfr_hud_encode(
+            f.sog, f.sog, int(round(f.heading)) % 360, int(round(s.throttle * 100)), 0.0, 0.0
+        )
+
+    def _mission_current(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        active = mavlink2.MISSION_STATE_ACTIVE if s.wp_total else mavlink2.MISSION_STATE_NO_MISSION
+        return self.mav.mission_current_encode(s.wp_seq, s.wp_total, active, 0)
+
+    def _nav_controller_output(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]
+        return self.mav.nav_controller_output_encode(
+            0.0, 0.0, int(round(s.nav_bearing_deg)), int(round(s.target_bearing_deg)),
+            min(int(round(s.wp_dist)), 65535), 0.0, 0.0, s.xtrack,
+        )  # fmt: skip

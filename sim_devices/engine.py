@@ -17,24 +17,25 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel.boat import Boat, BoatParams, HullState
+from forcemap.host.vessel.control import Controller, Gains, Navigator
+from forcemap.host.vessel.geodesy import LocalFrame
 
 from . import effects as fx
 from . import faults as fl
-from . import mission as ms
 from . import modes as md
-from . import scenario as sc
-from .autopilot import Autopilot, NavState
-from .boat import Boat, BoatParams, BoatState
+from . import truth as truth_files
+from .autopilot import Autopilot, nav_state
 from .bridge_emu import EmulatedBridge
-from .control import Controller, Gains, Navigator
 from .fields import World
-from .geo import Geo
 from .instruments import InstrumentConfig, Readings, Sensors
+from .jetyak import JETYAK, ROVER_GAINS
 from .machine_emu import PWRON_RESET
 from .mission_link import MissionLink
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
-from .truth import samples_table, track_arrays, write_all, write_pulses
 
 Sink = Callable[[str, int, bytes], Any]
 Progress = Callable[[float, float], Any]
@@ -77,9 +78,9 @@ class Simulation(MissionLink):
         # the NMEA-only boat's bus (nmea_bus.py) on the "nmea" port: on request or with its faults
         self.bus_faults = {f.kind for f in self.faults if f.kind in fl.BUS_KINDS}
         self.nmea_bus = nmea_bus or bool(self.bus_faults)
-        self.boat_params = boat_params or BoatParams()  # the hull and jet flown (not the planner's)
-        self.gains = gains or Gains()  # the autopilot's tuning
-        self.geo = Geo(self.scenario.lat0, self.scenario.lon0)
+        self.boat_params = boat_params or JETYAK  # the hull and jet flown (not the planner's)
+        self.gains = gains or ROVER_GAINS  # the autopilot's tuning
+        self.geo = LocalFrame(self.scenario.lat0, self.scenario.lon0)
         self.t0_ns = int(round(self.scenario.t0 * 1e9))
         self.world: World | None = None
         self.track: dict[str, np.ndarray] = {}
@@ -88,10 +89,7 @@ class Simulation(MissionLink):
 
     # ---- set-up ---------------------------------------------------------------------------
     def _effect(self, name: str) -> dict[str, Any] | None:
-        for e in self.effects:
-            if e.name == name:
-                return e.params
-        return None
+        return next((e.params for e in self.effects if e.name == name), None)
 
     def start(self, duration_s: float, sink: Sink) -> None:
         """Build everything for a run of ``duration_s`` (the time-dependent effects scale with it)."""
@@ -102,14 +100,34 @@ class Simulation(MissionLink):
         wps = self.mission.waypoints
         a, b = wps[0], wps[1]
         psi = math.atan2(b[0] - a[0], b[1] - a[1]) % (2 * math.pi)
-        self.boat = Boat(self.boat_params, BoatState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
+        self.boat = Boat(self.boat_params, HullState(x=float(a[0]), y=float(a[1]), psi=psi, u=1.5))
         self.cruise = float(tables.get("boat", {}).get("cruise_speed", 3.5))
-        self.nav = Navigator(wps, self.mission.loop, self.gains, self.mission.speeds)
+        self.nav = Navigator(wps, self.gains, loop=self.mission.loop, speeds=self.mission.speeds)
         self.ctl = Controller(self.cruise, self.gains)
         self.mode = md.AUTO
         self.mode_changes = md.schedule(tables)
         self.mode_log: list[tuple[float, int]] = []  # (t s, mode) as it changed
         self.pilot = md.ModePilot((float(a[0]), float(a[1])), self.gains.wp_radius_m)
+        self._build_devices(tables)
+        self.damage = {
+            s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES
+        }
+        self.actions = fl.schedule(self.faults, self.duration)
+        self.garbler: Garbler | None = None
+        self.t = 0.0
+        self.k = 0
+        self.next_sound = 1.0
+        self.next_progress = 0.0
+        self.pulled: set[str] = set()
+        self.rows: list[tuple[float, ...]] = []
+        self.extra: list[tuple[float, ...]] = []
+        self.throttle = 0.0
+        self.psi_d, self.xte = psi, 0.0
+        self.stats = dict.fromkeys(fl.SOURCES, 0)
+        self._update_point()
+
+    def _build_devices(self, tables: dict[str, Any]) -> None:
+        """The instruments, the bridge, the autopilot and their serial links, as the scenario sets them up."""
         icfg = InstrumentConfig.from_table(tables.get("instruments", {}))
         mis = self._effect("wheel_misalignment")
         up = self._effect("anemometer_upwash")
@@ -164,40 +182,6 @@ class Simulation(MissionLink):
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)
         self.uart_mav = Uart(MAVLINK_BYTES_PER_S, chunk=64)
-        self.damage = {
-            s: fl.ByteDamage(s, self.faults, self.duration, self.seed) for s in fl.SOURCES
-        }
-        self._schedule_faults()
-        self.t = 0.0
-        self.k = 0
-        self.next_sound = 1.0
-        self.next_progress = 0.0
-        self.pulled: set[str] = set()
-        self.rows: list[tuple[float, ...]] = []
-        self.extra: list[tuple[float, ...]] = []
-        self.throttle = 0.0
-        self.psi_d, self.xte = psi, 0.0
-        self.stats = dict.fromkeys(fl.SOURCES, 0)
-        self._update_point()
-
-    def _schedule_faults(self) -> None:
-        """Time-ordered (t s, action, fault) list for the step loop."""
-        acts: list[tuple[float, str, fl.Fault]] = []
-        for f in self.faults:
-            a, b = f.start(self.duration), f.end(self.duration)
-            if f.kind == "pull":
-                acts += [(a, "unplug", f), (b, "plug", f)]
-            elif f.kind == "reset":
-                acts.append((a, "reset", f))
-            elif f.kind == "gps_loss":
-                acts += [(a, "gps_off", f), (b, "gps_on", f)]
-            elif f.kind == "clock_jump":
-                acts.append((a, "clock_jump", f))
-            elif f.kind == "nmea_garbage":
-                acts += [(a, "garble_on", f)] + ([(b, "garble_off", f)] if math.isfinite(b) else [])
-        acts.sort(key=lambda x: x[0])
-        self.actions = acts
-        self.garbler: Garbler | None = None
 
     # ---- time bases -----------------------------------------------------------------------
     def _ns(self, t_s: float) -> int:
@@ -277,27 +261,6 @@ class Simulation(MissionLink):
                 self.garbler = None
             self.fault_log.append((at, act, src))
 
-    def _steer(self, dt: float) -> tuple[float, float]:
-        """(throttle, steer) of the mode flown: the mission in AUTO, the mode's pilot otherwise."""
-        s = self.boat.s
-        while self.mode_changes and self.mode_changes[0].at_s <= self.t + 1e-9:
-            self.set_mode(self.mode_changes.pop(0).mode)
-        sog = math.hypot(s.ve, s.vn)
-        if self.mode == md.AUTO:
-            leg = self.nav.leg
-            self.psi_d, self.xte = self.nav.update(s.x, s.y)
-            if self.nav.leg != leg:  # Rover reports a new current item at once
-                self.autopilot.report_now("MISSION_CURRENT")
-            self.ctl.cruise = self.nav.speed(self.cruise)
-            out = self.ctl.update(dt, s.psi, s.r, self.psi_d, sog)
-            # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
-            return (0.0, 0.0) if self.nav.done else out
-        psi_d = self.pilot.heading(self.mode, s.x, s.y)
-        if psi_d is None:
-            return 0.0, 0.0
-        self.psi_d, self.ctl.cruise = psi_d, self.cruise
-        return self.ctl.update(dt, s.psi, s.r, psi_d, sog)
-
     def step(self) -> None:
         """Advance one boat step (DT) with every instrument."""
         dt = DT
@@ -345,9 +308,7 @@ class Simulation(MissionLink):
             for ch, times in enumerate(self.sensors.edges(rates, u0, u1)):
                 if times:
                     self.bridge.add_edges(ch, times)
-                    if (
-                        self.truth_dir is not None
-                    ):  # the ledger is truth; a long live run keeps none
+                    if self.truth_dir is not None:  # the ledger is truth; a live run keeps none
                         self.pulses[ch].extend(self.sensors.primary[ch])
             self.bridge.set_vane_voltage(self.sensors.vane_volts(truth.app_angle))
         self.bridge.advance_to(u1)
@@ -361,7 +322,17 @@ class Simulation(MissionLink):
                 self._push(t_ns, "depth", piece)
         if self.bus is not None:
             self._bus(t_new, heading_deg)
-        msgs = self.autopilot.messages(self._nav_state(t_new, heading_deg))
+        nav = (
+            t_new,
+            heading_deg,
+            s,
+            self.nav,
+            self.mission.seqs,
+            self.throttle,
+            self.xte,
+            self.psi_d,
+        )
+        msgs = self.autopilot.messages(nav_state(*nav))
         msgs += self.autopilot.uplink_due(t_new)
         if msgs:
             for t_ns, piece in self.uart_mav.send(self._ns(t_new), b"".join(msgs)):
@@ -377,20 +348,6 @@ class Simulation(MissionLink):
             for t_ns, piece in self.uart_nmea.send(self._ns(t), data):
                 self._push(t_ns, "nmea", piece)
 
-    def _nav_state(self, t: float, heading_deg: float) -> NavState:
-        s, nav = self.boat.s, self.nav
-        wx, wy = nav.wps[nav.leg]
-        seqs = self.mission.seqs
-        return NavState(
-            t, s.x, s.y, heading_deg, s.r, s.ve, s.vn, self.throttle,
-            wp_seq=int(seqs[nav.leg]) if seqs is not None else nav.leg + 1,
-            wp_total=int(seqs[-1]) + 1 if seqs is not None else len(nav.wps) + 1,
-            xtrack=self.xte,
-            nav_bearing_deg=math.degrees(self.psi_d) % 360.0,
-            target_bearing_deg=math.degrees(math.atan2(wx - s.x, wy - s.y)) % 360.0,
-            wp_dist=math.hypot(wx - s.x, wy - s.y),
-        )  # fmt: skip
-
     def advance(self, t_s: float, progress: Progress | None = None) -> None:
         """Step until sim time ``t_s`` (s since the start), capped at the run's duration."""
         end = min(t_s, self.duration)
@@ -403,11 +360,11 @@ class Simulation(MissionLink):
     def finish(self) -> None:
         """Flush every byte still queued and write the truth if a truth directory was given."""
         self._flush(2**62)
-        self.track = self._track()
+        self.track = truth_files.track_arrays(self.rows, self.extra)
         if self.truth_dir is not None:
-            write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
-            write_pulses(Path(self.truth_dir) / "pulses.npz", self.boots, self.pulses)
-            ms.write_truth(Path(self.truth_dir), self.mission, self.geo)
+            truth_files.write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
+            truth_files.write_pulses(Path(self.truth_dir) / "pulses.npz", self.boots, self.pulses)
+            truth_files.write_mission(Path(self.truth_dir), self.mission, self.geo)
 
     def _note_boot(self) -> None:
         self.boots.append((self.bridge.boot_id, self.bridge.boot_us))
@@ -420,39 +377,11 @@ class Simulation(MissionLink):
         return self
 
     # ---- results --------------------------------------------------------------------------
-    def _track(self) -> dict[str, np.ndarray]:
-        return track_arrays(self.rows, self.extra)
-
     def truth_table(self) -> np.ndarray:
         """The samples.csv table: one row per 0.1 s, columns as ``truth.COLUMNS``."""
-        return samples_table(self.track or self._track(), self.geo, self.scenario.t0)
+        track = self.track or truth_files.track_arrays(self.rows, self.extra)
+        return truth_files.samples_table(track, self.geo, self.scenario.t0)
 
     def meta(self) -> dict[str, Any]:
         """What effects.json holds."""
-        return {
-            "scenario": self.scenario.name,
-            "scenario_path": self.scenario.path,
-            "mission": self.mission.name,
-            "seed": self.seed,
-            "lat0": self.scenario.lat0,
-            "lon0": self.scenario.lon0,
-            "t0": self.scenario.t0,
-            "duration": self.t,
-            "effects": [
-                {"name": e.name, "kind": e.spec.kind, "story": e.spec.story, "params": e.params}
-                for e in self.effects
-            ],
-            "faults": [f.resolved(self.duration) for f in self.faults],
-            "fault_log": [{"t": t, "action": a, "source": s} for t, a, s in self.fault_log],
-            "instruments": {
-                "wheel_angles_deg": list(self.sensors.cfg.wheel_angles_deg),
-                "wheel_pulses_per_m": list(self.sensors.cfg.wheel_pulses_per_m),
-                "anemo_hz_per_mps": self.sensors.cfg.anemo_hz_per_mps,
-                "bridge_clock_ppm": self.ppm,
-                "mavlink_latency_s": self.mav_latency_ns * 1e-9,
-                "sounder_offset_m": self.sounder.offset,
-                "sounder_noise_m": self.sounder.noise,
-                "false_echoes": self.sounder.false_echoes,
-                "nmea_bus": sorted(self.bus_faults) if self.nmea_bus else None,
-            },
-        }
+        return truth_files.effects_meta(self)

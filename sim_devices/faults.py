@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -199,3 +200,22 @@ class ByteDamage:
             self.log.append((t_s, kind, len(pos)))
             data = arr.tobytes()
         return data
+
+
+def schedule(faults: list[Fault], duration: float) -> list[tuple[float, str, Fault]]:
+    """Time-ordered (t s, action, fault) list for the simulation's step loop."""
+    acts: list[tuple[float, str, Fault]] = []
+    for f in faults:
+        a, b = f.start(duration), f.end(duration)
+        if f.kind == "pull":
+            acts += [(a, "unplug", f), (b, "plug", f)]
+        elif f.kind == "reset":
+            acts.append((a, "reset", f))
+        elif f.kind == "gps_loss":
+            acts += [(a, "gps_off", f), (b, "gps_on", f)]
+        elif f.kind == "clock_jump":
+            acts.append((a, "clock_jump", f))
+        elif f.kind == "nmea_garbage":
+            acts += [(a, "garble_on", f)] + ([(b, "garble_off", f)] if math.isfinite(b) else [])
+    acts.sort(key=lambda x: x[0])
+    return acts

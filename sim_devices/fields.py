@@ -6,9 +6,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.vessel.scenario import Scenario
 
 from .effects import Effect
-from .scenario import Scenario
 
 ArrayLike = float | np.ndarray
 

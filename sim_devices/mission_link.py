@@ -1,15 +1,18 @@
 """The autopilot's side of the ground station's commands: the mission it holds, a new one written
-during AUTO, MISSION_SET_CURRENT and mode changes, as ArduPilot Rover does them (a Simulation mixin)."""
+during AUTO, MISSION_SET_CURRENT, mode changes and what steers in each mode, as ArduPilot Rover does them
+(a Simulation mixin)."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import waypoints as wpl
+from forcemap.host.vessel.control import Navigator
 
-from . import mission as ms
-from . import waypoints as wpl
-from .control import Navigator
+from . import modes as md
 
 
 class MissionLink:
@@ -27,6 +30,11 @@ class MissionLink:
     mode: int
     pilot: Any
     mode_log: list
+    mode_changes: list
+    ctl: Any
+    cruise: float
+    psi_d: float
+    xte: float
 
     def _mission_items(self) -> list[wpl.Item]:
         """The mission as the autopilot holds it (home first); numbers each waypoint's item."""
@@ -37,6 +45,27 @@ class MissionLink:
         if m.seqs is None:
             m.seqs = wpl.nav_points(items)[2]
         return [wpl.waypoint(*latlon[0]), *items]
+
+    def _steer(self, dt: float) -> tuple[float, float]:
+        """(throttle, steer) of the mode flown: the mission in AUTO, the mode's pilot otherwise."""
+        s = self.boat.s
+        while self.mode_changes and self.mode_changes[0].at_s <= self.t + 1e-9:
+            self.set_mode(self.mode_changes.pop(0).mode)
+        sog = math.hypot(s.ve, s.vn)
+        if self.mode == md.AUTO:
+            leg = self.nav.leg
+            self.psi_d, self.xte = self.nav.update(s.x, s.y)
+            if self.nav.leg != leg:  # Rover reports a new current item at once
+                self.autopilot.report_now("MISSION_CURRENT")
+            self.ctl.cruise = self.nav.speed(self.cruise)
+            out = self.ctl.update(dt, s.psi, s.r, self.psi_d, sog)
+            # Rover's HOLD at the end of a mission (MIS_DONE_BEHAVE 0): motor off, adrift
+            return (0.0, 0.0) if self.nav.done else out
+        psi_d = self.pilot.heading(self.mode, s.x, s.y)
+        if psi_d is None:
+            return 0.0, 0.0
+        self.psi_d, self.ctl.cruise = psi_d, self.cruise
+        return self.ctl.update(dt, s.psi, s.r, psi_d, sog)
 
     def set_mode(self, mode: int) -> None:
         """The operator (or a ground station) switches the flight mode."""
@@ -83,5 +112,5 @@ class MissionLink:
         m.waypoints, m.seqs = m.waypoints[keep], seqs[keep]  # type: ignore[index]
         m.speeds = m.speeds[keep] if m.speeds is not None else None
         self.mission = m
-        self.nav = Navigator(m.waypoints, False, self.gains, m.speeds)
+        self.nav = Navigator(m.waypoints, self.gains, loop=False, speeds=m.speeds)
         self.autopilot.report_now("MISSION_CURRENT")

@@ -17,9 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from forcemap.host.vessel.waypoints import Item
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-from .waypoints import Item
 
 M = mavlink2
 

@@ -21,7 +21,8 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from .geo import Geo
+from forcemap.host.vessel.geodesy import LocalFrame
+
 from .nmea_sounder import sentence
 
 BUS_BYTES_PER_S = 3840.0  # 38400 baud, NMEA 0183-HS
@@ -73,7 +74,7 @@ class Gnss:
 
     def __init__(
         self,
-        geo: Geo,
+        geo: LocalFrame,
         rng: random.Random,
         *,
         talker: str = "GP",
@@ -130,7 +131,7 @@ class Gnss:
 class NmeaBus:
     """Sentences due at each step; ``step`` gets the boat's true motion, returns (delay s, text)."""
 
-    def __init__(self, geo: Geo, seed: int, variation_deg: float, faults: set[str]) -> None:
+    def __init__(self, geo: LocalFrame, seed: int, variation_deg: float, faults: set[str]) -> None:
         # one random stream per device: a fault added leaves the other devices' noise as it was
         self.rng = {k: random.Random(seed * 10 + i) for i, k in enumerate(("hdg", "rot", "vhw"))}
         self.variation = variation_deg

@@ -9,7 +9,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from . import clockfile
+from forcemap.host.acquire.arrival_clock import write_anchor
+
 from .engine import Simulation
 from .usb_cdc import HOST_BUFFER, UsbCdc
 
@@ -119,7 +120,7 @@ def run_live(
 
     def anchor(v: float) -> tuple[float, int]:
         mono = time.monotonic_ns()
-        clockfile.write_anchor(ports.clock_path, sim.t0_ns + int(v * 1e9), mono, speed)
+        write_anchor(ports.clock_path, sim.t0_ns + int(v * 1e9), mono, speed)
         return v, mono
 
     v_anchor, mono_anchor = anchor(0.0)
@@ -138,7 +139,7 @@ def run_live(
             if target - sim.t > max_lag:
                 v_anchor, mono_anchor = anchor(sim.t)
                 ports.reanchors += 1
-            if on_progress is not None and sim.t >= next_report:
+            if on_progress is not None and sim.t >= next_report and sim.t > 0:  # after a step
                 next_report = sim.t + 10.0
                 on_progress(sim.t, duration_s)
             if target <= sim.t:

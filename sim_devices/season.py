@@ -17,10 +17,10 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
+from forcemap.host.vessel.scenario import load
 
 from .fields import World
-from .geo import Geo
-from .scenario import load
 
 RATE_HZ = 5.0
 SPEED_MPS = 3.5
@@ -119,7 +119,7 @@ def simulate_survey(truth: SurveyTruth, samples: int, seed: int) -> dict[str, np
         "heading": heading,
         "sog": np.full(samples, SPEED_MPS),
     }
-    cols["lat"], cols["lon"] = Geo(sc.lat0, sc.lon0).to_latlon(x, y)
+    cols["lat"], cols["lon"] = LocalFrame(sc.lat0, sc.lon0).to_latlon(x, y)
     for v in ("current", "wind"):
         e, n = cols[f"{v}_east"], cols[f"{v}_north"]
         cols[f"{v}_speed"] = np.hypot(e, n)

@@ -8,9 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel.geodesy import LocalFrame
 
 from .fields import World
-from .geo import Geo
 
 COLUMNS = (
     "t", "x", "y", "lat", "lon", "heading", "yaw_rate", "sog", "cog", "boat_east", "boat_north",
@@ -41,7 +42,7 @@ def track_arrays(rows: list, extra: list) -> dict[str, np.ndarray]:
     return out
 
 
-def samples_table(track: dict[str, np.ndarray], geo: Geo, t0: float) -> np.ndarray:
+def samples_table(track: dict[str, np.ndarray], geo: LocalFrame, t0: float) -> np.ndarray:
     """The samples.csv table from the true track: columns as ``COLUMNS``, UNIX time from ``t0``."""
     if not track:
         return np.empty((0, len(COLUMNS)))
@@ -104,3 +105,40 @@ def write_all(truth_dir: str | Path, meta: dict[str, Any], world: World, table: 
     write_fields(d / "fields.npz", world, float(meta["t0"]), float(meta["duration"]))
     write_samples(d / "samples.csv", table)
     return d
+
+
+def effects_meta(sim: Any) -> dict[str, Any]:
+    """What effects.json holds about a finished `engine.Simulation`."""
+    return {
+        "scenario": sim.scenario.name,
+        "scenario_path": sim.scenario.path,
+        "mission": sim.mission.name,
+        "seed": sim.seed,
+        "lat0": sim.scenario.lat0,
+        "lon0": sim.scenario.lon0,
+        "t0": sim.scenario.t0,
+        "duration": sim.t,
+        "effects": [
+            {"name": e.name, "kind": e.spec.kind, "story": e.spec.story, "params": e.params}
+            for e in sim.effects
+        ],
+        "faults": [f.resolved(sim.duration) for f in sim.faults],
+        "fault_log": [{"t": t, "action": a, "source": s} for t, a, s in sim.fault_log],
+        "instruments": {
+            "wheel_angles_deg": list(sim.sensors.cfg.wheel_angles_deg),
+            "wheel_pulses_per_m": list(sim.sensors.cfg.wheel_pulses_per_m),
+            "anemo_hz_per_mps": sim.sensors.cfg.anemo_hz_per_mps,
+            "bridge_clock_ppm": sim.ppm,
+            "mavlink_latency_s": sim.mav_latency_ns * 1e-9,
+            "sounder_offset_m": sim.sounder.offset,
+            "sounder_noise_m": sim.sounder.noise,
+            "false_echoes": sim.sounder.false_echoes,
+            "nmea_bus": sorted(sim.bus_faults) if sim.nmea_bus else None,
+        },
+    }
+
+
+def write_mission(folder: Path, mission: ms.Mission, frame: LocalFrame) -> None:
+    """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
+    ms.save_waypoints(folder / "mission.waypoints", mission, frame)
+    (folder / "mission.json").write_text(json.dumps(ms.to_json(mission, frame), indent=1) + "\n")

@@ -9,7 +9,7 @@ import random
 
 import pytest
 from forcemap.host.decode.vane import decode_vane
-from forcemap.host.fuse.compensation import wrap180
+from forcemap.host.vessel.geodesy import wrap_to_180
 from forcemap.protocol import wire
 from forcemap.sim_devices.bridge_emu import EmulatedBridge, add_bounce, vane_voltage
 from forcemap.sim_devices.usb_cdc import UsbCdc
@@ -129,7 +129,7 @@ def test_vane_positions_through_firmware(i):
     samples = [f for f in wire.StreamDecoder().feed(bytes(out)) if f.msg_type == wire.SAMPLE]
     assert len(samples) == 5
     for f in samples[1:]:
-        assert decode_vane(f.fields["vane_raw"]) == wrap180(i * 22.5)
+        assert decode_vane(f.fields["vane_raw"]) == wrap_to_180(i * 22.5)
 
 
 def test_usb_write_timeout_is_counted_and_sampling_goes_on():

@@ -9,7 +9,7 @@ import time
 import pytest
 import serial
 from forcemap.host.decode.vane import decode_vane
-from forcemap.host.fuse.compensation import wrap180
+from forcemap.host.vessel.geodesy import wrap_to_180
 from forcemap.sim_devices.bridge_emu import add_bounce, pulse_times, vane_resistance, vane_voltage
 from forcemap.sim_devices.usb_cdc import UsbCdc
 from hypothesis import given, settings
@@ -55,7 +55,7 @@ def test_vane_voltage_round_trip_with_offset(deg):
     v = vane_voltage(deg, mounting_offset=30.0)
     raw = round(v / 3.3 * 65535)
     want = round((deg - 30.0) / 22.5) * 22.5 + 30.0
-    assert decode_vane(raw, mounting_offset=30.0) == wrap180(want)
+    assert decode_vane(raw, mounting_offset=30.0) == wrap_to_180(want)
 
 
 def test_in_between_positions_are_parallel_pairs():

@@ -8,8 +8,9 @@ import random
 from pathlib import Path
 
 import pytest
-from forcemap.host.decode.nmea import KNOT, NmeaParser
+from forcemap.host.decode.nmea import KNOT, NmeaParser, depth_below_surface_m
 from forcemap.host.fuse import compensation as c
+from forcemap.host.vessel import geodesy as g
 
 from tests.tools import real_data
 
@@ -18,15 +19,17 @@ WHEELS = (45.0, 135.0, -135.0, -45.0)
 
 
 def test_frames():
-    assert c.boat_to_world(1.0, 0.0, 90.0) == pytest.approx((1.0, 0.0))  # bow east
-    assert c.boat_to_world(0.0, 1.0, 90.0) == pytest.approx((0.0, -1.0))  # starboard south
+    assert g.boat_to_world(1.0, 0.0, 90.0) == pytest.approx((1.0, 0.0))  # bow east
+    assert g.boat_to_world(0.0, 1.0, 90.0) == pytest.approx((0.0, -1.0))  # starboard south
     rng = random.Random(1)
     for _ in range(100):
         f, s, h = rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0, 360)
-        assert c.world_to_boat(*c.boat_to_world(f, s, h), h) == pytest.approx((f, s))
-    assert c.from_direction(1.0, 0.0) == pytest.approx(270.0)  # air moving east comes from the west
-    assert c.to_direction(1.0, 0.0) == pytest.approx(90.0)
-    assert c.wrap180(180.0) == 180.0 and c.wrap180(-180.0) == 180.0 and c.wrap360(-0.0) == 0.0
+        assert g.world_to_boat(*g.boat_to_world(f, s, h), h) == pytest.approx((f, s))
+    assert g.from_direction(1.0, 0.0) == pytest.approx(270.0)  # air moving east comes from the west
+    assert g.to_direction(1.0, 0.0) == pytest.approx(90.0)
+    assert (
+        g.wrap_to_180(180.0) == 180.0 and g.wrap_to_180(-180.0) == 180.0 and g.wrap360(-0.0) == 0.0
+    )
 
 
 def test_wind_hand_worked():
@@ -34,7 +37,7 @@ def test_wind_hand_worked():
     assert c.true_wind(5.0, 0.0, 0.0, 0.0, 5.0) == pytest.approx((0.0, 0.0), abs=1e-12)
     # moored, heading east, wind from the west at 10 m/s arrives from astern
     we, wn = c.true_wind(10.0, 180.0, 90.0, 0.0, 0.0)
-    assert (we, wn) == pytest.approx((10.0, 0.0), abs=1e-12) and c.from_direction(
+    assert (we, wn) == pytest.approx((10.0, 0.0), abs=1e-12) and g.from_direction(
         we, wn
     ) == pytest.approx(270.0)
     # heading north at 5 m/s, wind from the west at 10 m/s: R = W - V = (10, -5), i.e. apparent
@@ -80,10 +83,10 @@ def test_signal_k_ground_wind_on_paccup():
             ]
         ):
             we, wn = c.true_wind(
-                wind.data["speed"], wind.data["angle"], heading, *c.velocity(sog, course)
+                wind.data["speed"], wind.data["angle"], heading, *g.velocity(sog, course)
             )
             dkn = abs(math.hypot(we, wn) / KNOT - float(r[speed_col]))
-            ddeg = abs(c.wrap180(c.from_direction(we, wn) - float(r[dir_col])))
+            ddeg = abs(g.wrap_to_180(g.from_direction(we, wn) - float(r[dir_col])))
             worst[2 * k] = max(worst[2 * k], dkn)
             worst[2 * k + 1] = max(worst[2 * k + 1], ddeg)
     assert worst[0] < 0.1 and worst[1] < 1.0  # Signal K
@@ -143,16 +146,16 @@ def test_current_over_ground_hand_worked():
     # the water itself moves east at 0.5 m/s
     ce, cn = c.current_over_ground(-1.5, 0.0, 90.0, 2.0, 0.0)
     assert (ce, cn) == pytest.approx((0.5, 0.0), abs=1e-12)
-    assert c.to_direction(ce, cn) == pytest.approx(90.0)
+    assert g.to_direction(ce, cn) == pytest.approx(90.0)
     # drifting with a 1 m/s current to the north, heading west: no flow past the hull
     assert c.current_over_ground(0.0, 0.0, 270.0, 0.0, 1.0) == pytest.approx((0.0, 1.0))
 
 
 def test_depth():
-    assert c.depth_below_surface(2.5, "DPT", 0.4, 0.3) == pytest.approx(2.9)
-    assert c.depth_below_surface(2.5, "DPT", -1.0, 0.3) == pytest.approx(2.8)
-    assert c.depth_below_surface(2.5, "DBT", None, 0.3) == pytest.approx(2.8)
-    assert c.depth_below_surface(None, "DBT", None, 0.3) is None
+    assert depth_below_surface_m(2.5, "DPT", 0.4, 0.3) == pytest.approx(2.9)
+    assert depth_below_surface_m(2.5, "DPT", -1.0, 0.3) == pytest.approx(2.8)
+    assert depth_below_surface_m(2.5, "DBT", None, 0.3) == pytest.approx(2.8)
+    assert depth_below_surface_m(None, "DBT", None, 0.3) is None
 
 
 def test_degenerate_wheel_geometry_is_refused():

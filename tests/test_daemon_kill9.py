@@ -16,7 +16,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-from forcemap.host.cli.log import recover
+from forcemap.host.convert.log_info import recover
 from forcemap.host.log.mcap import FileScan, read_messages
 from mcap.reader import make_reader
 

@@ -21,6 +21,7 @@ from forcemap.host.convert.importers import import_file, import_nmea
 from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse.pipeline import ListSink, Pipeline
 from forcemap.host.log.mcap import FileScan, iter_records, read_messages
+from forcemap.host.vessel.geodesy import to_direction, velocity, wrap_to_180
 from mcap.records import Message
 
 KN = 1852.0 / 3600.0
@@ -133,10 +134,10 @@ def test_set_and_drift_matches_the_reference_rows():
         stw = float(vhw[5])
         drift, set_to = _hand_set_and_drift(sog, cog, heading, stw)
         assert drift == pytest.approx(float(r["current_drift_kn"]), abs=0.002)
-        assert abs(comp.wrap180(set_to - float(r["current_set_toward_deg"]))) < 0.1
-        e, n = comp.current_from_stw(stw * KN, heading, *comp.velocity(sog * KN, cog))
+        assert abs(wrap_to_180(set_to - float(r["current_set_toward_deg"]))) < 0.1
+        e, n = comp.current_from_stw(stw * KN, heading, *velocity(sog * KN, cog))
         assert math.hypot(e, n) / KN == pytest.approx(float(r["current_drift_kn"]), abs=0.002)
-        assert abs(comp.wrap180(comp.to_direction(e, n) - float(r["current_set_toward_deg"]))) < 0.1
+        assert abs(wrap_to_180(to_direction(e, n) - float(r["current_set_toward_deg"]))) < 0.1
 
 
 def test_samples_at_the_reference_rows_agree_with_the_hand_computation():
@@ -163,13 +164,13 @@ def test_samples_at_the_reference_rows_agree_with_the_hand_computation():
         dbt = [ln for ln in lines[: int(r["vhw_line"])] if ln.startswith("$IIDBT")][-1]
         nearest_depth = float(_fields(dbt)[3])
         assert abs(s["depth"] - nearest_depth) <= 1.0
-        assert abs(comp.wrap180(s["heading"] - float(r["hdt_deg"]))) <= 2.0
+        assert abs(wrap_to_180(s["heading"] - float(r["hdt_deg"]))) <= 2.0
         # the reference takes the RMC before the row, the sample interpolates to the next one: they
         # may differ by what the ground velocity changes in that period (0.3 kn at the start)
         rmc_at = int(r["rmc_line"])
         nxt = next(ln for ln in lines[rmc_at:] if ln.startswith("$ECRMC"))
         v0, v1 = (
-            comp.velocity(float(f[7]), float(f[8])) for f in map(_fields, (lines[rmc_at - 1], nxt))
+            velocity(float(f[7]), float(f[8])) for f in map(_fields, (lines[rmc_at - 1], nxt))
         )
         dv = math.hypot(v1[0] - v0[0], v1[1] - v0[1])
         drift = float(r["current_drift_kn"])
@@ -189,7 +190,7 @@ def test_samples_at_the_reference_rows_agree_with_the_hand_computation():
         n = -s["app_wind_speed"] * math.cos(a) + s["sog"] * math.cos(math.radians(s["cog"]))
         assert s["wind_speed"] == pytest.approx(math.hypot(e, n), rel=1e-9)
         assert s["wind_dir"] == pytest.approx(math.degrees(math.atan2(-e, -n)) % 360.0)
-        assert abs(comp.wrap180(s["wind_dir"] - float(r["sk_ground_gwd_deg"]))) <= 6.0
+        assert abs(wrap_to_180(s["wind_dir"] - float(r["sk_ground_gwd_deg"]))) <= 6.0
     # 12 until issue 20: the first 6 s had no position; the receiver's own gap (3.2 s) gives them one
     assert checked == 16
 

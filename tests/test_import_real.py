@@ -292,8 +292,8 @@ def test_paccup_true_wind_through_the_import_path():
 
     from forcemap.host.convert.importers import import_nmea
     from forcemap.host.decode.nmea import KNOT
-    from forcemap.host.fuse.compensation import wrap180
     from forcemap.host.fuse.pipeline import ListSink
+    from forcemap.host.vessel.geodesy import wrap_to_180
 
     sink = ListSink()
     import_nmea(REAL / "nmea" / "PacCupStartNMEA.txt", sink)
@@ -307,5 +307,5 @@ def test_paccup_true_wind_through_the_import_path():
     for r in rows:
         m = by_line[int(r["wind_line"])]
         assert abs(m["speed"] / KNOT - float(r["opencpn_tws_kn"])) < 0.1
-        assert abs(wrap180(m["dir"] - float(r["opencpn_twd_deg"]))) < 1.0
+        assert abs(wrap_to_180(m["dir"] - float(r["opencpn_twd_deg"]))) < 1.0
         assert m["heading"] == pytest.approx(float(r["hdt_deg"]))

@@ -28,10 +28,10 @@ def test_rank_one_updates_equal_the_batch_statistics():
     first = {k: v[:half] for k, v in cols.items()}
     comp = Component.refit(live_survey(first, "depth"), "depth", list(BASELINE))
     # the second half in the first half's frame, one sample at a time
-    from forcemap.host.workbench.cleaning import local_frame
+    from forcemap.host.vessel.geodesy import LocalFrame
 
     s0 = live_survey(first, "depth")
-    x, y = local_frame(cols["lat"], cols["lon"], s0.lat0, s0.lon0)
+    x, y = LocalFrame(s0.lat0, s0.lon0).to_local(cols["lat"], cols["lon"])
     for i in range(half, len(cols["t"])):
         comp.add(np.array([[x[i], y[i]]]), np.array([cols["depth"][i]]))
     Phi = comp.features(np.column_stack([x, y]))
@@ -79,13 +79,13 @@ def test_final_live_maps_are_forcemap_fits_maps(tmp_path):
 
 def _near_cells(g, lat, lon, within_m=20.0):
     """The grid's cells (local xy) and which lie within ``within_m`` of a sample."""
-    from forcemap.host.workbench.cleaning import local_frame
+    from forcemap.host.vessel.geodesy import LocalFrame
     from scipy.spatial import cKDTree
 
     ny, nx = g.shape
     gx, gy = np.meshgrid(g.x0 + g.step * np.arange(nx), g.y0 + g.step * np.arange(ny))
     xy = np.column_stack([gx.ravel(), gy.ravel()])
-    sx, sy = local_frame(lat, lon, g.lat0, g.lon0)
+    sx, sy = LocalFrame(g.lat0, g.lon0).to_local(lat, lon)
     return xy, cKDTree(np.column_stack([sx, sy])).query(xy)[0] <= within_m
 
 

@@ -9,12 +9,13 @@ from forcemap.host.live.mission_layer import TOPIC, MissionLayer
 from forcemap.host.live.service import LiveService
 from forcemap.host.log.mcap import McapLog
 from forcemap.host.log.messages import LocationFix, Time
+from forcemap.host.vessel.geodesy import LocalFrame
 
 from bench.live_client import LiveClient
 from tests.test_live import mcap_messages
 
 LAT0, LON0 = 47.0, 8.0
-M_LAT = 1 / 111_195.0  # degrees of latitude per metre (the earth radius of workbench.cleaning)
+M_LAT = 1 / LocalFrame(LAT0, LON0).m_per_deg_lat  # degrees of latitude per metre (WGS-84, vessel)
 LINES = np.array([[[LAT0, LON0], [LAT0 + 200 * M_LAT, LON0]],
                   [[LAT0 + 200 * M_LAT, LON0 + 0.0003], [LAT0, LON0 + 0.0003]]])  # fmt: skip
 PLAN = np.array([[LAT0, LON0], [LAT0 + 200 * M_LAT, LON0], [LAT0 + 200 * M_LAT, LON0 + 0.0003],

@@ -10,7 +10,7 @@ import sys
 import time
 
 from forcemap.host.cli import main
-from forcemap.host.cli.log import recover, scan_file
+from forcemap.host.convert.log_info import recover, scan_file
 from forcemap.host.log.mcap import McapLog, read_messages
 from mcap.reader import make_reader
 

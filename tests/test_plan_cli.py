@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.plan.boat_model import BoatModel, load_boat
-from forcemap.sim_devices import mission as ms
-from forcemap.sim_devices import scenario as sc
-from forcemap.sim_devices import waypoints as wp
-from forcemap.sim_devices.geo import Geo
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel import waypoints as wp
+from forcemap.host.vessel.geodesy import LocalFrame
 
 XY = np.array([[-150.0, -20.0], [50.0, -20.0], [50.0, 10.0], [-150.0, 10.0]])
 
@@ -20,7 +20,9 @@ XY = np.array([[-150.0, -20.0], [50.0, -20.0], [50.0, 10.0], [-150.0, 10.0]])
 def write_file(tmp: Path, speeds=None) -> Path:  # type: ignore[no-untyped-def]
     scen = sc.load("river")
     path = tmp / "m.waypoints"
-    ms.save_waypoints(path, ms.Mission("m", "", XY, False, speeds), Geo(scen.lat0, scen.lon0))
+    ms.save_waypoints(
+        path, ms.Mission("m", "", XY, False, speeds), LocalFrame(scen.lat0, scen.lon0)
+    )
     return path
 
 

@@ -15,11 +15,12 @@ import pytest
 from forcemap.host.plan.boat_model import BoatModel
 from forcemap.host.plan.inflight import MapSnapshot, Replanner
 from forcemap.host.plan.maps import Field, Maps
-from forcemap.host.plan.mission_io import Frame
 from forcemap.host.plan.upload import download, same_mission
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.sim_devices import modes as md
-from forcemap.sim_devices import scenario as sc
 from forcemap.sim_devices.engine import Simulation
+from forcemap.sim_devices.truth import track_arrays
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from bench.inflight_loop import OfflineLink, fly, mission
@@ -58,7 +59,7 @@ def test_scripted_modes_show_in_heartbeat_and_stop_the_mission(tmp_path: Path) -
     assert md.MODES["HOLD"] in seen and seen[0] == md.AUTO and seen[-1] == md.AUTO
     assert [m for _, m in sim.mode_log] == [md.MODES["HOLD"], md.AUTO]
     # in HOLD the motor is off: no throttle between the switches
-    tr = sim._track()
+    tr = track_arrays(sim.rows, sim.extra)
     hold = (tr["t"] > 21.0) & (tr["t"] < 39.0)
     assert np.all(tr["throttle"][hold] == 0.0) and np.all(tr["throttle"][tr["t"] > 45.0] > 0.0)
 
@@ -155,7 +156,7 @@ def test_turn_points_beyond_the_bound_are_clipped_and_logged() -> None:
 
 
 def test_junk_maps_are_refused_in_one_line() -> None:
-    frame = Frame(33.82, -80.85)
+    frame = LocalFrame(33.82, -80.85)
     m = mission("river")
     sim = Simulation("river", m, [], seed=1, instruments=False)
     sim.start(10.0, lambda *a: None)
@@ -165,22 +166,22 @@ def test_junk_maps_are_refused_in_one_line() -> None:
         (uniform(float("nan")), "current map has values that are not numbers"),
     ):
         log: list[str] = []
-        rp = Replanner(items, frame.to_latlon(m.lines), frame, BoatModel(),
+        rp = Replanner(items, frame.points_to_latlon(m.lines), frame, BoatModel(),
                        lambda maps=maps: MapSnapshot(maps, 0.0, 10), log=log.append)  # fmt: skip
-        rp.position(*frame.to_latlon(np.array(m.lines[0, 1])))
+        rp.position(*frame.points_to_latlon(np.array(m.lines[0, 1])))
         d = rp.mission_current(3, 100.0)
         assert d is not None and d.items is None and words in d.reason
         assert len([x for x in log if words in x]) == 1
 
 
 def test_no_decision_in_manual_hold_or_rtl_nor_mid_line() -> None:
-    frame = Frame(33.82, -80.85)
+    frame = LocalFrame(33.82, -80.85)
     m = mission("river")
     sim = Simulation("river", m, [], seed=1, instruments=False)
     sim.start(10.0, lambda *a: None)
-    rp = Replanner(sim.autopilot.uplink.accepted, frame.to_latlon(m.lines), frame, BoatModel(),
+    rp = Replanner(sim.autopilot.uplink.accepted, frame.points_to_latlon(m.lines), frame, BoatModel(),
                    provider(1.5))  # fmt: skip
-    rp.position(*frame.to_latlon(np.array(m.lines[0, 1])))
+    rp.position(*frame.points_to_latlon(np.array(m.lines[0, 1])))
     assert rp.mission_current(2, 50.0) is None  # on the first line: nothing to decide
     for mode in ("MANUAL", "HOLD", "RTL"):
         rp.heartbeat(mode)
@@ -210,7 +211,7 @@ def test_the_live_maps_board_feeds_the_replanner_in_its_own_frame() -> None:
     f = {"east": east, "north": z, "speed": east, "east_sd": z + 0.1, "north_sd": z + 0.1,
          "speed_sd": z + 0.1}  # fmt: skip
     # the map's origin 100 m east of the replanner's
-    lon0 = -80.85 + np.degrees(100.0 / (6371008.8 * np.cos(np.radians(33.82))))
+    lon0 = float(LocalFrame(33.82, -80.85).to_latlon(100.0, 0.0)[1])
     board.put([MapGrid("current", 33.82, lon0, 0.0, 0.0, 10.0, f, 500, 1000.0, 900.0)])
     snap = provider()
     assert snap is not None and snap.samples == 500 and snap.t_data == 1000.0

@@ -14,18 +14,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 from forcemap.host.plan.upload import upload_file
-from forcemap.sim_devices import mission as ms
-from forcemap.sim_devices import scenario as sc
-from forcemap.sim_devices import waypoints as wp
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel import waypoints as wp
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.sim_devices.engine import Simulation
-from forcemap.sim_devices.geo import Geo
 from forcemap.sim_devices.ports import PortSet, run_live
 
 
 def mission_file(tmp: Path) -> Path:
     """A small survey with two speed changes, as Mission Planner would save it."""
     scen = sc.load("river")
-    geo = Geo(scen.lat0, scen.lon0)
+    geo = LocalFrame(scen.lat0, scen.lon0)
     xy = np.array([[-100.0, 0.0], [-50.0, 0.0], [0.0, 0.0], [0.0, 20.0], [-100.0, 20.0]])
     m = ms.Mission("t", "", xy, False, np.array([np.nan, 4.5, 4.5, np.nan, 2.0]))
     path = tmp / "m.waypoints"

@@ -20,10 +20,10 @@ from forcemap.host.live.mission_layer import TOPIC as MISSION
 from forcemap.host.log.mcap import read_messages
 from forcemap.host.plan.mission_io import read_mission
 from forcemap.host.report.mission_section import mission_section
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel.geodesy import LocalFrame
+from forcemap.host.vessel.mission import save_waypoints
 from forcemap.host.workbench.table import load_survey
-from forcemap.sim_devices import scenario as sc
-from forcemap.sim_devices.geo import Geo
-from forcemap.sim_devices.mission import save_waypoints
 
 from bench.inflight_loop import mission
 from bench.live_client import LiveClient
@@ -47,7 +47,7 @@ def test_run_replan_on_ptys(tmp_path: Path, capsys, live: bool) -> None:  # type
     """Without --live the replanner refits the maps itself; with it, it reads the live map's grids."""
     scen = sc.load("river")
     wpl = tmp_path / "lawnmower.waypoints"
-    save_waypoints(wpl, mission("river"), Geo(scen.lat0, scen.lon0))
+    save_waypoints(wpl, mission("river"), LocalFrame(scen.lat0, scen.lon0))
     ports, out = tmp_path / "ports", tmp_path / "out"
     daemon = DaemonProcess(
         out, {"mavlink": str(ports / "mavlink"), "bridge": str(ports / "bridge")},

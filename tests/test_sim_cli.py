@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.cli.common import parse_duration
-from forcemap.sim_devices import effects, faults, mission, scenario
+from forcemap.host.vessel import mission, scenario
+from forcemap.sim_devices import effects, faults
 
 
 def test_list_names_everything(capsys) -> None:  # type: ignore[no-untyped-def]

@@ -12,8 +12,8 @@ import numpy as np
 import pynmea2
 import pytest
 import serial
+from forcemap.host.acquire.arrival_clock import SimClock
 from forcemap.protocol import wire
-from forcemap.sim_devices import clockfile
 from forcemap.sim_devices.bridge_emu import vane_voltage
 from forcemap.sim_devices.engine import Simulation
 from forcemap.sim_devices.instruments import InstrumentConfig, wheel_response
@@ -256,7 +256,7 @@ def test_ports_river_10_minutes(tmp_path: Path) -> None:
     streams: dict[str, Chunks] = defaultdict(list)
     stop = threading.Event()
     done = threading.Event()
-    clock: list[clockfile.SimClock] = []
+    clock: list[SimClock] = []
 
     def reader() -> None:
         # one thread polling all three, so the simulator keeps the interpreter most of the time
@@ -280,7 +280,7 @@ def test_ports_river_10_minutes(tmp_path: Path) -> None:
         sim = Simulation(
             "river", "lawnmower", effects=["depth_current"], seed=3, truth_dir=truth_dir, **kw
         )  # type: ignore[arg-type]
-        clock.append(clockfile.SimClock(ports.clock_path))
+        clock.append(SimClock(ports.clock_path))
         return sim
 
     try:

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from forcemap.sim_devices import clockfile, effects, mission, scenario
+from forcemap.host.acquire.arrival_clock import SimClock, read_anchor, write_anchor
+from forcemap.host.vessel import mission, scenario
+from forcemap.sim_devices import effects
 from forcemap.sim_devices.fields import World
 
 EFFECT_NAMES = [
@@ -166,17 +168,16 @@ def test_scenario_copy_and_edit(tmp_path: Path) -> None:
 def test_clock_file(tmp_path: Path) -> None:
     path = tmp_path / "clock"
     mono = time.monotonic_ns()
-    clockfile.write_anchor(path, 1_780_322_400_000_000_000, mono, 50.0)
+    assert read_anchor(path) is None  # not written yet
+    write_anchor(path, 1_780_322_400_000_000_000, mono, 50.0)
     assert path.stat().st_size == 24
-    assert clockfile.read_anchor(path) == (1_780_322_400_000_000_000, mono, 50.0)
-    c = clockfile.SimClock(path)
+    assert read_anchor(path) == (1_780_322_400_000_000_000, mono, 50.0)
+    c = SimClock(path)
     a = c.now_ns()
     time.sleep(0.01)
     b = c.now_ns()
     assert a >= 1_780_322_400_000_000_000 and b - a >= 50 * 10_000_000 * 0.9
-    from forcemap.host.acquire.arrival_clock import SimClock as HostSimClock
-
-    h = HostSimClock(path).now_ns()  # the daemon's reader of the same file agrees
+    h = SimClock(path).now_ns()  # a second reader of the same file agrees
     assert b <= h <= c.now_ns()
 
 

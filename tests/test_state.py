@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from forcemap.host.fuse.compensation import wrap180
 from forcemap.host.fuse.state import StateEstimator
+from forcemap.host.vessel.geodesy import wrap_to_180
 
 
 def test_linear_and_circular_interpolation():
@@ -83,7 +83,7 @@ def test_interpolation_beats_nearest_neighbour_on_a_turning_boat():
     for k in range(1, 200):
         t = k * 0.25 + 0.013  # samples fall between attitude messages
         truth = (20.0 * t) % 360.0
-        err_i.append(abs(wrap180(interp.at(t).heading - truth)))
-        err_n.append(abs(wrap180(nearest.at(t).heading - truth)))
+        err_i.append(abs(wrap_to_180(interp.at(t).heading - truth)))
+        err_n.append(abs(wrap_to_180(nearest.at(t).heading - truth)))
     assert max(err_i) < 1e-6
     assert max(err_n) > 0.7  # 37 ms from the nearest message at 20 deg/s

@@ -2,7 +2,7 @@
 
 import pytest
 from forcemap.host.decode import vane
-from forcemap.host.fuse.compensation import wrap180
+from forcemap.host.vessel.geodesy import wrap_to_180
 from forcemap.sim_devices.bridge_emu import vane_voltage
 
 # ideal read_u16 values at 3.3 V with a 10 kOhm pull-up (research notes; the SparkFun library's constants)
@@ -40,10 +40,10 @@ def test_odd_positions_are_adjacent_pairs_in_parallel():
 @pytest.mark.parametrize("i", range(16))
 def test_each_position_decodes(i):
     deg = i * 22.5
-    assert vane.decode_vane(IDEAL[i]) == wrap180(deg)
+    assert vane.decode_vane(IDEAL[i]) == wrap_to_180(deg)
     # the worst case inside the position's band: half the smallest gap to a neighbour, minus one
     for off in (-297, 297):
-        assert vane.decode_vane(IDEAL[i] + off) == wrap180(deg)
+        assert vane.decode_vane(IDEAL[i] + off) == wrap_to_180(deg)
 
 
 @pytest.mark.parametrize("i", range(16))
@@ -53,7 +53,7 @@ def test_emulated_vane_voltage_through_emulated_adc_decodes(i):
     adc = ADC(VirtualClock(), seed=i, noise_v=0.003)
     adc.set_voltage(vane_voltage(i * 22.5))
     for _ in range(20):
-        assert vane.decode_vane(adc.read_u16()) == wrap180(i * 22.5)
+        assert vane.decode_vane(adc.read_u16()) == wrap_to_180(i * 22.5)
 
 
 def test_rejects_open_and_short_circuit():

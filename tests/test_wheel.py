@@ -40,8 +40,8 @@ def test_forcemap_is_the_only_top_level_package(tmp_path):
         "forcemap/host/cli/__main__.py",
         "forcemap/protocol/wire.py",
         "forcemap/firmware_bridge/main.py",
-        "forcemap/sim_devices/scenarios/river.toml",
-        "forcemap/sim_devices/missions/lawnmower.toml",
+        "forcemap/host/vessel/scenarios/river.toml",
+        "forcemap/host/vessel/missions/lawnmower.toml",
         "forcemap/sim_devices/upy/bridge_harness.py",
         "forcemap/host/data/boat.example.toml",
     ):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import re
 from pathlib import Path
 
@@ -11,6 +10,7 @@ import numpy as np
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.workbench.table import load_survey
+from pyproj import Geod
 
 from bench.synth_survey import make_survey
 from tests.tools import csv_rows, write_csv_rows
@@ -56,8 +56,10 @@ def test_local_frame_is_metres_about_the_centre(survey_csv):
     assert 500 < span[0] < 620 and 30 < span[1] < 160  # legs 570 m long, 15 m apart
     assert abs(s.xy[:, 0].min() + s.xy[:, 0].max()) < 1.0
     lat, lon = s.columns["lat"][0], s.columns["lon"][0]
-    dy = math.radians(lat - s.lat0) * 6_371_008.8
-    assert s.xy[0, 1] == pytest.approx(dy, abs=0.01)
+    # north of the centre by the WGS-84 geodesic along the meridian
+    _, _, dy = Geod(ellps="WGS84").inv(s.lon0, s.lat0, s.lon0, lat)
+    assert abs(s.xy[0, 1]) == pytest.approx(dy, abs=0.01)
+    assert s.xy[0, 1] * (lat - s.lat0) >= 0
     assert s.xy[0, 0] * (lon - s.lon0) >= 0
 
 

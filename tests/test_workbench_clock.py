@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from forcemap.host.cli import main
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
@@ -62,9 +63,7 @@ def make_table(path: Path, lag_s: float, seed: int = 1, duration_s: float = 900.
     cd, sd = np.cos(d), np.sin(d)
     w = np.column_stack([rel[:, 0] * cd + rel[:, 1] * sd, -rel[:, 0] * sd + rel[:, 1] * cd])
     w = w + v_used
-    r = 6_371_008.8
-    lat = LAT0 + np.degrees(k["xy"][:, 1] / r)
-    lon = LON0 + np.degrees(k["xy"][:, 0] / (r * math.cos(math.radians(LAT0))))
+    lat, lon = LocalFrame(LAT0, LON0).to_latlon(k["xy"][:, 0], k["xy"][:, 1])
     cols = {
         "t": 1.7e9 + k["t"],
         "lat": lat,

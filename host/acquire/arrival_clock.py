@@ -1,4 +1,5 @@
-"""Clocks that stamp arriving bytes: the host's own, or the simulator's virtual clock."""
+"""Clocks that stamp arriving bytes: the host's own, or the simulator's virtual clock (and its clock file,
+which the simulator writes and the daemon reads)."""
 
 from __future__ import annotations
 
@@ -8,8 +9,29 @@ import threading
 import time
 from typing import Protocol
 
-_SIM_FORMAT = "<qqd"  # virtual_ns_at_anchor, host_monotonic_ns_at_anchor, speed
-_SIM_SIZE = struct.calcsize(_SIM_FORMAT)
+CLOCK_FORMAT = "<qqd"  # virtual_ns_at_anchor, host_monotonic_ns_at_anchor, speed
+CLOCK_SIZE = struct.calcsize(CLOCK_FORMAT)  # 24 bytes
+
+
+def write_anchor(path: str | os.PathLike[str], virtual_ns: int, mono_ns: int, speed: float) -> None:
+    """Atomically (re)write the clock file: virtual time ``virtual_ns`` was current at host ``mono_ns``."""
+    path = os.fspath(path)
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "wb") as f:
+        f.write(struct.pack(CLOCK_FORMAT, int(virtual_ns), int(mono_ns), float(speed)))
+    os.replace(tmp, path)
+
+
+def read_anchor(path: str | os.PathLike[str]) -> tuple[int, int, float] | None:
+    """The clock file's (virtual_ns, host monotonic ns, speed), or None while it is missing or short."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(CLOCK_SIZE)
+    except OSError:
+        return None
+    if len(raw) < CLOCK_SIZE:
+        return None
+    return struct.unpack(CLOCK_FORMAT, raw)
 
 
 class Clock(Protocol):
@@ -56,26 +78,16 @@ class SimClock:
         self._last = 0
         self._lock = threading.Lock()
 
-    def _load(self) -> tuple[int, int, float] | None:
-        try:
-            with open(self.path, "rb") as f:
-                raw = f.read(_SIM_SIZE)
-        except OSError:
-            return None
-        if len(raw) < _SIM_SIZE:
-            return None
-        return struct.unpack(_SIM_FORMAT, raw)
-
     def _current_anchor(self) -> tuple[int, int, float]:
         host = time.monotonic_ns()
         if self._anchor is None or host - self._read_at >= self._reread_ns:
-            anchor = self._load()
+            anchor = read_anchor(self.path)
             deadline = time.monotonic() + self._wait_s
             while anchor is None and self._anchor is None:
                 if time.monotonic() > deadline:
                     raise FileNotFoundError(f"simulator clock file {self.path} did not appear")
                 time.sleep(0.05)
-                anchor = self._load()
+                anchor = read_anchor(self.path)
             if anchor is not None:
                 self._anchor = anchor
             self._read_at = host

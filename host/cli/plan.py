@@ -144,9 +144,10 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.outputs import check_output
     from forcemap.host.plan.boat_model import load_boat
     from forcemap.host.plan.maps import survey_maps
-    from forcemap.host.plan.mission_io import Frame, output_paths, read_mission, write_outputs
+    from forcemap.host.plan.mission_io import output_paths, read_mission, write_outputs
     from forcemap.host.plan.planner import plan_mission
     from forcemap.host.plan.workspace_io import save_plan
+    from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.errors import WorkbenchError
     from forcemap.host.workbench.table import load_survey
 
@@ -163,9 +164,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         survey = load_survey(args.table, keep_outliers=args.keep_outliers)
         age_note = map_age_note(args, float(survey.columns["t"].max())) if args.season else None
-        frame = Frame(survey.lat0, survey.lon0)
-        wps = frame.to_local(mission.latlon)
-        lines = frame.to_local(mission.lines_latlon)
+        frame = LocalFrame(survey.lat0, survey.lon0)
+        wps = frame.points_to_local(mission.latlon)
+        lines = frame.points_to_local(mission.lines_latlon)
         lo, hi = wps.min(axis=0) - MARGIN_M, wps.max(axis=0) + MARGIN_M
         maps = survey_maps(args.table, survey, (lo[0], hi[0], lo[1], hi[1]), progress)
     except WorkbenchError as e:
@@ -193,9 +194,9 @@ def run(args: argparse.Namespace) -> int:
     plan = result.planned.plan
     paths = write_outputs(
         args.output,
-        frame.to_latlon(plan.wps),
+        frame.points_to_latlon(plan.wps),
         plan.speeds,
-        frame.to_latlon(plan.lines),
+        frame.points_to_latlon(plan.lines),
         report,
         f"{mission.name} adjusted by forcemap plan for {args.table.name}",
     )

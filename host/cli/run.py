@@ -36,6 +36,7 @@ from forcemap.host.cli.common import (
     sample_rate,
 )
 from forcemap.host.cli.live_options import add_live_arguments, start_live
+from forcemap.host.cli.replan_options import SampleTee, add_replan_arguments, replan_service
 from forcemap.host.errors import CliError
 from forcemap.host.log.mcap import McapLog
 
@@ -140,26 +141,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_sync(parser)
     add_sample_rate(parser)
     parser.add_argument("--prefix", default="run", help="file name prefix (default: run)")
-    parser.add_argument(
-        "--mission",
-        metavar="MISSION",
-        help="with --replan: the mission the autopilot flies (QGC WPL 110 or simulator TOML, with "
-        "its intended lines in MISSION.json if it was planned); checked against the autopilot's "
-        "copy (default: the autopilot's mission, read back)",
-    )
-    parser.add_argument(
-        "--replan",
-        action="store_true",
-        help="after each survey line, plan the rest of the mission on the maps so far and upload "
-        "it when it is predicted to hold the lines better (needs --mavlink; docs/PLAN.md)",
-    )
-    parser.add_argument(
-        "--replan-bound",
-        type=float,
-        default=30.0,
-        metavar="M",
-        help="with --replan: largest move of a waypoint across its line (default 30 m)",
-    )
+    add_replan_arguments(parser)
     parser.add_argument(
         "--raw",
         action="store_true",
@@ -219,24 +201,6 @@ def start_clock(spec: str, wait_s: float) -> Clock:
 SOURCES_PERIOD_S = 600.0  # the sources' comparison and latency, into the log's metadata
 
 
-class _Tee:
-    """The pipeline's sink, with every /samples row also handed to ``on_sample`` (the replanner)."""
-
-    def __init__(self, sink: Any, on_sample: Callable[[dict], object]) -> None:
-        self.sink, self.on_sample = sink, on_sample
-
-    def write(self, topic: str, log_time_ns: int, message: Any) -> None:
-        self.sink.write(topic, log_time_ns, message)
-        if topic == "/samples":
-            self.on_sample(message.to_json())
-
-    def metadata(self, name: str, data: dict[str, str]) -> None:
-        self.sink.metadata(name, data)
-
-    def failed(self, *a: Any, **kw: Any) -> None:
-        self.sink.failed(*a, **kw)
-
-
 def _pipeline_factory(
     cal: Any,
     sync: str,
@@ -250,7 +214,7 @@ def _pipeline_factory(
         from forcemap.host.fuse import pipeline
 
         if on_sample is not None:
-            sink = _Tee(sink, on_sample)
+            sink = SampleTee(sink, on_sample)
 
         # how long a sample waits for the autopilot is host time: a busy machine's stall is
         # `speed` times longer on an accelerated simulator's clock
@@ -301,42 +265,6 @@ def _stop_on_signals(daemon: Daemon) -> None:
     signal.signal(signal.SIGINT, stop)
 
 
-def _replan_service(args: argparse.Namespace) -> Any:
-    """The replanner's thread for --replan (not started), or None; a bad combination is a CliError."""
-    if not args.replan:
-        if args.mission:
-            raise CliError("--mission is only used with --replan")
-        return None
-    if not args.mavlink:
-        raise CliError(
-            "--replan needs --mavlink: the autopilot to read the mission from and upload to"
-        )
-    positive("--replan-bound", args.replan_bound)
-    from forcemap.host.plan.boat_model import load_boat
-    from forcemap.host.plan.mission_io import read_mission
-    from forcemap.host.plan.service import ReplanService
-
-    mission = read_mission(args.mission) if args.mission else None
-    box: dict[str, Any] = {}
-
-    def send(data: bytes) -> bool:
-        return box["daemon"].readers["mavlink"].write(data)
-
-    def record(rec: Any) -> None:
-        box["daemon"].post("/plan/replan", rec)
-
-    def log(text: str) -> None:
-        from forcemap.host.log.messages import DaemonEvent
-
-        d = box.get("daemon")
-        if d is not None:
-            d.post("/daemon/event", DaemonEvent("replan", {"message": text}))
-
-    svc = ReplanService(mission, load_boat(None), send, record, log, bound_m=args.replan_bound)
-    svc.box = box  # type: ignore[attr-defined]
-    return svc
-
-
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.fuse import calibration
 
@@ -344,7 +272,7 @@ def run(args: argparse.Namespace) -> int:
     rotate_seconds = positive("--rotate-every", args.rotate_s)
     positive("--clock-wait", args.clock_wait)
     openers, nmea = _openers(args)
-    svc = _replan_service(args)
+    svc = replan_service(args)
     try:
         cal = calibration.load(args.boat)
     except (ValueError, FileNotFoundError) as exc:  # calibration.ConfigError is a ValueError

@@ -17,10 +17,10 @@ from forcemap.host.cli.common import (
     parse_duration,
 )
 from forcemap.host.errors import CliError
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
 from forcemap.sim_devices import effects as fx
 from forcemap.sim_devices import faults as fl
-from forcemap.sim_devices import mission as ms
-from forcemap.sim_devices import scenario as sc
 
 EPILOG = """\
 examples:
@@ -116,17 +116,22 @@ def print_list() -> None:
         print(f"  {line}")
 
 
-def run_offline(args: argparse.Namespace) -> int:
-    """No ports: the world, the boat and the autopilot only, as fast as the machine goes; the truth is written."""
-    from forcemap.sim_devices.engine import Simulation
-
+def _world(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    """The scenario, mission, phenomena and faults the arguments name, each checked (CliError)."""
     try:
         scen = sc.load(args.scenario)
         mis = ms.load(args.mission, scen)
         effects = fx.parse_list(args.phenomena) if args.phenomena is not None else None
-        faults = fl.parse(args.faults)
+        return scen, mis, effects, fl.parse(args.faults)
     except (ValueError, OSError) as e:
         raise CliError(str(e)) from None
+
+
+def run_offline(args: argparse.Namespace) -> int:
+    """No ports: the world, the boat and the autopilot only, as fast as the machine goes; the truth is written."""
+    from forcemap.sim_devices.engine import Simulation
+
+    scen, mis, effects, faults = _world(args)
     Path(args.output).mkdir(parents=True, exist_ok=True)
     t_start = time.monotonic()
     print(f"{scen.name} / {mis.name}, {args.duration:.0f} s offline", flush=True)
@@ -211,14 +216,7 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.sim_devices.engine import Simulation
     from forcemap.sim_devices.ports import SOURCES, PortSet, run_live
 
-    try:
-        # validate everything before any pty appears
-        scen = sc.load(args.scenario)
-        mis = ms.load(args.mission, scen)
-        effects = fx.parse_list(args.phenomena) if args.phenomena is not None else None
-        faults = fl.parse(args.faults)
-    except (ValueError, OSError) as e:
-        raise CliError(str(e)) from None
+    scen, mis, effects, faults = _world(args)  # validated before any pty appears
     ports = PortSet(args.ports)
     stop = threading.Event()
     # Ctrl-C and SIGTERM end the run between steps: the truth is written and the ports are removed

@@ -9,7 +9,6 @@ from typing import Any
 
 import pynmea2
 from forcemap.host.decode.nmea_fields import KNOT, SPECS, extract
-from forcemap.host.fuse.compensation import depth_below_surface as depth_below_surface_m
 
 __all__ = ["KNOT", "LineSplitter", "NmeaParser", "Sentence", "depth_below_surface", "extract"]
 
@@ -225,8 +224,23 @@ class NmeaParser:
         }
 
 
+def depth_below_surface_m(
+    depth_m: float | None, kind: str, sentence_offset_m: float | None, transducer_offset_m: float
+) -> float | None:
+    """Water depth below the surface from DPT or DBT.
+
+    DPT's own offset is used when positive (transducer to waterline); negative (to the keel) or empty
+    falls back to the calibration's transducer depth. DBT is below the transducer: add that depth.
+    """
+    if depth_m is None:
+        return None
+    if kind == "DPT" and sentence_offset_m is not None and sentence_offset_m > 0:
+        return depth_m + sentence_offset_m
+    return depth_m + transducer_offset_m
+
+
 def depth_below_surface(s: Sentence, offset_m: float) -> float | None:
-    """Depth below the surface in metres from a DPT or DBT sentence (see compensation)."""
+    """Depth below the surface in metres from a DPT or DBT sentence (see depth_below_surface_m)."""
     if s.type not in ("DPT", "DBT"):
         return None
     return depth_below_surface_m(s.data.get("depth_m"), s.type, s.data.get("offset_m"), offset_m)

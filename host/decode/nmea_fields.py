@@ -6,7 +6,7 @@ import datetime as _dt
 import math
 from typing import Any
 
-from forcemap.host.fuse.compensation import wrap180
+from forcemap.host.vessel.geodesy import wrap_to_180
 
 KNOT = 1852.0 / 3600.0
 KMH = 1000.0 / 3600.0
@@ -183,7 +183,7 @@ def _vhw(d: list[str]) -> dict[str, Any]:
 def _mwv(d: list[str]) -> dict[str, Any]:
     a = _f(d[0])
     return {
-        "angle": None if a is None else wrap180(a),
+        "angle": None if a is None else wrap_to_180(a),
         "reference": d[1].upper() or None,
         "speed": _speed(d[2], d[3]) if d[3] else None,
         "status": d[4].upper() or None,
@@ -196,7 +196,7 @@ def _vwr(d: list[str]) -> dict[str, Any]:
         a = -a
     # knots first: one decimal of a knot is the finest of the three
     sp = _first_speed((d[2], "N"), (d[4], "M"), (d[6], "K"))
-    return {"angle": None if a is None else wrap180(a), "speed": sp}
+    return {"angle": None if a is None else wrap_to_180(a), "speed": sp}
 
 
 def _mwd(d: list[str]) -> dict[str, Any]:

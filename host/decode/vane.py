@@ -15,7 +15,7 @@ Directions are where the wind comes FROM, degrees clockwise from the bow, in (-1
 
 from __future__ import annotations
 
-from forcemap.host.fuse.compensation import wrap180
+from forcemap.host.vessel.geodesy import wrap_to_180
 
 # (vane direction in degrees, resistance in ohms), from the SparkFun SEN-15901 datasheet
 DEFAULT_TABLE: tuple[tuple[float, float], ...] = (
@@ -115,4 +115,4 @@ class VaneDecoder:
         if dist > self.reject_counts:
             self.rejected += 1
             return None
-        return wrap180(deg + self.mounting_offset)
+        return wrap_to_180(deg + self.mounting_offset)

@@ -1,0 +1,1 @@
+"""Fusion: device clocks, the boat's state and compensation turn decoded values into sample rows."""

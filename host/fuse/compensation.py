@@ -10,50 +10,18 @@ from __future__ import annotations
 import math
 from itertools import product
 
-Vec = tuple[float, float]
+from forcemap.host.vessel.geodesy import (  # noqa: F401  (the conventions this module computes in)
+    Vec,
+    boat_to_world,
+    from_direction,
+    to_direction,
+    velocity,
+    world_to_boat,
+    wrap360,
+    wrap_to_180,
+)
+
 UNDER_WAY = 0.3  # m/s of water past the hull above which the boat is taken to make way
-
-
-def wrap360(deg: float) -> float:
-    """An angle in [0, 360)."""
-    a = deg % 360.0
-    return 0.0 if a >= 360.0 else a
-
-
-def wrap180(deg: float) -> float:
-    """An angle in (-180, 180]."""
-    a = deg % 360.0
-    return a - 360.0 if a > 180.0 else a
-
-
-def boat_to_world(fwd: float, stbd: float, heading_deg: float) -> Vec:
-    """A boat-frame vector (forward, starboard) in the world frame (east, north)."""
-    h = math.radians(heading_deg)
-    s, c = math.sin(h), math.cos(h)
-    return fwd * s + stbd * c, fwd * c - stbd * s
-
-
-def world_to_boat(east: float, north: float, heading_deg: float) -> Vec:
-    """A world-frame vector (east, north) in the boat frame (forward, starboard)."""
-    h = math.radians(heading_deg)
-    s, c = math.sin(h), math.cos(h)
-    return east * s + north * c, east * c - north * s
-
-
-def from_direction(east: float, north: float) -> float:
-    """Compass direction a medium comes FROM (wind convention)."""
-    return wrap360(math.degrees(math.atan2(-east, -north)))
-
-
-def to_direction(east: float, north: float) -> float:
-    """Compass direction a medium flows TO (current convention, also course over ground)."""
-    return wrap360(math.degrees(math.atan2(east, north)))
-
-
-def velocity(speed: float, course_deg: float) -> Vec:
-    """(east, north) of a velocity given as speed and compass course (TO)."""
-    c = math.radians(course_deg)
-    return speed * math.sin(c), speed * math.cos(c)
 
 
 # --- wind -----------------------------------------------------------------------------------------
@@ -92,7 +60,7 @@ def apparent_from_true(
 ) -> tuple[float, float]:
     """Inverse of ``true_wind``: (apparent speed, apparent angle FROM relative to the bow)."""
     f, s = world_to_boat(wind_east - boat_east, wind_north - boat_north, heading_deg)
-    return math.hypot(f, s), wrap180(math.degrees(math.atan2(-s, -f)))
+    return math.hypot(f, s), wrap_to_180(math.degrees(math.atan2(-s, -f)))
 
 
 # --- current --------------------------------------------------------------------------------------
@@ -133,7 +101,7 @@ def current_paper(
     f1, f2 = speeds[i], speeds[j]
     if f1 <= 0.0:
         return 0.0, 0.0
-    delta = wrap180(angles_deg[j] - angles_deg[i])
+    delta = wrap_to_180(angles_deg[j] - angles_deg[i])
     theta = math.degrees(math.atan2(f2, f1)) * abs(delta) / 90.0
     beta = math.radians(angles_deg[i] + math.copysign(theta, delta))
     mag = math.hypot(f1, f2)
@@ -235,21 +203,3 @@ def current_from_stw(stw: float, heading_deg: float, boat_east: float, boat_nort
     sideways) is taken as zero, so it shows up as a cross-track current (docs/COMPENSATION.md).
     """
     return current_over_ground(-stw, 0.0, heading_deg, boat_east, boat_north)
-
-
-# --- depth ----------------------------------------------------------------------------------------
-
-
-def depth_below_surface(
-    depth_m: float | None, kind: str, sentence_offset_m: float | None, transducer_offset_m: float
-) -> float | None:
-    """Water depth below the surface from DPT or DBT.
-
-    DPT's own offset is used when positive (transducer to waterline); negative (to the keel) or empty
-    falls back to the calibration's transducer depth. DBT is below the transducer: add that depth.
-    """
-    if depth_m is None:
-        return None
-    if kind == "DPT" and sentence_offset_m is not None and sentence_offset_m > 0:
-        return depth_m + sentence_offset_m
-    return depth_m + transducer_offset_m

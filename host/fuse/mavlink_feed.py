@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 from forcemap.host.decode import mavlink as mav
 from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse.timesync import SourceClock
-from forcemap.host.log.messages import BoatState, ClockMapping, Depth, RawMessage, TrueWind
+from forcemap.host.log.messages import BoatStateRecord, ClockMapping, Depth, RawMessage, TrueWind
 
 if TYPE_CHECKING:
     from forcemap.host.fuse.feed import FeedContext
@@ -96,7 +96,9 @@ class MavDecoder:
             asm.nav["position"] = asm.nav["velocity"] = label
             pipe.fix(t, d["lat"], d["lon"], d["alt"], None)
             pipe.write(
-                "/boat/state", t, BoatState(**st.at(t, edge=True).as_message(), source="mavlink")
+                "/boat/state",
+                t,
+                BoatStateRecord(**st.at(t, edge=True).as_message(), source="mavlink"),
             )
         elif ty == "GPS_RAW_INT":
             fix = (d["lat"], d["lon"], d["sog"], d["cog"])

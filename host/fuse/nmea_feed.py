@@ -23,7 +23,7 @@ from forcemap.host.fuse.sources import (
 )
 from forcemap.host.log.messages import (
     ApparentWind,
-    BoatState,
+    BoatStateRecord,
     Depth,
     NmeaSentence,
     TrueWind,
@@ -290,5 +290,5 @@ class NmeaDecoder:
             state.add_position(t, lat, lon, last[2] if last else None, last[3] if last else None)
         asm.nav["position"] = name
         self.pipe.fix(t, lat, lon, alt, None)
-        msg = BoatState(**state.at(t, edge=True).as_message(), source=name)
+        msg = BoatStateRecord(**state.at(t, edge=True).as_message(), source=name)
         self.pipe.write("/boat/state", t, msg)

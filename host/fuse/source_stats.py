@@ -18,6 +18,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
 
 GRID_S = 0.2
 MAX_LAG_S = 30.0
@@ -26,7 +27,6 @@ MIN_OVERLAP = 50  # grid points in common for a lag to mean anything
 MIN_SOG = 0.5  # m/s: below, the course over ground is noise
 NEAR_S = 3.0
 MIN_CORR = 0.3  # a correlation peak below this is not a lag: reported as none, with its value
-EARTH_R = 6_371_000.0
 ANGULAR = {"heading"}
 UNITS = {
     "position": "m",
@@ -80,8 +80,7 @@ class Track:
 
 
 def _metres(lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float) -> np.ndarray:
-    x = np.radians(lon - lon0) * EARTH_R * math.cos(math.radians(lat0))
-    y = np.radians(lat - lat0) * EARTH_R
+    x, y = LocalFrame(lat0, lon0).to_local(lat, lon)
     return np.stack([x, y], axis=1)
 
 

@@ -16,7 +16,7 @@ from bisect import bisect_left
 from dataclasses import dataclass
 from typing import Any
 
-from forcemap.host.fuse.compensation import to_direction, velocity, wrap180, wrap360
+from forcemap.host.vessel.geodesy import to_direction, velocity, wrap360, wrap_to_180
 
 SYNC_MODES = ("interpolate", "approximate")
 # without a rate-of-turn source, the yaw rate is the least-squares slope of one heading source over
@@ -25,7 +25,7 @@ YAW_WINDOW_S = 2.0
 
 
 @dataclass(slots=True)
-class BoatState:
+class FusedBoatState:
     """The boat at one instant. Angles in degrees (compass / deg per s), speeds in m/s."""
 
     t: float
@@ -116,7 +116,7 @@ class Series:
             if x is None or y is None:
                 out.append(x if f < 0.5 else y)
             elif k in self.circular:
-                out.append(wrap360(x + wrap180(y - x) * f))
+                out.append(wrap360(x + wrap_to_180(y - x) * f))
             else:
                 out.append(x + (y - x) * f)
         return tuple(out)
@@ -186,7 +186,7 @@ class StateEstimator:
         i = len(ts) - 1
         while i >= 0 and 0 <= t - ts[i] <= YAW_WINDOW_S and pts[-1][0] - ts[i] <= self.max_gap_s:
             prev_h = pts[-1][1]
-            pts.append((ts[i], prev_h + wrap180(vs[i][0] - prev_h)))
+            pts.append((ts[i], prev_h + wrap_to_180(vs[i][0] - prev_h)))
             i -= 1
         if len(pts) < 2:
             return None
@@ -224,14 +224,14 @@ class StateEstimator:
         self.yaw.clear()
         self.throttle.clear()
 
-    def at(self, t: float, edge: bool = False) -> BoatState:
+    def at(self, t: float, edge: bool = False) -> FusedBoatState:
         """The state at ``t``; fields stay None where the streams don't cover ``t``.
 
         ``edge``: where interpolation has no sample on one side (the end of a log, or an instrument
         that is read as it arrives), take the nearest sample within ``max_gap_s`` instead.
         """
         interp = self.sync == "interpolate"
-        st = BoatState(t)
+        st = FusedBoatState(t)
         vals = []
         for name, series in (
             ("position", self.position),

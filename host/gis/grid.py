@@ -1,7 +1,7 @@
 """Maps on a regular grid in the survey's UTM zone: the cells, their lat/lon, the mask, and the model's values.
 
 The chain from a cell to a value: the cell centre (UTM easting, northing) -> lat/lon (pyproj, WGS 84) -> the
-survey's local frame (`cleaning.local_frame`, metres east/north of its centre, where the models were fitted)
+survey's local frame (`vessel.geodesy.LocalFrame`, metres east/north of its centre, where the models were fitted)
 -> the model's prediction. Cells farther than `max_distance` from every sample are masked (NaN): a map is
 only as good as where the boat went.
 
@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from forcemap.host.workbench.cleaning import local_frame, local_to_latlon
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.table import Survey
 from scipy.spatial import cKDTree
@@ -163,9 +163,9 @@ def make_grid(
     )
     if utm:
         glon, glat = Transformer.from_crs(epsg, 4326, always_xy=True).transform(ee, nn)
-        lx, ly = local_frame(glat, glon, survey.lat0, survey.lon0)
+        lx, ly = LocalFrame(survey.lat0, survey.lon0).to_local(glat, glon)
     else:
-        glat, glon = local_to_latlon(ee, nn, survey.lat0, survey.lon0)
+        glat, glon = LocalFrame(survey.lat0, survey.lon0).to_latlon(ee, nn)
         lx, ly = ee, nn
     local_xy = np.column_stack([lx.ravel(), ly.ravel()])
     dist, _ = cKDTree(survey.xy).query(local_xy, distance_upper_bound=max_distance)

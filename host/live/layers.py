@@ -13,7 +13,7 @@ from forcemap.host.contours import contour_lines
 from forcemap.host.live.growing import MapGrid
 from forcemap.host.log.live_messages import MapInfo
 from forcemap.host.log.record import FLOAT32, GeoJSON, Grid, Time
-from forcemap.host.workbench.cleaning import EARTH_RADIUS_M
+from forcemap.host.vessel.geodesy import LocalFrame
 
 ARROWS = 12  # along the longer side
 SAMPLES_SHOWN = 2000
@@ -24,9 +24,8 @@ COLOURS = ("#2c7bb6", "#abd9e9", "#ffffbf", "#fdae61", "#d7191c")  # low to high
 def to_lonlat(
     x: np.ndarray, y: np.ndarray, lat0: float, lon0: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The inverse of `workbench.cleaning.local_frame`."""
-    lat = lat0 + np.degrees(y / EARTH_RADIUS_M)
-    lon = lon0 + np.degrees(x / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+    """(lon, lat) of local (x, y) in the survey's frame (GeoJSON's order)."""
+    lat, lon = LocalFrame(lat0, lon0).to_latlon(x, y)
     return lon, lat
 
 

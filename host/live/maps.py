@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 from forcemap.host.live.growing import Component, MapGrid, grid_over, live_survey
-from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.spikes import without_spikes
@@ -173,8 +173,7 @@ class LiveMaps:
             self.refits += 1
             reason = f"{reason}; hyperparameters refitted"
         else:
-            xy = np.column_stack(local_frame(survey.columns["lat"], survey.columns["lon"],
-                                             st.lat0, st.lon0))  # fmt: skip
+            xy = np.column_stack(LocalFrame(st.lat0, st.lon0).to_local(survey.columns["lat"], survey.columns["lon"]))  # fmt: skip
             new = survey.columns["t"] > st.t_applied
             if all(comp.same_basis(xy) for comp in st.comps):
                 for comp in st.comps:
@@ -186,8 +185,7 @@ class LiveMaps:
                 self.rebases += 1
                 reason = f"{reason}; basis rebuilt"
         st.t_applied = float(survey.columns["t"].max())
-        xy = np.column_stack(local_frame(survey.columns["lat"], survey.columns["lon"],
-                                         st.lat0, st.lon0))  # fmt: skip
+        xy = np.column_stack(LocalFrame(st.lat0, st.lon0).to_local(survey.columns["lat"], survey.columns["lon"]))  # fmt: skip
         return self._grid(target, st, cols, xy, reason)
 
     def _grid(self, target: str, st: TargetState, cols, xy_all, reason: str) -> MapGrid:

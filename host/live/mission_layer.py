@@ -13,7 +13,7 @@ import threading
 from typing import Any
 
 from forcemap.host.log.messages import GeoJSON
-from forcemap.host.workbench.cleaning import EARTH_RADIUS_M
+from forcemap.host.vessel.geodesy import LocalFrame
 
 TOPIC = "/map/mission"
 TRACK_STEP_M = 3.0  # a track point is kept once the boat is this far from the last one kept
@@ -28,8 +28,8 @@ STYLE = {
 
 def _metres(a: tuple[float, float], b: tuple[float, float]) -> float:
     """Distance between two (lat, lon) points a few hundred metres apart."""
-    k = math.radians(1.0) * EARTH_RADIUS_M
-    return math.hypot((b[0] - a[0]) * k, (b[1] - a[1]) * k * math.cos(math.radians(a[0])))
+    x, y = LocalFrame(a[0], a[1]).to_local(b[0], b[1])
+    return math.hypot(float(x), float(y))
 
 
 def _line(points: list[tuple[float, float]], name: str, style: str) -> dict[str, Any]:

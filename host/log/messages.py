@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from forcemap.host.log.live_messages import LIVE_TOPIC_TYPES
+from forcemap.host.log.plan_records import Replan
 from forcemap.host.log.raw_messages import (
     BridgeFrame,
     BridgeHello,
@@ -258,36 +259,6 @@ class Sample(Record):
 
 
 SAMPLE_COLUMNS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Sample))
-
-
-@dataclass(slots=True)
-class Replan(Record):
-    """One in-flight replanning decision (host/plan/inflight.py), uploaded or not."""
-
-    NAME = "forcemap.Replan"
-    DESCRIPTION = (
-        "In-flight replanning after an intended line: the remaining mission before and after "
-        "([lat, lon, ground speed m/s or null] per waypoint), the predicted worst-line p95 "
-        "distance (m) and coverage of each, the map's age (s), and why it was uploaded or not"
-    )
-    t: float
-    line_done: int  # index of the intended line just finished
-    mode: str
-    uploaded: bool
-    reason: str
-    first_seq: int | None = None  # first mission item replaced
-    old_remaining: list[list[float | None]] = field(default_factory=list)
-    new_remaining: list[list[float | None]] = field(default_factory=list)
-    old_p95_m: Opt = None
-    new_p95_m: Opt = None
-    old_coverage: Opt = None
-    new_coverage: Opt = None
-    map_age_s: Opt = None
-    map_samples: int | None = None
-    current_mean_mps: Opt = None  # mapped current speed, mean along all intended lines
-    clipped: int = 0  # waypoints moved back within the bounds
-    clipped_max_m: float = 0.0
-    cpu_s: Opt = None
 
 
 # the record type logged on each fixed topic (``/mavlink/<MSG>`` and ``/dataflash/<MSG>`` are raw)

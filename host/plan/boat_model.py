@@ -1,44 +1,77 @@
-"""The boat and its autopilot as the planner models them: the simulator's Jetyak and Rover-like controller,
-summarised by cruise and maximum speed through the water, turn rate and steering gains; a TOML overrides them.
+"""The boat and its autopilot as the planner believes them to be (the equations are `host.vessel`'s): by
+default a Mokai-based Jetyak with a stock Rover tuning, summarised by cruise and maximum speed through the
+water, turn rate and steering gains; a TOML overrides them.
 
     [boat]
     cruise_speed = 3.5       # m/s over ground, the autopilot's WP_SPEED
     max_speed = 5.5          # m/s through the water at full throttle (sets the jet's thrust)
     turn_rate_deg_s = 40     # deg/s at full steering and cruise speed in calm water (sets the jet's lever arm)
-    [hull]                   # any field of sim_devices.boat.BoatParams
-    [controller]             # any field of sim_devices.control.Gains (steer_kp, lookahead_m, wp_radius_m, ...)
+    [hull]                   # any field of vessel.boat.BoatParams
+    [controller]             # any field of vessel.control.Gains (steer_kp, lookahead_m, wp_radius_m, ...)
 """
 
 from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from forcemap.host.errors import CliError
-from forcemap.sim_devices.boat import Boat, BoatParams, BoatState
-from forcemap.sim_devices.control import Gains
+from forcemap.host.vessel.boat import Boat, BoatParams, HullState
+from forcemap.host.vessel.control import Gains
 
 DT = 0.2  # s, the planner's step (the simulator's is 0.05 s)
+
+# what the planner assumes without a boat file: the hull and tuning the simulator's boat was built from
+HULL = BoatParams(
+    m_surge=250.0,
+    m_sway=380.0,
+    inertia=220.0,
+    x_u=10.0,
+    x_uu=12.0,
+    y_v=120.0,
+    y_vv=450.0,
+    n_r=40.0,
+    n_ru=40.0,
+    n_rr=60.0,
+    thrust_max=420.0,
+    nozzle_max_deg=35.0,
+    jet_arm=1.8,
+    area_front=0.5,
+    area_side=1.2,
+    cd_air=0.9,
+    weathervane=0.35,
+)
+GAINS = Gains(
+    steer_kp=2.5,
+    steer_ki=0.05,
+    steer_kd=1.0,
+    speed_kp=0.25,
+    speed_ki=0.05,
+    throttle_ff=0.19,
+    throttle_min=0.25,
+    lookahead_m=10.0,
+    wp_radius_m=3.0,
+    turn_radius_m=4.5,
+)
 
 
 @dataclass
 class BoatModel:
     cruise_speed: float = 3.5
-    hull: BoatParams = field(default_factory=BoatParams)
-    gains: Gains = field(default_factory=Gains)
+    hull: BoatParams = HULL
+    gains: Gains = GAINS
 
     @property
     def max_speed(self) -> float:
         """Speed through the water at full throttle, straight ahead (m/s)."""
-        p = self.hull
-        return (-p.x_u + math.sqrt(p.x_u**2 + 4 * p.x_uu * p.thrust_max)) / (2 * p.x_uu)
+        return self.hull.max_speed
 
     def turn_rate(self, speed: float | None = None) -> float:
         """Steady turn rate (deg/s) at full steering, starting at ``speed`` (default cruise) in calm water."""
         u = self.cruise_speed if speed is None else speed
-        boat = Boat(self.hull, BoatState(u=u))
+        boat = Boat(self.hull, HullState(u=u))
         p = self.hull
         throttle = math.sqrt(min((p.x_u * u + p.x_uu * u * u) / p.thrust_max, 1.0))
         for _ in range(int(20.0 / 0.05)):
@@ -84,7 +117,7 @@ def _override(obj, table: dict, where: str):  # type: ignore[no-untyped-def]
 
 
 def load_boat(path: str | Path | None) -> BoatModel:
-    """The default (the simulator's boat), or one overridden by a TOML file."""
+    """The planner's default boat, or one overridden by a TOML file."""
     m = BoatModel()
     if path is None:
         return m

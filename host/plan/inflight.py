@@ -22,12 +22,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
 
 from .adjust import adjust
 from .boat_model import BoatModel
 from .maps import Field, Maps
 from .metrics import score_lines, summary
-from .mission_io import Frame, mission_items, nav_items
+from .mission_io import mission_items, nav_items
 from .predict import predict_track
 
 BOUND_M = 30.0  # largest move of a waypoint across its intended line
@@ -142,7 +143,7 @@ class Replanner:
         self,
         items: list,
         lines_latlon: np.ndarray,
-        frame: Frame,
+        frame: LocalFrame,
         boat: BoatModel,
         maps: MapProvider,
         bound_m: float = BOUND_M,
@@ -152,7 +153,7 @@ class Replanner:
         self.frame, self.boat, self.maps = frame, boat, maps
         self.bound_m = bound_m
         self.log = log or (lambda s: None)
-        self.lines = frame.to_local(np.asarray(lines_latlon, dtype=float))
+        self.lines = frame.points_to_local(np.asarray(lines_latlon, dtype=float))
         # points every ~10 m along every intended line: where the map's mean current is reported
         self.along = np.concatenate(
             [a + np.linspace(0, 1, max(int(np.hypot(*(b - a)) / 10), 2))[:, None] * (b - a)
@@ -171,7 +172,7 @@ class Replanner:
         """The mission the autopilot now holds (home first); where each line starts and ends in it."""
         self.items = list(items)
         latlon, self.speeds, self.seqs = nav_items(self.items)
-        self.xy = self.frame.to_local(latlon)
+        self.xy = self.frame.points_to_local(latlon)
         if line_seqs is None:  # the original: each line's ends are its nearest waypoints
             line_seqs = []
             for a, b in self.lines:
@@ -187,7 +188,7 @@ class Replanner:
         self.mode = mode
 
     def position(self, lat: float, lon: float) -> None:
-        self.pos = self.frame.to_local(np.array([lat, lon]))
+        self.pos = self.frame.points_to_local(np.array([lat, lon]))
 
     def mission_current(self, seq: int, t: float) -> Decision | None:
         """A MISSION_CURRENT; the decision when it says an intended line has just ended."""
@@ -277,7 +278,7 @@ class Replanner:
         return {**out, "duration_s": round(tr.duration, 1), "stuck": tr.stuck_at is not None}
 
     def _new_items(self, d: Decision, wps, speeds, line_wps, kept: int | None) -> None:  # type: ignore[no-untyped-def]
-        latlon = self.frame.to_latlon(wps)
+        latlon = self.frame.points_to_latlon(wps)
         part = mission_items(latlon, speeds, self.boat.cruise_speed)
         d.items = self.items[: d.first_seq] + part
         _, _, seqs = nav_items(d.items)

@@ -1,50 +1,27 @@
 """Missions in and out of the planner: QGC WPL 110 or simulator TOML in, WPL + TOML + JSON out, in lat/lon.
 
 Inside the planner everything is in the survey's local frame (metres east/north of the survey centre,
-the workbench's equirectangular projection); files carry latitude and longitude, so a mission planned
+`vessel.geodesy.LocalFrame`, as in the workbench); files carry latitude and longitude, so a mission planned
 on one survey flies in any tool at the same place.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from forcemap.host.errors import CliError
 from forcemap.host.outputs import atomic_path, atomic_write
-from forcemap.host.workbench.table import EARTH_RADIUS_M, local_frame
-from forcemap.sim_devices import mission as ms
-from forcemap.sim_devices import scenario as sc
-from forcemap.sim_devices import waypoints as wp
-from forcemap.sim_devices.geo import Geo
+from forcemap.host.vessel import mission as ms
+from forcemap.host.vessel import scenario as sc
+from forcemap.host.vessel import waypoints as wp
+from forcemap.host.vessel.geodesy import LocalFrame
 
 LINE_FRACTION = (
     0.4  # without explicit lines, legs at least this share of the longest are survey lines
 )
-
-
-@dataclass
-class Frame:
-    """The survey's local frame."""
-
-    lat0: float
-    lon0: float
-
-    def to_local(self, latlon: np.ndarray) -> np.ndarray:
-        ll = np.asarray(latlon, dtype=float)
-        x, y = local_frame(ll[..., 0], ll[..., 1], self.lat0, self.lon0)
-        return np.stack([x, y], axis=-1)
-
-    def to_latlon(self, xy: np.ndarray) -> np.ndarray:
-        xy = np.asarray(xy, dtype=float)
-        lat = self.lat0 + np.degrees(xy[..., 1] / EARTH_RADIUS_M)
-        lon = self.lon0 + np.degrees(
-            xy[..., 0] / (EARTH_RADIUS_M * math.cos(math.radians(self.lat0)))
-        )
-        return np.stack([lat, lon], axis=-1)
 
 
 @dataclass
@@ -71,7 +48,7 @@ def read_mission(path: str, scenario: str = "river") -> MissionIn:
         m = ms.load(path, scen)
     except (ValueError, OSError) as e:
         raise CliError(f"cannot read the mission {path}: {e}") from e
-    geo = Geo(scen.lat0, scen.lon0)
+    geo = LocalFrame(scen.lat0, scen.lon0)
     lat, lon = geo.to_latlon(m.waypoints[:, 0], m.waypoints[:, 1])
     lines = m.lines if m.lines is not None else survey_lines(m.waypoints)
     la, lo = geo.to_latlon(lines[..., 0], lines[..., 1])
@@ -97,7 +74,7 @@ def write_outputs(
     wpl, toml, js = output_paths(out)
     with atomic_path(wpl) as tmp:
         wp.write_wpl(tmp, wp.waypoint(*latlon[0]), wp.items_for(latlon, speeds))
-    geo = Geo(float(latlon[0, 0]), float(latlon[0, 1]))
+    geo = LocalFrame(float(latlon[0, 0]), float(latlon[0, 1]))
     xy = np.column_stack(geo.to_local(latlon[:, 0], latlon[:, 1]))
     lxy = np.stack(geo.to_local(lines_latlon[..., 0], lines_latlon[..., 1]), axis=-1)
     mission = ms.Mission(wpl.stem, description, xy, False, speeds, lxy)

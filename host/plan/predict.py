@@ -1,6 +1,7 @@
 """Predict the track a waypoint mission will fly through mapped current and wind, with the boat model.
 
-The boat, its line-of-sight guidance and its heading and ground-speed loops are the simulator's, run with
+The boat, its line-of-sight guidance and its heading and ground-speed loops are `host.vessel`'s (as the
+simulator's), with the planner's belief about the boat (`boat_model`), run with
 the mapped (not the true) current and wind at each point the boat reaches.
 """
 
@@ -10,8 +11,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from forcemap.sim_devices.boat import Boat, BoatState
-from forcemap.sim_devices.control import Controller, Navigator
+from forcemap.host.vessel.boat import Boat, HullState
+from forcemap.host.vessel.control import Controller, Navigator
 
 from .boat_model import DT, BoatModel
 from .maps import Maps
@@ -52,8 +53,8 @@ def predict_track(
     path = float(np.sum(np.hypot(*np.diff(wps, axis=0).T)))
     t_max = t_max if t_max is not None else 600.0 + 3.0 * path / max(boat.cruise_speed, 0.5)
     psi = math.atan2(wps[1, 0] - wps[0, 0], wps[1, 1] - wps[0, 1]) % (2 * math.pi)
-    b = Boat(boat.hull, BoatState(x=float(wps[0, 0]), y=float(wps[0, 1]), psi=psi, u=1.5))
-    nav = Navigator(wps, loop=False, gains=boat.gains, speeds=speeds)
+    b = Boat(boat.hull, HullState(x=float(wps[0, 0]), y=float(wps[0, 1]), psi=psi, u=1.5))
+    nav = Navigator(wps, boat.gains, loop=False, speeds=speeds)
     ctl = Controller(boat.cruise_speed, boat.gains)
     cur, wind = maps.current.at, maps.wind.at
     s = b.s

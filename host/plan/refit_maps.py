@@ -14,8 +14,9 @@ import threading
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import Survey, local_frame
+from forcemap.host.workbench.table import Survey
 
 from .inflight import MapSnapshot
 from .maps import Field, Maps, fit_field
@@ -51,7 +52,7 @@ class RefitMaps:
         if ok.sum() < MIN_SAMPLES:
             return None
         cols = {c: a[:, i] for i, c in enumerate(COLUMNS)}
-        cols["x"], cols["y"] = local_frame(cols["lat"], cols["lon"], self.lat0, self.lon0)
+        cols["x"], cols["y"] = LocalFrame(self.lat0, self.lon0).to_local(cols["lat"], cols["lon"])
         return Survey(cols, self.lat0, self.lon0, float(cols["t"][0]), Path("live"))
 
     def __call__(self) -> MapSnapshot | None:
@@ -91,7 +92,7 @@ class BoardMaps:
             if g is None:
                 fields[name] = Field.still()
                 continue
-            dx, dy = local_frame(np.array(g.lat0), np.array(g.lon0), self.lat0, self.lon0)
+            dx, dy = LocalFrame(self.lat0, self.lon0).to_local(np.array(g.lat0), np.array(g.lon0))
             fields[name] = moved(g.to_field(), float(dx), float(dy))
         maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0)
         return MapSnapshot(maps, float(cur.t_fit), int(cur.n_samples))

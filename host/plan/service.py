@@ -18,11 +18,12 @@ from collections.abc import Callable
 import numpy as np
 from forcemap.host.errors import CliError
 from forcemap.host.log.messages import Replan
+from forcemap.host.vessel.geodesy import LocalFrame
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from .boat_model import BoatModel
 from .inflight import Decision, Replanner
-from .mission_io import Frame, MissionIn, nav_items, survey_lines
+from .mission_io import MissionIn, nav_items, survey_lines
 from .refit_maps import BoardMaps, RefitMaps
 from .upload import Uploader, download, set_current
 
@@ -31,10 +32,10 @@ QUEUE_MAX = 2000
 RETRY_S = 10.0  # read the mission back again after this long when the autopilot did not answer
 
 
-def remaining(frame: Frame, wps: np.ndarray | None, speeds: np.ndarray | None) -> list:
+def remaining(frame: LocalFrame, wps: np.ndarray | None, speeds: np.ndarray | None) -> list:
     if wps is None or len(wps) == 0:
         return []
-    ll = frame.to_latlon(wps)
+    ll = frame.points_to_latlon(wps)
     sp = speeds if speeds is not None else np.full(len(wps), np.nan)
     return [
         [round(float(a), 7), round(float(b), 7), None if not np.isfinite(s) else round(float(s), 2)]
@@ -195,11 +196,11 @@ class ReplanService(threading.Thread):
                 return False
             lines = self.mission.lines_latlon
         else:
-            frame = Frame(float(nav[0, 0]), float(nav[0, 1]))
-            lines = frame.to_latlon(survey_lines(frame.to_local(nav)))
+            frame = LocalFrame(float(nav[0, 0]), float(nav[0, 1]))
+            lines = frame.points_to_latlon(survey_lines(frame.points_to_local(nav)))
         latlon = np.array([[i.lat, i.lon] for i in items[1:]])
-        frame = Frame(float(latlon[:, 0].mean()), float(latlon[:, 1].mean()))
-        xy = frame.to_local(latlon)
+        frame = LocalFrame(float(latlon[:, 0].mean()), float(latlon[:, 1].mean()))
+        xy = frame.points_to_local(latlon)
         lo, hi = xy.min(axis=0) - 120.0, xy.max(axis=0) + 120.0
         provider: BoardMaps | RefitMaps
         if self.board is not None:
@@ -220,7 +221,7 @@ class ReplanService(threading.Thread):
     def _show_plan(self) -> None:
         """Hand the intended lines and the autopilot's waypoints to the live view, if there is one."""
         if self.on_plan is not None and self.rp is not None:
-            self.on_plan(self.lines_latlon, self.rp.frame.to_latlon(self.rp.xy))
+            self.on_plan(self.lines_latlon, self.rp.frame.points_to_latlon(self.rp.xy))
 
     def run(self) -> None:
         next_try = 0.0

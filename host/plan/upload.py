@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from forcemap.host.errors import CliError
-from forcemap.sim_devices.waypoints import Item, read_wpl
+from forcemap.host.vessel.waypoints import Item, read_wpl
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from forcemap.host.season.tasks import Footprint, Frame, Rejected
-from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.terms import HilbertGPTerm
 
 # boxes closer than this still count as the same reach (GPS scatter, a survey of the bank next door)
@@ -15,7 +15,7 @@ OVERLAP_SLACK_M = 50.0
 def _boxes(fps: list[Footprint], lat0: float, lon0: float) -> np.ndarray:
     out = []
     for f in fps:
-        x, y = local_frame(np.array(f.lat), np.array(f.lon), lat0, lon0)
+        x, y = LocalFrame(lat0, lon0).to_local(np.array(f.lat), np.array(f.lon))
         out.append((x.min(), x.max(), y.min(), y.max()))
     return np.array(out)
 
@@ -54,8 +54,8 @@ def choose_frame(
     for g in groups[1:]:
         for i in g:
             f = fps[i]
-            x, y = local_frame(
-                np.array([0.5 * sum(f.lat)]), np.array([0.5 * sum(f.lon)]), lat0, lon0
+            x, y = LocalFrame(lat0, lon0).to_local(
+                np.array([0.5 * sum(f.lat)]), np.array([0.5 * sum(f.lon)])
             )
             rejected.append(
                 Rejected(

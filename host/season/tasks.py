@@ -20,7 +20,7 @@ from forcemap.host.season.stats import (
     posterior,
     target_scale,
 )
-from forcemap.host.workbench.cleaning import local_frame
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey_fits import HYPER_SPACING_S, MIN_HYPER_ROWS
@@ -63,7 +63,7 @@ class Frame:
     extent: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x0, x1, y0, y1 of the tracks
 
     def xy(self, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
-        return np.column_stack(local_frame(lat, lon, self.lat0, self.lon0))
+        return np.column_stack(LocalFrame(self.lat0, self.lon0).to_local(lat, lon))
 
     def space_features(self, Z: np.ndarray) -> np.ndarray:
         return np.hstack([np.ones((len(Z), 1)), self.space.features(Z)])

@@ -17,33 +17,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
 
-EARTH_RADIUS_M = 6_371_008.8
 # a small ASV surveys at 1-3 m/s; 20 m/s (39 kn) is beyond any of them, even downwind on a river in flood
 MAX_BOAT_SPEED = 20.0
 # GPS scatter between two fixes that are close in time
 GPS_SLACK_M = 50.0
 _EMPTY = ("", "nan", "NaN", "NAN", "null", "None", "NA", "N/A", "n/a")
 _SHOW = 3  # examples named in a note
-
-
-def local_frame(
-    lat: np.ndarray, lon: np.ndarray, lat0: float, lon0: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Metres east and north of (lat0, lon0), equirectangular (exact enough over a few km)."""
-    x = np.radians(lon - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
-    y = np.radians(lat - lat0) * EARTH_RADIUS_M
-    return x, y
-
-
-def local_to_latlon(
-    x: np.ndarray, y: np.ndarray, lat0: float, lon0: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """The inverse of `local_frame`: (lat, lon) of points x m east and y m north of (lat0, lon0)."""
-    lat = lat0 + np.degrees(np.asarray(y) / EARTH_RADIUS_M)
-    lon = lon0 + np.degrees(np.asarray(x) / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
-    return lat, lon
 
 
 @dataclass
@@ -143,7 +125,7 @@ def impossible_jumps(t: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> np.ndar
     The track is followed forwards and backwards from the fix nearest the median position, so one
     glitch (even the first fix) cannot drag the rest of the track away with it.
     """
-    x, y = local_frame(lat, lon, float(np.median(lat)), float(np.median(lon)))
+    x, y = LocalFrame(float(np.median(lat)), float(np.median(lon))).to_local(lat, lon)
     bad = np.zeros(len(t), bool)
     if len(t) == 0:
         return bad

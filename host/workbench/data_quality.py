@@ -17,8 +17,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench import clock_offset
-from forcemap.host.workbench.cleaning import EARTH_RADIUS_M
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.instruments import Instruments
 from forcemap.host.workbench.spikes import target_spikes, without_spikes
@@ -173,6 +173,11 @@ def latency(survey: Survey, targets: list[str], inst: Instruments) -> list[DataF
     return out
 
 
+def _m_per_minute(survey: Survey) -> float:
+    """Metres per minute of latitude at the survey's centre (WGS-84)."""
+    return LocalFrame(survey.lat0, survey.lon0).m_per_deg_lat / 60.0
+
+
 def position_quantum_m(survey: Survey) -> float | None:
     """The step (m) of a position grid in decimal minutes the latitudes sit on, if it is coarse."""
     lat = survey.columns["lat"]
@@ -180,7 +185,7 @@ def position_quantum_m(survey: Survey) -> float | None:
     for decimals in (1, 2, 3, 4):
         scaled = minutes * 10.0**decimals
         if np.all(np.abs(scaled - np.round(scaled)) < 0.01):
-            step = EARTH_RADIUS_M * math.radians(10.0**-decimals / 60.0)
+            step = _m_per_minute(survey) * 10.0**-decimals
             return step if step >= MIN_QUANTUM_M else None
     return None
 
@@ -189,7 +194,7 @@ def quantisation(survey: Survey, inst: Instruments) -> list[DataFinding]:
     step = position_quantum_m(survey)
     if step is None:
         return []
-    decimals = round(-math.log10(step / EARTH_RADIUS_M / math.radians(1 / 60.0)))
+    decimals = round(-math.log10(step / _m_per_minute(survey)))
     return [
         DataFinding(
             "quantisation",

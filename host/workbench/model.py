@@ -21,9 +21,7 @@ from forcemap.host.workbench.evidence import (
     Design,
     DesignCache,
     SufficientStats,
-    TermBlock,
     blas_threads,
-    design_key,
     evidence,
     folds_key,
     small_blas,
@@ -39,9 +37,9 @@ from forcemap.host.workbench.hypersearch import (
     spaced_rows,
     term_inputs,
 )
-from forcemap.host.workbench.spec import BASELINE, build_term, parse_term
-from forcemap.host.workbench.table import is_circular
-from forcemap.host.workbench.terms import ConstTerm, HilbertGPTerm, Term, TermSpec
+from forcemap.host.workbench.model_setup import build_design, build_terms
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.terms import HilbertGPTerm, Term, TermSpec
 from scipy import linalg
 
 CHUNK = 8192
@@ -120,24 +118,7 @@ class Model(HyperSearch):
         return f"Model(terms={[str(t) if isinstance(t, (str, TermSpec)) else t.describe() for t in self.terms]!r})"
 
     def _build_terms(self) -> list[Term]:
-        """Fresh Term objects for a fit: built from strings and specs, copies of Term objects."""
-        built: list[Term] = []
-        for t in self.terms:
-            if isinstance(t, str):
-                t = parse_term(t, is_circular)
-            built.append(
-                build_term(t, is_circular) if isinstance(t, TermSpec) else copy.deepcopy(t)
-            )
-        if not built:
-            raise WorkbenchError("a model needs at least one term")
-        if all(t.is_mean for t in built):
-            # the weights need at least one feature; a level is the natural one
-            built.insert(0, ConstTerm())
-        if self.max_basis is not None:
-            for t in built:
-                if isinstance(t, HilbertGPTerm) and t.dims >= 2:
-                    t.max_basis = min(t.max_basis, max(self.max_basis, t.n_basis))
-        return built
+        return build_terms(self.terms, self.max_basis)
 
     def _prepare(self, X: Mapping[str, np.ndarray], y: np.ndarray, design: Design | None) -> None:
         """Scale the target, set the terms up (unless `design` is given: then they are), and gather what the
@@ -156,7 +137,7 @@ class Model(HyperSearch):
         self._Zmean = [Z for t, Z in zip(self.terms_, inputs, strict=True) if t.is_mean]
         if design is None:
             feat = [(t, Z) for t, Z in zip(self.terms_, inputs, strict=True) if not t.is_mean]
-            design = self._design(feat, len(y))
+            design = build_design(feat, self.memory)
         self.design_ = design
         r = y / self.y_scale_
         rows = self._hyper_rows(X, len(y))
@@ -167,22 +148,6 @@ class Model(HyperSearch):
             self._hy, self._hZmean = y[rows], [Z[rows] for Z in self._Zmean]
         hr = r if rows is None else r[rows]
         self._hb, self._hrr = self._hdesign.rmatvec(hr), float(hr @ hr)
-
-    def _design(self, feat: list[tuple[Term, np.ndarray]], n: int) -> Design:
-        """The design of every row: features held when small, else computed chunk by chunk; shared through
-        `memory` with any model of the same features on the same inputs."""
-
-        def build(plan: np.ndarray | None) -> Design:
-            blocks = [TermBlock(copy.deepcopy(t), Z) for t, Z in feat]
-            fast = [i for i, b in enumerate(blocks) if fourier.is_fast(b.term)]
-            if not fast:
-                return Design(blocks, plan)
-            i = max(fast, key=lambda i: blocks[i].shape[1])
-            return Design(blocks, plan, (i, blocks[i].term, blocks[i].Z))
-
-        if self.memory is None:
-            return build(None)
-        return self.memory.design(design_key(feat), build)
 
     def _hyper_rows(self, X: Mapping[str, np.ndarray], n: int) -> np.ndarray | None:
         if self.hyper_spacing_s is None:

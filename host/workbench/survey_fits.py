@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from forcemap.host.vessel.geodesy import wrap_from_minus180
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import (
     HYPER_SPACING_S,
@@ -19,10 +20,6 @@ from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, pre
 
 # the names callers have always found here (hyperparameters come from samples HYPER_SPACING_S apart)
 __all__ = ["HYPER_SPACING_S", "MIN_HYPER_ROWS", "SurveyFits", "hyper_rows", "survey_fits"]
-
-
-def wrap180(a: np.ndarray) -> np.ndarray:
-    return (a + 180.0) % 360.0 - 180.0
 
 
 def circular_median(deg: np.ndarray) -> float:
@@ -189,7 +186,7 @@ def _derive(survey: Survey, name: str) -> np.ndarray:
     flow = np.degrees(np.arctan2(ue, un))
     if vt.is_from:
         flow = flow + 180.0
-    return wrap180(prepare_column(survey, "heading", "covariate") - flow)
+    return wrap_from_minus180(prepare_column(survey, "heading", "covariate") - flow)
 
 
 def covariate(survey: Survey, name: str) -> np.ndarray:

@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-import csv
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.cleaning import (
-    EARTH_RADIUS_M,  # noqa: F401 - part of this module's interface
-    check_positions,
-    local_frame,
-    to_numeric,
-)
+from forcemap.host.vessel.geodesy import LocalFrame, wrap_from_minus180
+from forcemap.host.workbench.cleaning import check_positions, to_numeric
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.table_files import mcap_provenance, read_raw  # noqa: F401 - part of this API
 
 MIN_ROWS = 30
 MAX_MISSING_FRACTION = 0.05
@@ -172,114 +168,6 @@ class Survey:
         return sign * s * np.sin(rad), sign * s * np.cos(rad)
 
 
-def _read_csv(path: Path) -> dict[str, list[str]]:
-    try:
-        # utf-8-sig: a byte-order mark (spreadsheets write one) is read, not taken for part of `t`
-        with path.open(newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            header = next(reader, None)
-            if header is None:
-                raise WorkbenchError(f"{path}: the file is empty")
-            header = [h.strip() for h in header]
-            rows = list(reader)
-    except UnicodeDecodeError:
-        raise WorkbenchError(
-            f"{path}: not UTF-8 text; is it a CSV? (save it from the spreadsheet as CSV UTF-8)"
-        ) from None
-    except csv.Error as exc:
-        raise WorkbenchError(f"{path}: not a readable CSV ({exc})") from None
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise WorkbenchError(
-            f"{path}: column name(s) {', '.join(repr(d) for d in dup)} appear more than once in the header"
-        )
-    cols: dict[str, list[str]] = {h: [] for h in header}
-    for i, row in enumerate(rows):
-        if len(row) != len(header):
-            if not any(cell.strip() for cell in row):
-                continue
-            raise WorkbenchError(
-                f"{path}: row {i + 2} has {len(row)} cells, the header has {len(header)}"
-            )
-        for h, cell in zip(header, row, strict=True):
-            cols[h].append(cell)
-    return cols
-
-
-def _read_parquet(path: Path) -> dict[str, list]:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    try:
-        table = pq.read_table(path)
-    except Exception as exc:  # pyarrow raises many types for a bad file
-        raise WorkbenchError(f"{path}: not a readable Parquet file ({exc})") from None
-    out: dict[str, list] = {}
-    for name in table.column_names:
-        col = table.column(name)
-        # numeric columns as arrays (nulls as NaN): `to_numeric` takes them whole, not cell by cell
-        if pa.types.is_floating(col.type) or pa.types.is_integer(col.type):
-            out[name] = col.to_numpy(zero_copy_only=False).astype(float)  # type: ignore[assignment]
-        else:
-            out[name] = col.to_pylist()
-    return out
-
-
-def _read_mcap(path: Path) -> dict[str, list]:
-    """The ``/samples`` rows through `forcemap export`'s reader: truncated logs are read up to their
-    last complete chunk, and rows repeated (same ``t``) are kept once."""
-    from forcemap.host.convert.export import check_logs, samples_table
-    from forcemap.host.errors import CliError
-
-    try:
-        check_logs([path])
-    except CliError as exc:
-        raise WorkbenchError(str(exc)) from None
-    table = samples_table([path])
-    if not len(table):
-        raise WorkbenchError(
-            f"{path}: the MCAP log has no /samples messages; was it written by `forcemap run`?"
-        )
-    return {c: table.column(c) for c in table.columns}
-
-
-def mcap_provenance(path: Path) -> dict[str, str]:
-    """Who fed each column: the last ``columns`` metadata record of an MCAP log (from its summary when
-    the file is complete, else by reading it through); empty when there is none."""
-    from forcemap.host.log.mcap import FileScan, iter_records
-    from mcap.reader import make_reader
-    from mcap.records import Metadata
-
-    found: dict[str, str] = {}
-    try:
-        with open(path, "rb") as f:
-            for m in make_reader(f).iter_metadata():
-                if m.name == "columns":
-                    found = dict(m.metadata)
-        return found
-    except Exception:  # no summary (a killed or truncated log): read the records themselves
-        pass
-    for record in iter_records(path, FileScan(path)):
-        if isinstance(record, Metadata) and record.name == "columns":
-            found = dict(record.metadata)
-    return found
-
-
-def read_raw(path: str | Path) -> dict[str, list]:
-    """The table's cells by column, from CSV, Parquet or MCAP (chosen by the file's extension)."""
-    path = Path(path)
-    if not path.exists():
-        raise WorkbenchError(f"{path}: no such file")
-    if path.is_dir():
-        raise WorkbenchError(f"{path} is a folder; give a samples table (.csv, .parquet or .mcap)")
-    suffix = path.suffix.lower()
-    if suffix == ".parquet" or suffix == ".pq":
-        return _read_parquet(path)
-    if suffix == ".mcap":
-        return _read_mcap(path)
-    return _read_csv(path)
-
-
 def _fill_nearest_in_time(values: np.ndarray) -> np.ndarray:
     good = np.flatnonzero(np.isfinite(values))
     idx = np.arange(len(values))
@@ -382,9 +270,9 @@ def survey_from_columns(
     lat, lon = columns["lat"], columns["lon"]
     lat0 = 0.5 * (float(lat.min()) + float(lat.max()))
     lon0 = 0.5 * (float(lon.min()) + float(lon.max()))
-    columns["x"], columns["y"] = local_frame(lat, lon, lat0, lon0)
+    columns["x"], columns["y"] = LocalFrame(lat0, lon0).to_local(lat, lon)
     if "heading" in columns and "cog" in columns:
-        columns["crab"] = (columns["heading"] - columns["cog"] + 180.0) % 360.0 - 180.0
+        columns["crab"] = wrap_from_minus180(columns["heading"] - columns["cog"])
     return Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from forcemap.host.vessel.geodesy import wrap_from_minus180
 from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.cv import CVResult
 from forcemap.host.workbench.errors import WorkbenchError
@@ -26,7 +27,6 @@ from forcemap.host.workbench.survey_fits import (
     hyper_rows,
     survey_fits,
     survey_inputs,
-    wrap180,
 )
 from forcemap.host.workbench.table import NOT_COVARIATES, Survey, is_circular, prepare_column
 from forcemap.host.workbench.terms import HilbertGPTerm
@@ -229,7 +229,7 @@ class SurveyModel:
                 if not interval:
                     out_mean[sl] = mean
                     continue
-                dev = np.abs(wrap180(direction(a_obs, c_obs) - mean[:, None]))
+                dev = np.abs(wrap_from_minus180(direction(a_obs, c_obs) - mean[:, None]))
                 half = np.quantile(dev, 0.95, axis=1)
                 out_mean[sl], out_lo[sl], out_hi[sl] = mean, mean - half, mean + half
         return out_mean, out_lo, out_hi

@@ -1,0 +1,1 @@
+"""The diagnosis: which physical effect a model is missing, and whether the survey can tell."""

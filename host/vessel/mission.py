@@ -11,10 +11,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from . import waypoints
-from .geo import Geo
-from .scenario import Scenario
+from forcemap.host.vessel import waypoints
+from forcemap.host.vessel.geodesy import LocalFrame
+from forcemap.host.vessel.scenario import Scenario
 
 MISSION_DIR = "missions"
 
@@ -86,7 +85,7 @@ def lawnmower(
 
 
 def builtin_names() -> list[str]:
-    root = resources.files("forcemap.sim_devices") / MISSION_DIR
+    root = resources.files("forcemap.host.vessel") / MISSION_DIR
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
 
 
@@ -111,7 +110,7 @@ def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
         return {"mission": {"description": f"waypoint file {p.name}", **m}}, p.stem
     if p.suffix == ".toml" or p.exists():
         return tomllib.loads(p.read_text()), p.stem
-    res = resources.files("forcemap.sim_devices") / MISSION_DIR / f"{name_or_path}.toml"
+    res = resources.files("forcemap.host.vessel") / MISSION_DIR / f"{name_or_path}.toml"
     if not res.is_file():
         raise ValueError(
             f"unknown mission {name_or_path!r}; built in: {', '.join(builtin_names())}"
@@ -137,7 +136,7 @@ def load(name_or_path: str | Mission, scenario: Scenario) -> Mission:
             str(m.get("start", "downstream")),
         )
     elif "latlon" in m:
-        geo = Geo(scenario.lat0, scenario.lon0)
+        geo = LocalFrame(scenario.lat0, scenario.lon0)
         ll = np.array(m["latlon"], dtype=float)
         wps = np.column_stack(geo.to_local(ll[:, 0], ll[:, 1]))
     else:
@@ -150,7 +149,7 @@ def load(name_or_path: str | Mission, scenario: Scenario) -> Mission:
         if speeds.shape != (len(wps),):
             raise ValueError(f"mission {name}: speeds needs one value per waypoint")
     if "lines_latlon" in m:
-        geo = Geo(scenario.lat0, scenario.lon0)
+        geo = LocalFrame(scenario.lat0, scenario.lon0)
         ll = np.array(m["lines_latlon"], dtype=float).reshape(-1, 2, 2)
         lines = np.stack(geo.to_local(ll[..., 0], ll[..., 1]), axis=-1)
     elif "lines" in m:
@@ -161,7 +160,7 @@ def load(name_or_path: str | Mission, scenario: Scenario) -> Mission:
     )
 
 
-def from_items(items: list[waypoints.Item], geo: Geo, start: tuple[float, float]) -> Mission:
+def from_items(items: list[waypoints.Item], geo: LocalFrame, start: tuple[float, float]) -> Mission:
     """A mission received over MAVLink (home first), flown from the boat's position ``start``."""
     latlon, speeds, seqs = waypoints.nav_points(items[1:])
     if len(latlon) == 0:
@@ -178,7 +177,7 @@ def from_items(items: list[waypoints.Item], geo: Geo, start: tuple[float, float]
     )
 
 
-def save_toml(path: str | Path, mission: Mission, geo: Geo) -> None:
+def save_toml(path: str | Path, mission: Mission, geo: LocalFrame) -> None:
     """The mission in the simulator's TOML format (lat/lon, so it flies in any scenario at that place)."""
     lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
     rows = ",\n  ".join(f"[{a:.8f}, {b:.8f}]" for a, b in zip(lat, lon, strict=True))
@@ -201,7 +200,7 @@ def save_toml(path: str | Path, mission: Mission, geo: Geo) -> None:
     Path(path).write_text("\n".join(out) + "\n")
 
 
-def save_waypoints(path: str | Path, mission: Mission, geo: Geo) -> None:
+def save_waypoints(path: str | Path, mission: Mission, geo: LocalFrame) -> None:
     """The mission as a QGC WPL 110 file (home at the first waypoint)."""
     lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
     latlon = np.column_stack([lat, lon])
@@ -217,7 +216,7 @@ def intended_lines(mission: Mission) -> np.ndarray:
     return np.stack([mission.waypoints[:-1], mission.waypoints[1:]], axis=1)
 
 
-def to_json(mission: Mission, geo: Geo) -> dict[str, Any]:
+def to_json(mission: Mission, geo: LocalFrame) -> dict[str, Any]:
     """Waypoints and intended lines in lat/lon and local metres (the truth's mission.json)."""
     lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
     lines = intended_lines(mission)
@@ -247,9 +246,3 @@ def describe_all() -> list[tuple[str, str]]:
         data, _ = _read(n)
         out.append((n, str(data.get("mission", {}).get("description", ""))))
     return out
-
-
-def write_truth(folder: Path, mission: Mission, geo: Geo) -> None:
-    """mission.waypoints, the mission flown (QGC WPL 110), and mission.json with its intended lines."""
-    save_waypoints(folder / "mission.waypoints", mission, geo)
-    (folder / "mission.json").write_text(json.dumps(to_json(mission, geo), indent=1) + "\n")

@@ -1,4 +1,7 @@
-"""A 3-DOF surface vessel (surge, sway, yaw) like a Jetyak: jet thrust and nozzle, pushed by current and wind."""
+"""A 3-DOF surface vessel (surge, sway, yaw) like a Jetyak: jet thrust and nozzle, pushed by current and wind.
+
+The equations only: the simulator's true hull is in `sim_devices.jetyak`, the planner's belief in
+`plan.boat_model`; both are `BoatParams` values."""
 
 from __future__ import annotations
 
@@ -8,34 +11,40 @@ from dataclasses import dataclass
 RHO_AIR = 1.2
 
 
-@dataclass
+@dataclass(frozen=True)
 class BoatParams:
-    """Mokai-based Jetyak, about 3.9 m and 180 kg with payload; hydrodynamic terms are per SI unit."""
+    """A jet-driven hull; hydrodynamic terms are per SI unit."""
 
-    m_surge: float = 250.0  # kg, mass plus added mass in surge
-    m_sway: float = 380.0  # kg, mass plus added mass in sway
-    inertia: float = 220.0  # kg m^2, yaw inertia plus added inertia
-    x_u: float = 10.0  # N per m/s, linear surge drag
-    x_uu: float = 12.0  # N per (m/s)^2, quadratic surge drag -> top speed ~5.5 m/s
-    y_v: float = 120.0
-    y_vv: float = 450.0
-    n_r: float = 40.0  # N m per rad/s, yaw damping at rest
-    n_ru: float = 40.0  # N m per rad/s per m/s, yaw damping growing with speed (hull and keel)
-    n_rr: float = 60.0
-    thrust_max: float = 420.0  # N
-    nozzle_max_deg: float = 35.0  # jet nozzle deflection at full steering
-    jet_arm: float = 1.8  # m from the jet to the centre of rotation
-    area_front: float = 0.5  # m^2 above water
-    area_side: float = 1.2
-    cd_air: float = 0.9
-    weathervane: float = (
-        0.35  # m, lever of the side wind force about the centre (bow turns off the wind)
-    )
+    m_surge: float  # kg, mass plus added mass in surge
+    m_sway: float  # kg, mass plus added mass in sway
+    inertia: float  # kg m^2, yaw inertia plus added inertia
+    x_u: float  # N per m/s, linear surge drag
+    x_uu: float  # N per (m/s)^2, quadratic surge drag
+    y_v: float  # N per m/s, linear sway drag
+    y_vv: float  # N per (m/s)^2, quadratic sway drag
+    n_r: float  # N m per rad/s, yaw damping at rest
+    n_ru: float  # N m per rad/s per m/s, yaw damping growing with speed (hull and keel)
+    n_rr: float  # N m per (rad/s)^2, quadratic yaw damping
+    thrust_max: float  # N
+    nozzle_max_deg: float  # jet nozzle deflection at full steering
+    jet_arm: float  # m from the jet to the centre of rotation
+    area_front: float  # m^2 above water
+    area_side: float  # m^2 above water
+    cd_air: float
+    weathervane: float  # m, lever of the side wind force about the centre (bow turns off the wind)
+
+    @property
+    def max_speed(self) -> float:
+        """Speed through the water at full throttle, straight ahead, from the hull's drag alone (m/s)."""
+        return (-self.x_u + math.sqrt(self.x_u**2 + 4 * self.x_uu * self.thrust_max)) / (
+            2 * self.x_uu
+        )
 
 
 @dataclass
-class BoatState:
-    """Position (m, local ENU), heading (compass rad), velocity through the water (body frame) and yaw rate."""
+class HullState:
+    """The hull model's state: position (m, local ENU), heading (compass rad), velocity through the water
+    (body frame), yaw rate, and velocity over ground."""
 
     x: float = 0.0
     y: float = 0.0
@@ -50,9 +59,9 @@ class BoatState:
 class Boat:
     """Integrates the vessel with semi-implicit Euler; the water's velocity enters through the kinematics."""
 
-    def __init__(self, params: BoatParams | None = None, state: BoatState | None = None) -> None:
-        self.p = params or BoatParams()
-        self.s = state or BoatState()
+    def __init__(self, params: BoatParams, state: HullState | None = None) -> None:
+        self.p = params
+        self.s = state or HullState()
 
     def step(
         self,

@@ -1,4 +1,7 @@
-"""Scenarios: the TOML files that describe a world (river, lake), loaded by name or path."""
+"""Scenarios: the TOML files that describe a place (river, lake), loaded by name or path.
+
+The `[scenario]` table is what missions are laid out in (origin, survey box, flow direction); the other
+tables are the world the simulator builds there (`sim_devices.fields`), kept raw in `Scenario.tables`."""
 
 from __future__ import annotations
 
@@ -39,7 +42,7 @@ class Scenario:
 
 def builtin_names() -> list[str]:
     """Names of the scenarios shipped with the package."""
-    root = resources.files("forcemap.sim_devices") / SCENARIO_DIR
+    root = resources.files("forcemap.host.vessel") / SCENARIO_DIR
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
 
 
@@ -47,7 +50,7 @@ def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists():
         return tomllib.loads(p.read_text()), str(p)
-    res = resources.files("forcemap.sim_devices") / SCENARIO_DIR / f"{name_or_path}.toml"
+    res = resources.files("forcemap.host.vessel") / SCENARIO_DIR / f"{name_or_path}.toml"
     if not res.is_file():
         raise ValueError(
             f"unknown scenario {name_or_path!r}; built in: {', '.join(builtin_names())}"

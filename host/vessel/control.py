@@ -1,4 +1,7 @@
-"""Waypoint guidance and PID heading and speed control, tuned in calm water like a stock ArduPilot Rover."""
+"""Waypoint guidance and PID heading and speed control, like a stock ArduPilot Rover's AUTO mode.
+
+The laws only: the simulated autopilot's tuning is in `sim_devices.jetyak`, the planner's belief in
+`plan.boat_model`; both are `Gains` values."""
 
 from __future__ import annotations
 
@@ -6,11 +9,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-
-def wrap_pi(a: float) -> float:
-    """Angle wrapped to (-pi, pi]."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+from forcemap.host.vessel.geodesy import wrap_from_minus_pi
 
 
 @dataclass
@@ -27,20 +26,20 @@ class PID:
         return self.kp * error + self.integral - self.kd * rate
 
 
-@dataclass
+@dataclass(frozen=True)
 class Gains:
-    """Tuned on the lake at cruise speed; nothing here knows about current."""
+    """An autopilot's tuning; nothing here knows about current."""
 
-    steer_kp: float = 2.5  # per rad of heading error
-    steer_ki: float = 0.05
-    steer_kd: float = 1.0  # per rad/s of yaw rate
-    speed_kp: float = 0.25  # throttle per m/s of ground-speed error
-    speed_ki: float = 0.05
-    throttle_ff: float = 0.19  # throttle per m/s of target speed (calm-water cruise feed-forward)
-    throttle_min: float = 0.25  # MOT_THR_MIN: keep some jet flow for steering
-    lookahead_m: float = 10.0  # line-of-sight guidance
-    wp_radius_m: float = 3.0
-    turn_radius_m: float = 4.5  # calm-water turning radius at cruise, for turning before a waypoint
+    steer_kp: float  # per rad of heading error
+    steer_ki: float  # per rad s of heading error
+    steer_kd: float  # per rad/s of yaw rate
+    speed_kp: float  # throttle per m/s of ground-speed error
+    speed_ki: float  # throttle per m of ground-speed error
+    throttle_ff: float  # throttle per m/s of target speed (calm-water cruise feed-forward)
+    throttle_min: float  # MOT_THR_MIN: keep some jet flow for steering
+    lookahead_m: float  # line-of-sight guidance
+    wp_radius_m: float  # a waypoint is reached this close
+    turn_radius_m: float  # calm-water turning radius at cruise, for turning before a waypoint
 
 
 class Navigator:
@@ -49,15 +48,15 @@ class Navigator:
     def __init__(
         self,
         waypoints: np.ndarray,
+        gains: Gains,
         loop: bool = True,
-        gains: Gains | None = None,
         speeds: np.ndarray | None = None,
     ) -> None:
         self.wps = np.asarray(waypoints, dtype=float)
         self.loop = loop
         # ground speed on the leg into each waypoint (DO_CHANGE_SPEED), NaN: the cruise speed
         self.speeds = None if speeds is None else np.asarray(speeds, dtype=float)
-        self.g = gains or Gains()
+        self.g = gains
         self.leg = 1  # heading from wps[leg-1] to wps[leg]
         self.legs_done = 0
         self.done = False
@@ -129,8 +128,8 @@ class Navigator:
 class Controller:
     """Heading PID on the nozzle, speed PID on GPS ground speed (as ArduPilot does) on the throttle."""
 
-    def __init__(self, cruise_speed: float, gains: Gains | None = None) -> None:
-        self.g = gains or Gains()
+    def __init__(self, cruise_speed: float, gains: Gains) -> None:
+        self.g = gains
         self.cruise = cruise_speed
         self.heading = PID(self.g.steer_kp, self.g.steer_ki, self.g.steer_kd, 0.3)
         self.speed = PID(self.g.speed_kp, self.g.speed_ki, 0.0, 0.4)
@@ -139,6 +138,6 @@ class Controller:
         self, dt: float, psi: float, r: float, psi_target: float, sog: float
     ) -> tuple[float, float]:
         """(throttle 0..1, steer -1..1) for the measured heading, yaw rate and ground speed."""
-        steer = self.heading.update(wrap_pi(psi_target - psi), r, dt)
+        steer = self.heading.update(wrap_from_minus_pi(psi_target - psi), r, dt)
         throttle = self.g.throttle_ff * self.cruise + self.speed.update(self.cruise - sog, 0.0, dt)
         return min(max(throttle, self.g.throttle_min), 1.0), min(max(steer, -1.0), 1.0)

@@ -1,0 +1,205 @@
+"""The shape of the package, read from its source with `ast`: imports point one way, modules stay small.
+
+- host's rooms import only the rooms above them on docs/ARCHITECTURE.md's page.
+- No cycle among the modules of `forcemap` (every import counts: top level, inside functions, under
+  TYPE_CHECKING). A failure names the cycle.
+- `host` imports `sim_devices` only in the simulator's own commands (`host/cli/sim.py`, `host/cli/demo.py`).
+- No module over MAX_MODULE_LINES lines, no function over MAX_FUNCTION_LINES.
+- Every module is named in docs/ARCHITECTURE.md by its path (a package by its folder, `host/vessel/`).
+
+Run as a script, it prints each module's imports of the package and the cycles, if any.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import sys
+from pathlib import Path
+
+PACKAGES = (
+    "forcemap",
+    "forcemap.host",
+    "forcemap.protocol",
+    "forcemap.sim_devices",
+    "forcemap.firmware_bridge",
+)
+SIM_COMMANDS = {"forcemap.host.cli.sim", "forcemap.host.cli.demo"}
+# host's rooms in import order (docs/ARCHITECTURE.md): "host" is its top-level modules
+ROOMS = [
+    "host", "vessel", "log", "acquire", "decode", "fuse", "convert", "workbench", "plan", "gis", "report",
+    "season",
+    "live", "api", "cli",
+]  # fmt: skip
+MAX_MODULE_LINES = 400
+MAX_FUNCTION_LINES = 80
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "ARCHITECTURE.md"
+
+
+def modules() -> dict[str, Path]:
+    """Every module of the installed package: dotted name -> file (`forcemap` itself is `api/`)."""
+    out: dict[str, Path] = {}
+    for pkg in PACKAGES:
+        for root in importlib.import_module(pkg).__path__:
+            files = [Path(root) / "__init__.py"] if pkg == "forcemap" else Path(root).rglob("*.py")
+            for f in sorted(files):
+                parts = f.relative_to(root).with_suffix("").parts
+                if parts[-1] == "__init__":
+                    parts = parts[:-1]
+                out[".".join((pkg, *parts))] = f
+    return out
+
+
+def repo_path(name: str, file: Path) -> str:
+    """The module's path in the repository: `host/vessel/geodesy.py`, a package as `host/vessel/`."""
+    rel = file.resolve().relative_to(ROOT).as_posix()
+    return rel[: -len("__init__.py")] if file.name == "__init__.py" else rel
+
+
+def imports_of(name: str, file: Path, known: set[str]) -> set[str]:
+    """The package's modules that ``name`` imports anywhere in its source."""
+    is_pkg = file.name == "__init__.py"
+    here = name if is_pkg else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(file.read_text(), str(file))):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = here.split(".")
+                anchor = anchor[: len(anchor) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            # `from pkg import mod` imports the module pkg.mod; `from mod import name` imports mod
+            targets = [
+                f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names
+            ]
+        else:
+            continue
+        for t in targets:
+            while t and t not in known:
+                t = t.rpartition(".")[0]
+            if t and t != name:
+                found.add(t)
+    return found
+
+
+def import_graph() -> dict[str, set[str]]:
+    mods = modules()
+    known = set(mods)
+    return {name: imports_of(name, f, known) for name, f in mods.items()}
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle as [a, b, ..., a], or None (iterative depth-first search)."""
+    state: dict[str, int] = {}  # 1 on the current path, 2 done
+    for start in sorted(graph):
+        if start in state:
+            continue
+        path = [start]
+        stack = [iter(sorted(graph[start]))]
+        state[start] = 1
+        while stack:
+            nxt = next(stack[-1], None)
+            if nxt is None:
+                state[path.pop()] = 2
+                stack.pop()
+            elif state.get(nxt) == 1:
+                return path[path.index(nxt) :] + [nxt]
+            elif nxt not in state:
+                state[nxt] = 1
+                path.append(nxt)
+                stack.append(iter(sorted(graph.get(nxt, ()))))
+    return None
+
+
+def test_no_import_cycle():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+def test_cycle_finder_finds_a_cycle():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) is None
+
+
+def test_host_uses_the_simulator_only_in_its_commands():
+    graph = import_graph()
+    bad = sorted(
+        f"{m} -> {t}"
+        for m, ts in graph.items()
+        if m.startswith("forcemap.host") and m not in SIM_COMMANDS
+        for t in ts
+        if t.startswith("forcemap.sim_devices")
+    )
+    assert not bad, "host imports the simulator outside cli/sim.py and cli/demo.py:\n" + "\n".join(
+        bad
+    )
+
+
+def room_of(module: str) -> str:
+    parts = module.split(".")
+    if module == "forcemap.host.api":
+        return "api"
+    if parts[1] != "host":
+        return parts[1]
+    return parts[2] if len(parts) > 3 or f"host/{parts[2]}" in ROOM_PACKAGES else "host"
+
+
+ROOM_PACKAGES = {f"host/{r}" for r in ROOMS if r != "host"}
+
+
+def test_rooms_import_only_rooms_above_them():
+    """docs/ARCHITECTURE.md's order: a room imports its own modules and those of the rooms above it
+    (so the report, above the workbench and the plan, is imported by the commands alone)."""
+    graph = import_graph()
+    bad = sorted(
+        f"{m} -> {t}"
+        for m, ts in graph.items()
+        if m.startswith("forcemap.host")
+        for t in ts
+        if t.startswith("forcemap.host") and ROOMS.index(room_of(t)) > ROOMS.index(room_of(m))
+    )
+    assert not bad, "imports that point up docs/ARCHITECTURE.md's rooms:\n" + "\n".join(bad)
+    assert room_of("forcemap.host.workbench.diagnose.rounds") == "workbench"
+    assert room_of("forcemap.host.outputs") == "host"
+
+
+def test_the_simulator_commands_do_use_it():
+    """The rule above is not empty: the graph sees those imports (inside functions too)."""
+    graph = import_graph()
+    assert any(t.startswith("forcemap.sim_devices") for t in graph["forcemap.host.cli.sim"])
+    assert "forcemap.host.vessel.geodesy" in graph["forcemap.host.fuse.compensation"]
+
+
+def test_modules_and_functions_are_small():
+    long_modules, long_functions = [], []
+    for name, f in modules().items():
+        text = f.read_text()
+        n = len(text.splitlines())
+        if n > MAX_MODULE_LINES:
+            long_modules.append(f"{name}: {n} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                length = node.end_lineno - node.lineno + 1  # type: ignore[operator]
+                if length > MAX_FUNCTION_LINES:
+                    long_functions.append(
+                        f"{name}.{node.name} (line {node.lineno}): {length} lines"
+                    )
+    assert not long_modules and not long_functions, "\n".join(long_modules + long_functions)
+
+
+def test_every_module_is_in_the_architecture_page():
+    doc = DOC.read_text()
+    missing = [p for p in (repo_path(n, f) for n, f in modules().items()) if f"`{p}`" not in doc]
+    assert not missing, "docs/ARCHITECTURE.md does not name: " + ", ".join(missing)
+
+
+if __name__ == "__main__":
+    g = import_graph()
+    for m in sorted(g):
+        print(m, "->", ", ".join(sorted(g[m])) or "-")
+    c = find_cycle(g)
+    print("cycle:", " -> ".join(c) if c else "none")
+    sys.exit(1 if c else 0)
