@@ -45,7 +45,7 @@ Opt = float | None
 
 
 @dataclass(slots=True)
-class BoatState(Record):
+class BoatStateRecord(Record):
     NAME = "forcemap.BoatState"
     DESCRIPTION = "Navigation state; angles in compass degrees, speeds in m/s"
     t: float
@@ -268,7 +268,7 @@ TOPIC_TYPES: dict[str, type[Record]] = {
     "/bridge/status": BridgeStatus,
     "/nmea/sentence": NmeaSentence,
     "/source/reading": SourceReading,
-    "/boat/state": BoatState,
+    "/boat/state": BoatStateRecord,
     "/wind/apparent": ApparentWind,
     "/wind/true": TrueWind,
     "/current": Current,
