@@ -12,7 +12,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -149,13 +148,17 @@ def test_run_config_out_rotate_min_and_clock_wait(tmp_path):
     proc = subprocess.Popen(
         argv, cwd=ROOT, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True
     )
+    assert proc.stderr is not None
+    head = []
     try:
-        deadline = time.monotonic() + 120  # only catches a hang; a loaded machine starts slowly
-        while not list(out.glob("*.mcap")) and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.1)
-        time.sleep(0.5)
+        # the notes, then one JSON line per event: "start" comes once the daemon handles SIGTERM
+        for line in proc.stderr:
+            head.append(line)
+            if '"event":"start"' in line:
+                break
         proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
+        _, rest = proc.communicate(timeout=60)
+        err = "".join(head) + rest
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -81,9 +81,7 @@ def test_live_view_shows_rates_errors_fix_and_file(tmp_path):
     assert "bridge" in last and "port_missing" in last
     assert "mavlink" in last and "not given" in last
     assert "/nmea/sentence" in last and "last fix  none yet" in last
-    assert (
-        "nmea.rejected 1" in last
-    )  # NMEA counters are keyed by the decoder, whatever the port is called
+    assert "nmea.rejected 1" in last  # NMEA counters are keyed by the decoder
     assert str(log.path) in last
     assert has_footer(log.path)
 

@@ -36,7 +36,7 @@ HELD_SHARE = 0.7
 Z = 6.0
 MAD_TO_STD = 1.4826
 # least departure (SI) that is physically a spike, by family; depth also scales with the depth
-FLOORS = {"depth": 0.5, "current": 0.5, "wind": 3.0}
+FLOORS = {"depth": 0.5, "current": 0.5, "wind": 8.0}  # gusts of a few m/s within seconds are wind
 DEPTH_FLOOR_SHARE = 0.05
 
 
@@ -244,6 +244,8 @@ def without_spikes(survey: Survey, target: str) -> tuple[Survey, Spikes | None]:
         return survey, None
     found = target_spikes(survey, target)
     if found is None or not found.count:
+        # checked and clean: copies made from it (a clock-corrected vector) keep these rows as they are
+        survey.spikes_removed.add(_name(survey, target))
         return survey, found
     survey.columns[found.column] = found.flagged.astype(float)
     if survey.keep_outliers:
