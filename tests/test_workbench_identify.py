@@ -97,21 +97,20 @@ def test_two_effects_are_found_in_two_rounds(tmp_path, seed):
     assert d.to_json()["candidates"] == rounds[0]["candidates"]  # the top level is the first round
 
 
-# The gain of the same release varies between surveys (seeds 1-4: 15, 25, 26 and 17 %, bench/RESULTS.md,
-# before spikes were left out); the weak case is the surveys where it is 10-25 %, the hardest to find
+# A release that raises the current by 3.5 %. The gain of the same release varies between surveys, since
+# it depends on which blocks each fold holds out (seeds 1-4: 28, 38, 43 and 14 %, Evaluator on the first
+# round); the weak cases are the two under 30 %, and the old fixed 25 % floor missed seed 4's
 WEAK_SEEDS = (1, 4)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", WEAK_SEEDS)
 def test_weak_effect_is_found(tmp_path, seed):
-    table = make_survey("river", ["dam_release:increase=0.06"], seed, 1200.0, tmp_path)
+    table = make_survey("river", ["dam_release:increase=0.035"], seed, 1200.0, tmp_path)
     d = diagnose(load_survey(table), "current_speed", rounds=1, progress=False)
     best = d.candidates[0]
     assert best.covariate == "t" and d.missing_effect_found, d.summary()
-    # the old fixed 25 % floor missed it. Seed 4 gains 24.6 % since the spike test leaves out 2 of its
-    # 4,768 current readings (0.64 m/s off the track around them); 17 % with them in
-    assert 0.10 <= best.improvement < 0.25, d.summary()
+    assert 0.10 <= best.improvement < 0.30, d.summary()
     assert best.improvement > max(best.null_gains), d.summary()
 
 

@@ -30,14 +30,17 @@ def spatial_blocks(xy: np.ndarray, target: int = TARGET_BLOCKS) -> np.ndarray:
 def blocked_folds(
     xy: np.ndarray, k: int = DEFAULT_FOLDS, seed: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Whole spatial blocks go to one fold, balancing the folds' sample counts. Returns (fold, block) per sample."""
+    """Whole spatial blocks go to one fold, each in a random order to the fold that holds the fewest samples so
+    far. Returns (fold, block) per sample.
+
+    Taking the blocks largest first would balance the folds more tightly, but then the order, and so the
+    assignment, hardly depends on the seed: repeated assignments would repeat one draw of the lottery."""
     blocks = spatial_blocks(xy)
     nb = blocks.max() + 1
     k = min(k, nb)
     rng = np.random.default_rng(seed)
     sizes = np.bincount(blocks, minlength=nb)
     order = rng.permutation(nb)
-    order = order[np.argsort(-sizes[order], kind="stable")]
     load = np.zeros(k)
     fold_of_block = np.empty(nb, int)
     for b in order:
