@@ -22,6 +22,7 @@ import itertools
 import math
 
 import numpy as np
+from scipy import linalg
 
 # a GP term gets the fast path from this many basis functions on (below it the direct products are cheap)
 MIN_FAST_BASIS = 64
@@ -146,3 +147,39 @@ def linear_form(term, Z: np.ndarray, A: np.ndarray, tables: tuple | None = None)
     k, p1, p2 = A.shape
     left = s[0] @ A.transpose(1, 0, 2).reshape(p1, k * p2)
     return np.einsum("ikq,iq->ik", left.reshape(len(Z), k, p2), s[1])
+
+
+def posterior_tables(term, cols: tuple[slice, np.ndarray], post: dict) -> None:
+    """Put in a posterior `post` (mu, L, s: Sigma = diag(s) (L L')^-1 diag(s)), once, what its variances need: the
+    fast block's (columns `cols[0]`, GP `term`) cosine `table` of Sigma, Sigma's rows of the other blocks'
+    columns `cols[1]` (`cov_slow`), and their covariances with the block as a sine table (`cross_table`)."""
+    if "table" in post:
+        return
+    fcols, slow = cols
+    inv, info = linalg.lapack.dpotri(post["L"], lower=1)  # B^-1, B = L L', in the lower triangle
+    if info != 0:
+        raise np.linalg.LinAlgError("dpotri failed")
+    inv *= post["s"][:, None]
+    inv *= post["s"][None, :]
+    low = np.tril(inv)
+    ff = low[fcols, fcols]
+    weights = 2.0 * ff - np.diag(np.diag(ff))  # the lower triangle counts for the upper one too
+    rows = low[slow] + low[:, slow].T
+    rows[np.arange(len(slow)), slow] -= np.diag(low)[slow]
+    post["cov_slow"] = rows
+    if len(slow):
+        post["cross_table"] = linear_table(term, rows[:, fcols].T)
+    post["table"] = variance_table(term, weights)
+
+
+def variance(
+    term, Z, cols, post: dict, S: np.ndarray, cross, waves: tuple | None = None
+) -> np.ndarray:
+    """phi' Sigma phi at the rows of `Z` (the fast block's inputs), with `posterior_tables`: the block's part from
+    the cosine table, not an M x M product per row; `S` the other blocks' features there, `cross` the block's
+    features times Sigma[other columns, block]'."""
+    var = quadratic_form(term, Z, post["table"], waves)
+    if S.shape[1]:
+        var += 2.0 * np.einsum("ij,ij->i", S, cross)
+        var += np.einsum("ij,ij->i", S @ post["cov_slow"][:, cols[1]], S)
+    return var

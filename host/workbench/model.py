@@ -254,64 +254,31 @@ class Model(HyperSearch):
             )
             var = (V**2).sum(axis=0)
         else:
-            fcols, slow = self.design_.fast_cols
-            self._variance_tables(post)
+            fcols, slow = cols = self.design_.fast_cols
+            fourier.posterior_tables(fast[1], cols, post)
             cross = Phi[:, fcols] @ post["cov_slow"][:, fcols].T
-            var = self._fast_variance(Phi[:, slow], cross, Zf, post)
+            var = fourier.variance(fast[1], Zf, cols, post, Phi[:, slow], cross)
         return mu, np.sqrt(np.maximum(var * self.y_scale_**2, 0.0))
 
     def _predict_fast_rows(self, Xc, mean_part, post: dict, return_std: bool):
         """`_predict_rows` where the design has a fast GP block, from inputs: the block's features are never
         formed, its linear forms (the mean, the slow columns' covariances with it) come from sine tables."""
         i, term = self.design_.fast[:2]
-        fcols, slow = self.design_.fast_cols
+        fcols, slow = cols = self.design_.fast_cols
         feats = [t.features(term_inputs(t, Xc)) for k, t in enumerate(self.feat_terms_) if k != i]
         Zf = term_inputs(term, Xc)
         S = np.hstack(feats) if feats else np.empty((len(Zf), 0))
         if "mean_table" not in post:
             post["mean_table"] = fourier.linear_table(term, post["mu"][fcols])
-        tables = fourier.waves(term, Zf)
-        mu = fourier.linear_form(term, Zf, post["mean_table"], tables)[:, 0] + S @ post["mu"][slow]
+        waves = fourier.waves(term, Zf)
+        mu = fourier.linear_form(term, Zf, post["mean_table"], waves)[:, 0] + S @ post["mu"][slow]
         mu = mu * self.y_scale_ + mean_part
         if not return_std:
             return mu, None
-        self._variance_tables(post)
-        cross = None
-        if len(slow):
-            if "cross_table" not in post:
-                post["cross_table"] = fourier.linear_table(term, post["cov_slow"][:, fcols].T)
-            cross = fourier.linear_form(term, Zf, post["cross_table"], tables)
-        var = self._fast_variance(S, cross, Zf, post, tables)
+        fourier.posterior_tables(term, cols, post)
+        cross = fourier.linear_form(term, Zf, post["cross_table"], waves) if len(slow) else None
+        var = fourier.variance(term, Zf, cols, post, S, cross, waves)
         return mu, np.sqrt(np.maximum(var * self.y_scale_**2, 0.0))
-
-    def _fast_variance(self, S, cross, Zf, post: dict, tables: tuple | None = None) -> np.ndarray:
-        """phi' Sigma phi with the GP block's part from a cosine table (`fourier`), not an M x M product per row;
-        `S` the other blocks' features, `cross` the fast block's features times Sigma[slow, fast block]'."""
-        var = fourier.quadratic_form(self.design_.fast[1], Zf, post["table"], tables)
-        if S.shape[1]:
-            var += 2.0 * np.einsum("ij,ij->i", S, cross)
-            var += np.einsum("ij,ij->i", S @ post["cov_slow"][:, self.design_.fast_cols[1]], S)
-        return var
-
-    def _variance_tables(self, post: dict) -> None:
-        """The posterior's cosine table of the fast block and its rows Sigma[slow, :], computed once."""
-        fcols, slow = self.design_.fast_cols
-        if "table" not in post:
-            # Sigma = diag(s) B^-1 diag(s), B = L L' (dpotri fills the lower triangle)
-            inv, info = linalg.lapack.dpotri(post["L"], lower=1)
-            if info != 0:
-                raise np.linalg.LinAlgError("dpotri failed")
-            inv *= post["s"][:, None]
-            inv *= post["s"][None, :]
-            low = np.tril(inv)
-            ff = low[fcols, fcols]
-            weights = 2.0 * ff - np.diag(
-                np.diag(ff)
-            )  # the lower triangle counts for the upper one too
-            rows = low[slow] + low[:, slow].T
-            rows[np.arange(len(slow)), slow] -= np.diag(low)[slow]
-            post["cov_slow"] = rows
-            post["table"] = fourier.variance_table(self.design_.fast[1], weights)
 
     def predict(
         self, X: Mapping[str, np.ndarray], return_std: bool = False, include_noise: bool = False
