@@ -46,14 +46,15 @@ def _phases(u: np.ndarray, top: int) -> np.ndarray:
     return (high[:, :, None] * low[:, None, :]).reshape(len(u), -1)[:, : top + 1]
 
 
-def waves(term, Z: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Per input axis, cos(p u_d) for p = 0 .. 2 max J_d and sin(p u_d) / sqrt(L_d) for p = 1 .. max J_d,
-    (n, P_d) each: the tables of `quadratic_form` and of `linear_form`, from one set of phases."""
+def waves(term, Z: np.ndarray, cosines: bool = True) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per input axis, cos(p u_d) for p = 0 .. 2 max J_d (with `cosines`) and sin(p u_d) / sqrt(L_d) for
+    p = 1 .. max J_d, (n, P_d) each: the tables of `quadratic_form` and of `linear_form`, from one set of phases."""
     cos, sin = [], []
     for d, u in enumerate(term.angles(Z)):
         top = int(term.J[:, d].max())
-        ph = _phases(u, 2 * top)
-        cos.append(np.ascontiguousarray(ph.real))
+        ph = _phases(u, 2 * top if cosines else top)
+        if cosines:
+            cos.append(np.ascontiguousarray(ph.real))
         sin.append(ph.imag[:, 1 : top + 1] / math.sqrt(term.L[d]))
     return cos, sin
 
@@ -141,7 +142,7 @@ def linear_table(term, W: np.ndarray) -> np.ndarray:
 def linear_form(term, Z: np.ndarray, A: np.ndarray, tables: tuple | None = None) -> np.ndarray:
     """Phi W (n, k) at the rows of `Z` from `linear_table(term, W)` (and `waves(term, Z)` if at hand), without
     forming the n x M features: O(n P_1 P_2 k) in one matrix product, with P_1 P_2 about M."""
-    s = (waves(term, Z) if tables is None else tables)[1]
+    s = (waves(term, Z, cosines=False) if tables is None else tables)[1]
     if len(s) == 1:
         return s[0] @ A.T
     k, p1, p2 = A.shape

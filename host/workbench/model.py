@@ -270,7 +270,7 @@ class Model(HyperSearch):
         S = np.hstack(feats) if feats else np.empty((len(Zf), 0))
         if "mean_table" not in post:
             post["mean_table"] = fourier.linear_table(term, post["mu"][fcols])
-        waves = fourier.waves(term, Zf)
+        waves = fourier.waves(term, Zf, cosines=return_std)
         mu = fourier.linear_form(term, Zf, post["mean_table"], waves)[:, 0] + S @ post["mu"][slow]
         mu = mu * self.y_scale_ + mean_part
         if not return_std:
