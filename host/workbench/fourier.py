@@ -174,12 +174,12 @@ def posterior_tables(term, cols: tuple[slice, np.ndarray], post: dict) -> None:
 
 
 def variance(
-    term, Z, cols, post: dict, S: np.ndarray, cross, waves: tuple | None = None
+    term, Z, cols, post: dict, S: np.ndarray, cross, tables: tuple | None = None
 ) -> np.ndarray:
     """phi' Sigma phi at the rows of `Z` (the fast block's inputs), with `posterior_tables`: the block's part from
     the cosine table, not an M x M product per row; `S` the other blocks' features there, `cross` the block's
-    features times Sigma[other columns, block]'."""
-    var = quadratic_form(term, Z, post["table"], waves)
+    features times Sigma[other columns, block]'; `tables` from `waves(term, Z)` if at hand."""
+    var = quadratic_form(term, Z, post["table"], tables)
     if S.shape[1]:
         var += 2.0 * np.einsum("ij,ij->i", S, cross)
         var += np.einsum("ij,ij->i", S @ post["cov_slow"][:, cols[1]], S)
