@@ -1,6 +1,6 @@
 """`forcemap grid`'s cost: a 43,000-sample survey's maps at 2 m over 1 km^2 (the issue's bound: 10 s).
 
-    python -m bench.bench_grid [--samples 43000] [--resolution 2] [--work DIR]
+    python -m bench.bench_grid [--samples 43000] [--resolution 2] [--work DIR] [--baseline]
 
 (--work DIR of an earlier run reuses its table and fits.)
 
@@ -12,11 +12,16 @@ rebuild the latest fits from their saved hyperparameters (and fit what a vector 
 frame and the cross-flow component), evaluate every map on the grid's mapped cells (the gridding the
 issue bounds), write the files. `--cli` also times the command end to end. CPU time is printed beside
 wall time: on a shared machine the wall time mostly measures the neighbours.
+
+`--baseline` grids once more in the same process the way it was done before the sine tables (the code
+of that commit, kept in `features_formed`): every fast GP block's n x M features formed, then products
+with them; and prints the ratio and the largest relative difference between the two grids.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import tempfile
@@ -24,6 +29,7 @@ import time
 from pathlib import Path
 
 import forcemap
+import numpy as np
 from forcemap.host.cli import main
 
 from bench.synth_survey import HALF_LENGTH, HALF_WIDTH, LAT0, LON0, make_survey
@@ -59,8 +65,8 @@ def fitted_table(work: Path, samples: int) -> Path:
     return table
 
 
-def stages(table: Path, resolution: float, work: Path) -> list[tuple[str, float, float]]:
-    """(stage, wall s, CPU s) of what `forcemap grid -o DIR` does, through the API it calls."""
+def stages(table: Path, resolution: float, work: Path) -> tuple[list, object]:
+    """(stage, wall s, CPU s) of what `forcemap grid -o DIR` does, through the API it calls; the grid."""
     from forcemap.host.gis.contours import write_contours
     from forcemap.host.gis.geotiff import write_geotiff
     from forcemap.host.gis.netcdf import write_netcdf
@@ -97,7 +103,62 @@ def stages(table: Path, resolution: float, work: Path) -> list[tuple[str, float,
         f"grid {grid.nx} x {grid.ny} cells of {resolution:g} m ({int(grid.mask.sum())} mapped), "
         f"{grid.zone_name}"
     )
-    return rows
+    return rows, grid
+
+
+@contextlib.contextmanager
+def features_formed():
+    """Predictions as they were made before the sine tables, kept here as the baseline: the n x M features
+    formed, the mean and the slow blocks' covariances as products with them, cosines by np.cos."""
+    from forcemap.host.workbench import fourier
+    from forcemap.host.workbench.hypersearch import term_inputs
+    from forcemap.host.workbench.model import Model
+
+    def formed(self, Xc, mean_part, post, return_std):
+        Phi = np.hstack(self.features(Xc))
+        mu = Phi @ post["mu"] * self.y_scale_ + mean_part
+        if not return_std:
+            return mu, None
+        term, (fcols, slow) = self.design_.fast[1], self.design_.fast_cols
+        fourier.posterior_tables(term, self.design_.fast_cols, post)
+        cos = [
+            np.cos(u[:, None] * np.arange(2 * int(term.J[:, d].max()) + 1)[None, :])
+            for d, u in enumerate(term.angles(term_inputs(term, Xc)))
+        ]
+        var = fourier.quadratic_form(term, None, post["table"], (cos, None))
+        S, C = Phi[:, slow], post["cov_slow"]
+        var += 2.0 * np.einsum("ij,ij->i", S @ C[:, fcols], Phi[:, fcols])
+        var += np.einsum("ij,ij->i", S @ C[:, slow], S)
+        return mu, np.sqrt(np.maximum(var * self.y_scale_**2, 0.0))
+
+    fast = Model._predict_fast_rows
+    Model._predict_fast_rows = formed
+    try:
+        yield
+    finally:
+        Model._predict_fast_rows = fast
+
+
+def baseline(table: Path, resolution: float, grid) -> list[tuple[str, float, float]]:
+    """The grid stage again with the features formed; the ratio, and how far its bands are from `grid`'s."""
+    from forcemap.host.workbench.model import small_blas
+
+    survey = forcemap.read_survey(table)
+    with small_blas():
+        fits = [survey.latest_fit(t) for t in TARGETS]
+        with features_formed():
+            t0, c0 = time.perf_counter(), time.process_time()
+            old = survey.grid(fits, resolution)
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    worst = 0.0
+    for t in TARGETS:
+        for band, new in grid.layers[t].bands.items():
+            ref = old.layers[t].bands[band]
+            assert np.array_equal(np.isnan(ref), np.isnan(new))
+            if band != "dir":
+                worst = max(worst, float(np.nanmax(np.abs(new - ref)) / np.nanmax(np.abs(ref))))
+    print(f"largest relative difference between the two grids' bands (dir aside): {worst:.1e}")
+    return [("grid, before: the fast GP blocks' features formed (`--baseline`)", wall, cpu)]
 
 
 def main_bench() -> None:
@@ -108,11 +169,21 @@ def main_bench() -> None:
     ap.add_argument(
         "--cli", action="store_true", help="also time `forcemap grid -o DIR` as one command"
     )
+    ap.add_argument(
+        "--baseline",
+        action="store_true",
+        help="also grid with the features formed (before the tables)",
+    )
     args = ap.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_grid_"))
     work.mkdir(parents=True, exist_ok=True)
     table = fitted_table(work, args.samples)
-    rows = stages(table, args.resolution, work)
+    rows, grid = stages(table, args.resolution, work)
+    if args.baseline:
+        rows += baseline(table, args.resolution, grid)
+        print(
+            f"grid: {rows[-1][2] / rows[2][2]:.1f}x less CPU than before, {rows[-1][1] / rows[2][1]:.1f}x less wall"
+        )
     if args.cli:
         t0, c0 = time.perf_counter(), time.process_time()
         rc = main(["grid", str(table), "-o", str(work / "cli"), "--resolution", f"{args.resolution:g}",

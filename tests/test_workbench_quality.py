@@ -374,3 +374,34 @@ def test_the_simulators_false_echoes_in_deep_water_are_left_out(tmp_path):
     assert shallow.sum() > 0.05 * survey.n
     assert np.array_equal(sm.spikes.flagged, shallow)
     assert abs(sm.primary.noise_std_ / ref.primary.noise_std_ - 1.0) < 0.2
+
+
+def test_grid_maps_the_spikes_only_with_keep_outliers(tmp_path):
+    import forcemap
+    import rasterio
+    from pyproj import Transformer
+
+    path, truth = _echo_survey(tmp_path, 5, duration_s=900.0)
+    assert main(["fit", str(path), "--target", "depth", "--no-plots", "--quiet"]) == 0
+    rows = np.array(sorted(truth))
+    cols = load_survey(path, keep_outliers=True).columns
+    lat, lon = cols["lat"][rows], cols["lon"][rows]
+    at_echoes = {}
+    for keep in (False, True):
+        out = tmp_path / f"depth-{keep}.tif"
+        args = ["grid", str(path), "-o", str(out), "--target", "depth", "--resolution", "5"]
+        assert main(args + ["--quiet"] + (["--keep-outliers"] if keep else [])) == 0
+        fit = forcemap.read_survey(path, keep_outliers=keep).latest_fit("depth")
+        with rasterio.open(out) as ds:
+            mean = ds.read(1)
+            e, n = Transformer.from_crs(4326, ds.crs.to_epsg(), always_xy=True).transform(lon, lat)
+            cells = [ds.index(ei, ni) for ei, ni in zip(e, n, strict=True)]
+            at_echoes[keep] = np.array([mean[r, c] for r, c in cells])
+            # the map is the API's fit of the table read the same way (--keep-outliers = keep_outliers)
+            to_ll = Transformer.from_crs(ds.crs.to_epsg(), 4326, always_xy=True)
+            for r, c in cells[:: max(1, len(cells) // 10)]:
+                clon, clat = to_ll.transform(*ds.xy(r, c))
+                assert abs(fit.predict(clat, clon)["mean"][0] - mean[r, c]) < 1e-6
+    # the false shallow echoes, kept in, pull the map up where they were read
+    assert np.isfinite(at_echoes[True]).all() and np.isfinite(at_echoes[False]).all()
+    assert np.mean(at_echoes[False] - at_echoes[True]) > 1.0

@@ -36,6 +36,13 @@ def test_cosine_tables_equal_the_direct_products(field, dims, n_basis):
     direct = np.einsum("ij,ij->i", F @ C, F)
     table = fourier.quadratic_form(term, Z, fourier.variance_table(term, C))
     np.testing.assert_allclose(table, direct, rtol=1e-10, atol=1e-12 * direct.max())
+    # the linear forms (a mean, covariances) from sine tables, and the cosines of `waves` as the Gram's
+    W = rng.standard_normal((n_basis, 3))
+    waves = fourier.waves(term, Z)
+    lin = fourier.linear_form(term, Z, fourier.linear_table(term, W), waves)
+    np.testing.assert_allclose(lin, F @ W, rtol=0, atol=1e-12 * np.abs(F @ W).max())
+    for got, want in zip(waves[0], fourier._cosines(term, Z), strict=True):
+        assert got.shape == want.shape and np.abs(got - want).max() < 1e-13
 
 
 def test_chunk_statistics_add_up_to_the_whole(field):

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from forcemap.host.cli.common import (
     add_json,
+    add_keep_outliers,
     add_output,
     add_quiet,
     add_table,
@@ -71,6 +72,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_json(parser, "the grid and the files")
     add_quiet(parser)
+    add_keep_outliers(parser)
     add_workspace_options(parser, output=False)
 
 
@@ -138,7 +140,7 @@ def _run(args: argparse.Namespace, out: Path) -> int:
     from forcemap.host.workbench.model import small_blas
 
     progress = not args.quiet
-    survey = read_survey(args.table)
+    survey = read_survey(args.table, keep_outliers=args.keep_outliers)
     utm_epsg(survey.table.columns["lat"], survey.table.columns["lon"])  # refused before the fits
     targets = _targets(args, survey.columns)
     scalars = [t for t in targets if survey.table.vector_target(t) is None]

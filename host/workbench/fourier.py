@@ -7,7 +7,10 @@ and sin(a u) sin(b u) = (cos((a - b) u) - cos((a + b) u)) / 2. So every product 
 - the Gram matrix over any rows is a gather from the table T[p, q] = sum_i cos(p u_1i) cos(q u_2i): O(n P Q)
   with P, Q about twice the largest frequency index per axis (a few thousand entries, not M^2 = 4 million);
 - a quadratic form phi_i' C phi_i (the predictive variance) is sum_pq D[p, q] cos(p u_1i) cos(q u_2i), with D
-  the scatter of C onto the same table: O(M^2) once, then O(P Q) per point, not O(M^2).
+  the scatter of C onto the same table: O(M^2) once, then O(P Q) per point, not O(M^2);
+- a linear form phi_i' w (the predictive mean, a slow term's covariance with the block) is sum_pq A[p, q]
+  sin(p u_1i) sin(q u_2i) with A the weights laid on a (max J_1, max J_2) table: prediction never forms the
+  n x M features, whose sine products cost more than the table's one matrix product.
 
 For terms on one or two inputs; the results equal the direct products to rounding (tests compare them).
 """
@@ -19,6 +22,7 @@ import itertools
 import math
 
 import numpy as np
+from scipy import linalg
 
 # a GP term gets the fast path from this many basis functions on (below it the direct products are cheap)
 MIN_FAST_BASIS = 64
@@ -33,12 +37,33 @@ def is_fast(term) -> bool:
     )
 
 
+def _phases(u: np.ndarray, top: int) -> np.ndarray:
+    """exp(i p u) for p = 0 .. top: (n, top + 1). Two tables of about sqrt(top) exponentials multiplied out,
+    exp(i (q b + r) u) = exp(i q b u) exp(i r u), not top sines and cosines: within a few ulps of them."""
+    b = max(1, math.isqrt(top + 1))
+    low = np.exp(1j * (u[:, None] * np.arange(b)[None, :]))
+    high = np.exp(1j * (u[:, None] * (b * np.arange(top // b + 1))[None, :]))
+    return (high[:, :, None] * low[:, None, :]).reshape(len(u), -1)[:, : top + 1]
+
+
+def waves(term, Z: np.ndarray, cosines: bool = True) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per input axis, cos(p u_d) for p = 0 .. 2 max J_d (with `cosines`) and sin(p u_d) / sqrt(L_d) for
+    p = 1 .. max J_d, (n, P_d) each: the tables of `quadratic_form` and of `linear_form`, from one set of phases."""
+    cos, sin = [], []
+    for d, u in enumerate(term.angles(Z)):
+        top = int(term.J[:, d].max())
+        ph = _phases(u, 2 * top if cosines else top)
+        if cosines:
+            cos.append(np.ascontiguousarray(ph.real))
+        sin.append(ph.imag[:, 1 : top + 1] / math.sqrt(term.L[d]))
+    return cos, sin
+
+
 def _cosines(term, Z: np.ndarray) -> list[np.ndarray]:
     """cos(p u_d) for p = 0 .. 2 max J_d, per input axis: (n, P_d) each."""
     out = []
     for d, u in enumerate(term.angles(Z)):
-        p = np.arange(2 * int(term.J[:, d].max()) + 1)
-        out.append(np.cos(u[:, None] * p[None, :]))
+        out.append(np.ascontiguousarray(_phases(u, 2 * int(term.J[:, d].max())).real))
     return out
 
 
@@ -92,9 +117,70 @@ def variance_table(term, C: np.ndarray) -> np.ndarray:
     return (D * _scale(term)).reshape(sizes)
 
 
-def quadratic_form(term, Z: np.ndarray, D: np.ndarray) -> np.ndarray:
-    """phi_i' C phi_i at the rows of `Z`, from `variance_table(term, C)`."""
-    cos = _cosines(term, Z)
+def quadratic_form(term, Z: np.ndarray, D: np.ndarray, tables: tuple | None = None) -> np.ndarray:
+    """phi_i' C phi_i at the rows of `Z`, from `variance_table(term, C)` (and `waves(term, Z)` if at hand)."""
+    cos = _cosines(term, Z) if tables is None else tables[0]
     if len(cos) == 1:
         return cos[0] @ D
     return np.einsum("ip,ip->i", cos[0] @ D, cos[1])
+
+
+def linear_table(term, W: np.ndarray) -> np.ndarray:
+    """Tables A (k, P_1[, P_2]) with phi' W[:, c] = sum_pq A[c, p, q] s_1p s_2q, s_d the sines of `waves`: each
+    feature is one product of one sine per axis, so the M weights of a column of `W` (M, k) scatter onto distinct
+    entries."""
+    W = np.asarray(W, float).reshape(len(term.J), -1)
+    sizes = [int(term.J[:, d].max()) for d in range(term.J.shape[1])]
+    flat = np.zeros(len(term.J), np.int64)
+    for d, size in enumerate(sizes):
+        flat = flat * size + (term.J[:, d] - 1)
+    A = np.zeros((W.shape[1], math.prod(sizes)))
+    A[:, flat] = W.T
+    return A.reshape(W.shape[1], *sizes)
+
+
+def linear_form(term, Z: np.ndarray, A: np.ndarray, tables: tuple | None = None) -> np.ndarray:
+    """Phi W (n, k) at the rows of `Z` from `linear_table(term, W)` (and `waves(term, Z)` if at hand), without
+    forming the n x M features: O(n P_1 P_2 k) in one matrix product, with P_1 P_2 about M."""
+    s = (waves(term, Z, cosines=False) if tables is None else tables)[1]
+    if len(s) == 1:
+        return s[0] @ A.T
+    k, p1, p2 = A.shape
+    left = s[0] @ A.transpose(1, 0, 2).reshape(p1, k * p2)
+    return np.einsum("ikq,iq->ik", left.reshape(len(Z), k, p2), s[1])
+
+
+def posterior_tables(term, cols: tuple[slice, np.ndarray], post: dict) -> None:
+    """Put in a posterior `post` (mu, L, s: Sigma = diag(s) (L L')^-1 diag(s)), once, what its variances need: the
+    fast block's (columns `cols[0]`, GP `term`) cosine `table` of Sigma, Sigma's rows of the other blocks'
+    columns `cols[1]` (`cov_slow`), and their covariances with the block as a sine table (`cross_table`)."""
+    if "table" in post:
+        return
+    fcols, slow = cols
+    inv, info = linalg.lapack.dpotri(post["L"], lower=1)  # B^-1, B = L L', in the lower triangle
+    if info != 0:
+        raise np.linalg.LinAlgError("dpotri failed")
+    inv *= post["s"][:, None]
+    inv *= post["s"][None, :]
+    low = np.tril(inv)
+    ff = low[fcols, fcols]
+    weights = 2.0 * ff - np.diag(np.diag(ff))  # the lower triangle counts for the upper one too
+    rows = low[slow] + low[:, slow].T
+    rows[np.arange(len(slow)), slow] -= np.diag(low)[slow]
+    post["cov_slow"] = rows
+    if len(slow):
+        post["cross_table"] = linear_table(term, rows[:, fcols].T)
+    post["table"] = variance_table(term, weights)
+
+
+def variance(
+    term, Z, cols, post: dict, S: np.ndarray, cross, tables: tuple | None = None
+) -> np.ndarray:
+    """phi' Sigma phi at the rows of `Z` (the fast block's inputs), with `posterior_tables`: the block's part from
+    the cosine table, not an M x M product per row; `S` the other blocks' features there, `cross` the block's
+    features times Sigma[other columns, block]'; `tables` from `waves(term, Z)` if at hand."""
+    var = quadratic_form(term, Z, post["table"], tables)
+    if S.shape[1]:
+        var += 2.0 * np.einsum("ij,ij->i", S, cross)
+        var += np.einsum("ij,ij->i", S @ post["cov_slow"][:, cols[1]], S)
+    return var

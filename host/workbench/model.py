@@ -238,10 +238,6 @@ class Model(HyperSearch):
         self._check_fitted()
         return {t.describe(): t.n_basis for t in self.terms_ if isinstance(t, HilbertGPTerm)}
 
-    def _fast_inputs(self, X: Mapping[str, np.ndarray]) -> np.ndarray | None:
-        fast = self.design_.fast
-        return None if fast is None else term_inputs(fast[1], X)
-
     def features(self, X: Mapping[str, np.ndarray]) -> list[np.ndarray]:
         self._check_fitted()
         return [t.features(term_inputs(t, X)) for t in self.feat_terms_]
@@ -258,34 +254,31 @@ class Model(HyperSearch):
             )
             var = (V**2).sum(axis=0)
         else:
-            var = self._fast_variance(Phi, Zf, post)
+            fcols, slow = cols = self.design_.fast_cols
+            fourier.posterior_tables(fast[1], cols, post)
+            cross = Phi[:, fcols] @ post["cov_slow"][:, fcols].T
+            var = fourier.variance(fast[1], Zf, cols, post, Phi[:, slow], cross)
         return mu, np.sqrt(np.maximum(var * self.y_scale_**2, 0.0))
 
-    def _fast_variance(self, Phi, Zf, post: dict) -> np.ndarray:
-        """phi' Sigma phi with the GP block's part from a cosine table (`fourier`), not an M x M product per row."""
-        fcols, slow = self.design_.fast_cols
-        if "table" not in post:
-            # Sigma = diag(s) B^-1 diag(s), B = L L' (dpotri fills the lower triangle)
-            inv, info = linalg.lapack.dpotri(post["L"], lower=1)
-            if info != 0:
-                raise np.linalg.LinAlgError("dpotri failed")
-            inv *= post["s"][:, None]
-            inv *= post["s"][None, :]
-            low = np.tril(inv)
-            ff = low[fcols, fcols]
-            weights = 2.0 * ff - np.diag(
-                np.diag(ff)
-            )  # the lower triangle counts for the upper one too
-            post["table"] = fourier.variance_table(self.design_.fast[1], weights)
-            rows = low[slow] + low[:, slow].T
-            rows[np.arange(len(slow)), slow] -= np.diag(low)[slow]
-            post["cov_slow"] = rows
-        var = fourier.quadratic_form(self.design_.fast[1], Zf, post["table"])
-        if len(slow):
-            S, C = Phi[:, slow], post["cov_slow"]
-            var += 2.0 * np.einsum("ij,ij->i", S @ C[:, fcols], Phi[:, fcols])
-            var += np.einsum("ij,ij->i", S @ C[:, slow], S)
-        return var
+    def _predict_fast_rows(self, Xc, mean_part, post: dict, return_std: bool):
+        """`_predict_rows` where the design has a fast GP block, from inputs: the block's features are never
+        formed, its linear forms (the mean, the slow columns' covariances with it) come from sine tables."""
+        i, term = self.design_.fast[:2]
+        fcols, slow = cols = self.design_.fast_cols
+        feats = [t.features(term_inputs(t, Xc)) for k, t in enumerate(self.feat_terms_) if k != i]
+        Zf = term_inputs(term, Xc)
+        S = np.hstack(feats) if feats else np.empty((len(Zf), 0))
+        if "mean_table" not in post:
+            post["mean_table"] = fourier.linear_table(term, post["mu"][fcols])
+        waves = fourier.waves(term, Zf, cosines=return_std)
+        mu = fourier.linear_form(term, Zf, post["mean_table"], waves)[:, 0] + S @ post["mu"][slow]
+        mu = mu * self.y_scale_ + mean_part
+        if not return_std:
+            return mu, None
+        fourier.posterior_tables(term, cols, post)
+        cross = fourier.linear_form(term, Zf, post["cross_table"], waves) if len(slow) else None
+        var = fourier.variance(term, Zf, cols, post, S, cross, waves)
+        return mu, np.sqrt(np.maximum(var * self.y_scale_**2, 0.0))
 
     def predict(
         self, X: Mapping[str, np.ndarray], return_std: bool = False, include_noise: bool = False
@@ -305,9 +298,11 @@ class Model(HyperSearch):
                 if self.mean_terms_
                 else 0.0
             )
-            Phi = np.hstack(self.features(Xc))
-            Zf = self._fast_inputs(Xc)
-            mu, sd = self._predict_rows(Phi, Zf, mean_part, self.posterior_, return_std)
+            if self.design_.fast is not None:
+                mu, sd = self._predict_fast_rows(Xc, mean_part, self.posterior_, return_std)
+            else:
+                Phi = np.hstack(self.features(Xc))
+                mu, sd = self._predict_rows(Phi, None, mean_part, self.posterior_, return_std)
             means[a : a + CHUNK] = mu
             if return_std:
                 stds[a : a + CHUNK] = sd
