@@ -8,7 +8,8 @@ seabed is continuous along the track, false echoes are intermittent and scattere
 depth). So the seabed is found as the cheapest path through the soundings (dynamic programming, in
 time order). A step from one sounding on the path to the next costs (change / tolerance) squared,
 at most JUMP_COST (a real step of the bottom, a channel edge, costs that once); the tolerance is the
-spike floor of the depth (0.5 m + 5 %), widened by SLOPE_SHARE for every sounding skipped. A
+spike floor of the depth (0.5 m + 5 %), widened by SLOPE_SHARE (a quarter) for every sounding
+skipped (the simulator's deep basin falls 1.2 m a sounding where the boat crosses its slope). A
 sounding left off the path costs OFF_SHALLOW if it is above the path (shallower than both ends of
 the step by more than the tolerance: what a false echo is) and OFF_DEEP otherwise (a path that runs
 above soundings deeper than itself is above the seabed: echoes are never deeper than the bottom).
@@ -28,7 +29,7 @@ import numpy as np
 OFF_SHALLOW = 0.5  # a sounding left off the path above it: a false echo, or a bar not followed
 OFF_DEEP = 1.5  # one left off below it or at its depth: the path would run above the seabed
 JUMP_COST = 1.2  # a bar of 5 soundings is followed: 2 x JUMP_COST < 5 x OFF_SHALLOW
-SLOPE_SHARE = 0.1
+SLOPE_SHARE = 0.25
 MAX_SKIP = 60  # soundings a step may jump over (at 60 % echoes, a run of 60 has odds 5e-14)
 
 
@@ -44,8 +45,7 @@ def seabed_path(depth: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
     m = len(d)
     best = np.empty(m)
     back = np.full(m, -1)
-    # starting at k (or ending there): every sounding before (after) it is off the path
-    lead = np.concatenate([[0.0], np.cumsum(np.full(m - 1, OFF_SHALLOW))])
+    lead = _ends(d, tol, np.arange(m) <= MAX_SKIP, before=True)
     for k in range(m):
         lo = max(0, k - MAX_SKIP)
         best[k], back[k] = lead[k], -1
@@ -66,7 +66,7 @@ def seabed_path(depth: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
         i = int(np.argmin(cost))
         if cost[i] < best[k]:
             best[k], back[k] = cost[i], lo + i
-    end = best + lead[::-1]
+    end = best + _ends(d, tol, np.arange(m) >= m - 1 - MAX_SKIP, before=False)
     k = int(np.argmin(end))
     while k >= 0:
         on[idx[k]] = True
@@ -74,11 +74,27 @@ def seabed_path(depth: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
     return on
 
 
-def reference_on(values: np.ndarray, on: np.ndarray, window: int, running) -> np.ndarray:
-    """The running median of the soundings on the path (``window`` of them around each), at every
-    sounding: interpolated along the track between them (NaN where none is on it)."""
-    at = np.flatnonzero(on & np.isfinite(values))
-    if not len(at):
-        return np.full(len(values), np.nan)
-    med = running(values[at], window, np.nanmedian)
-    return np.interp(np.arange(len(values)), at, med)
+def _ends(d: np.ndarray, tol: np.ndarray, may: np.ndarray, before: bool) -> np.ndarray:
+    """The cost of starting (``before``) or ending the path at each sounding: every sounding
+    before (after) it is off the path, above it or not; only within MAX_SKIP of the track's ends
+    (``may``), elsewhere a path always has a sounding within reach."""
+    out = np.full(len(d), np.inf)
+    for k in np.flatnonzero(may):
+        rest = d[:k] if before else d[k + 1 :]
+        above = int((rest < d[k] - tol[k]).sum())
+        out[k] = above * OFF_SHALLOW + (len(rest) - above) * OFF_DEEP
+    return out
+
+
+def reference_on(values: np.ndarray, window: int, running) -> np.ndarray:
+    """The running median of the soundings on the path (``values``: NaN off it) over ``window``
+    soundings along the track; where none of a window's is on it (a run of echoes), interpolated
+    along the track from the nearest ones. Counted along the track, not along the path: where the
+    path is sparse, ``window`` of its soundings span a valley and would cut its bottom off."""
+    ref = running(values, window, np.nanmedian)
+    known = np.flatnonzero(np.isfinite(ref))
+    if not len(known):
+        return ref
+    gaps = np.flatnonzero(~np.isfinite(ref))
+    ref[gaps] = np.interp(gaps, known, ref[known])
+    return ref

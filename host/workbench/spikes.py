@@ -146,10 +146,10 @@ def _departure(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each reading's departure from the running median of its neighbours (`masked`: the spikes found so
     far are NaN), and that median (a vector's departure is the length of the vector of departures, and
-    its reference its speed). Depth's neighbours are the WINDOW nearest soundings left in `masked`
-    (those on the seabed's path: forcemap.host.workbench.seabed), wherever they are along the track."""
+    its reference its speed). Depth's neighbours are those left in `masked` (on the seabed's path:
+    forcemap.host.workbench.seabed), and where none is, the reference is interpolated between them."""
     if fam == "depth" and len(parts) == 1:
-        ref = reference_on(masked[0], np.isfinite(masked[0]), WINDOW, _running)
+        ref = reference_on(masked[0], WINDOW, _running)
         return parts[0] - ref, ref
     meds = [_running(m, WINDOW, np.nanmedian) for m in masked]
     if len(parts) == 1:
