@@ -40,8 +40,13 @@ def test_fix_classes_and_a_clearly_worse_hdop():
     assert fq.describe((fq.DGPS, 0.9)) == "DGPS, HDOP 0.9" and fq.describe((None, None)) == ""
 
 
+RELAY = "nmea IIRMC [hhmmss 3dp]"
+
+
 def _two_receivers(quality_a, quality_b, seconds: float = 300.0, sel=None):
-    """Both receivers at 1 Hz (B half a second after A); ``quality_x(t)`` -> (class, HDOP)."""
+    """Both receivers at 1 Hz (B half a second after A); ``quality_x(t)`` -> (class, HDOP). The
+    instrument bus relays a fix between them, saying nothing of its quality (it never wins, and
+    its readings must not reset a better receiver's dwell)."""
     sel = sel or SourceSelector()
     used = []
     for k in range(int(seconds)):
@@ -51,6 +56,8 @@ def _two_receivers(quality_a, quality_b, seconds: float = 300.0, sel=None):
             sel.report_fix(group, "GGA", t, fix, hdop)
             if sel.accept("position", name, t, POS, group):
                 used.append((t, group))
+            relay = "nmea II* [hhmmss 3dp]"
+            assert not sel.accept("position", RELAY, t + 0.25, POS, relay)
     return sel, used
 
 

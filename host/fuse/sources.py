@@ -164,7 +164,7 @@ class SourceSelector:
         self.switches: Counter[str] = Counter()
         self.fixes: dict[str, fq.FixReports] = {}  # quality_key -> what it said of its fix
         self.group_of: dict[str, str] = {}  # position source -> its group
-        self.pending: dict[str, tuple[str, float]] = {}  # quantity -> (better group, since)
+        self.pending: dict[tuple[str, str], float] = {}  # (quantity, better group) -> since
 
     def rank(self, quantity: str, name: str) -> tuple:
         low = name.lower()
@@ -209,17 +209,15 @@ class SourceSelector:
             if not ct.silent(t, timeout):
                 sign, what = self.compare(quantity, self.groups[quantity][key], ct)
                 if sign >= 0:
-                    self.pending.pop(quantity, None)
+                    self.pending.pop((quantity, key), None)
                     return
                 if what == "fix" and not first:
-                    since = self.pending.get(quantity)
-                    if since is None or since[0] != key:
-                        self.pending[quantity] = (key, t)
-                        return
-                    if t - since[1] < DWELL_S:
+                    since = self.pending.setdefault((quantity, key), t)
+                    if t - since < DWELL_S:
                         return
             self.switches[quantity] += 1
-        self.pending.pop(quantity, None)
+        for k in [k for k in self.pending if k[0] == quantity]:
+            del self.pending[k]
         self.chosen[quantity] = key
 
     def accept(
