@@ -1,5 +1,6 @@
 """Issue 20's simulator figures: one NMEA-only boat with every source fault (a second GNSS, an IIRMC
-relay, a damped IIHDT, ROT, false echoes) against the same boat with one clean source of each kind.
+relay, a damped IIHDT, ROT, false echoes) against the same boat with one clean source of each kind;
+and two receivers of different fix quality (`poor_gnss`, `dgps_gnss`): the better one is used.
 
     python bench/bench_sources.py [--seed 1] [--duration 600]
 
@@ -18,6 +19,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.sim_sources import figures, run  # noqa: E402
 
+RUNS = (
+    ("one clean source of each", None),
+    ("every source fault", "sources"),
+    # the fix quality: an autonomous GP receiver (HDOP 2.1, 2 m error) alone, beside a DGPS GN one
+    # (4 decimals: the old order took GP for its 5), and the GN losing its corrections for 120 s
+    ("autonomous GP alone", "poor_gnss"),
+    ("GP + DGPS GN", "poor_gnss,dgps_gnss"),
+    ("GP + GN, corrections lost 200-320 s", "poor_gnss,dgps_gnss:at=200:for=120"),
+)
+
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -26,7 +37,7 @@ def main() -> None:
     args = ap.parse_args()
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for name, faults in (("one clean source of each", None), ("every source fault", "sources")):
+        for name, faults in RUNS:
             paths, truth, _ = run(Path(tmp) / name.replace(" ", "_"), faults, seed=args.seed,
                                   duration_s=args.duration)  # fmt: skip
             rows[name] = figures(paths, truth)

@@ -11,12 +11,17 @@ The Student-t fit uses pseudo-observations (y* = f + w r with the t weights w = 
 for a Gaussian-process posterior mean, their fixed point is the weighted least-squares fit IRLS converges
 to, and each step is one ordinary fit of the same model, hyperparameters included.
 
-    python bench/bench_spikes.py [--seeds 1 2 3] [--rate 0.08] [--nu 4]
+    python bench/bench_spikes.py [--seeds 1 2 3] [--rate 0.08] [--nu 4] [--stretch 0.3 0.7 0.6]
+
+``--stretch LO HI RATE`` adds a stretch (its start and end as shares of the survey) where the echoes
+are RATE of the soundings: above 0.5 they are the local majority (issue 20's depth reference).
+Each seed's flags are scored against the echo rows: precision and recall.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import tempfile
 import time
@@ -60,6 +65,23 @@ def student_t(survey, nu: float) -> tuple[np.ndarray, float]:
     return f, s
 
 
+def score(path: Path, flagged: np.ndarray, stretch) -> None:
+    """The flags' precision and recall against the echo rows (and within the stretch)."""
+    rows = json.loads((path.parent / "truth" / "effects.json").read_text())["false_echo_rows"]
+    truth = np.zeros(len(flagged), bool)
+    truth[rows] = True
+    parts = {"all": slice(None)}
+    if stretch:
+        parts["stretch"] = slice(int(stretch[0] * len(truth)), int(stretch[1] * len(truth)))
+    for name, part in parts.items():
+        f, t = flagged[part], truth[part]
+        hit = int((f & t).sum())
+        print(
+            f"     flags ({name}): {int(t.sum())} echoes in {len(t)} soundings ({t.mean():.0%}), "
+            f"{int(f.sum())} flagged, precision {hit / max(1, f.sum()):.3f}, recall {hit / max(1, t.sum()):.3f}"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -68,6 +90,7 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=0.08)
     ap.add_argument("--nu", type=float, default=4.0)
     ap.add_argument("--duration", type=float, default=1800.0)
+    ap.add_argument("--stretch", type=float, nargs=3, metavar=("LO", "HI", "RATE"))
     args = ap.parse_args()
     print(
         f"false echoes: {args.rate:.0%} of the soundings, 3-20 m in {DEEP:g} m of water; sounder noise {DEPTH_NOISE} m"
@@ -85,11 +108,13 @@ def main() -> None:
                 Path(tmp) / str(seed),
                 deep_m=DEEP,
                 false_echo_rate=args.rate,
+                echo_stretch_at=tuple(args.stretch) if args.stretch else None,
             )
             rows = []
             t0 = time.perf_counter()
             clean = SurveyModel(load_survey(path), "depth").fit()
             t_rem = time.perf_counter() - t0
+            score(path, clean.spikes.flagged, args.stretch)
             mu = clean.primary.predict(clean.X)
             rows.append(
                 (

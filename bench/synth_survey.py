@@ -190,6 +190,14 @@ def false_echoes(depth: np.ndarray, rng, rate: float) -> np.ndarray:
     return rows[rows < n]
 
 
+def echo_stretch(n: int, rng, stretch: tuple[float, float, float]) -> np.ndarray:
+    """Rows of a stretch (its start and end as shares of the survey) where each sounding is a false
+    echo with probability `rate`: above 0.5, the echoes are the local majority."""
+    lo, hi, rate = stretch
+    rows = np.arange(int(lo * n), int(hi * n))
+    return rows[rng.random(len(rows)) < rate]
+
+
 def _echo_values(depth: np.ndarray, rows: np.ndarray, rng) -> np.ndarray:
     d = depth[rows]
     return np.where(
@@ -205,10 +213,12 @@ def simulate(
     held_throttle=False,
     deep_m=0.0,
     false_echo_rate=0.0,
+    echo_stretch_at: tuple[float, float, float] | None = None,
 ) -> dict[str, np.ndarray]:
     """Run the lawnmower mission and return the samples-table columns. `deep_m` adds that much water
     under the whole reach (a deep-water survey); `false_echo_rate` replaces that share of the soundings
-    by false shallow echoes (their rows are in the returned ``_false_echo_rows``, not a column)."""
+    by false shallow echoes (their rows are in the returned ``_false_echo_rows``, not a column);
+    `echo_stretch_at` = (start, end, rate) adds a stretch where they are `rate` of the soundings."""
     rng = np.random.default_rng(seed)
     effects = set(effects)
     unknown = effects - set(EFFECTS)
@@ -257,8 +267,12 @@ def simulate(
         **_wheels(F_meas, h_meas),
         "throttle": THR + 2.0 * rng.standard_normal(n),
     }
+    rows = np.zeros(0, int)
     if false_echo_rate > 0:  # drawn after everything else: the other columns stay the same
         rows = false_echoes(depth, rng, false_echo_rate)
+    if echo_stretch_at is not None:
+        rows = np.union1d(rows, echo_stretch(n, rng, echo_stretch_at))
+    if len(rows):
         cols["depth"][rows] = _echo_values(depth, rows, rng)
         cols["_false_echo_rows"] = rows
     return cols
@@ -274,6 +288,7 @@ def make_survey(
     extra: dict | None = None,
     deep_m: float = 0.0,
     false_echo_rate: float = 0.0,
+    echo_stretch_at: tuple[float, float, float] | None = None,
 ) -> Path:
     """Write `survey.csv` and `truth/effects.json` into `out_dir`; return the CSV's path. `extra` maps more
     column names to functions of the columns (e.g. an instrument's ensemble counter)."""
@@ -286,6 +301,7 @@ def make_survey(
         held_throttle=held_throttle,
         deep_m=deep_m,
         false_echo_rate=false_echo_rate,
+        echo_stretch_at=echo_stretch_at,
     )
     echo_rows = cols.pop("_false_echo_rows", np.zeros(0, int))
     for name, make in (extra or {}).items():

@@ -11,7 +11,8 @@ import numpy as np
 
 SOURCES = ("bridge", "depth", "mavlink", "nmea")
 # faults that are instruments: they put the NMEA bus (nmea_bus.py) on the "nmea" port
-BUS_KINDS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
+SOURCE_KINDS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
+BUS_KINDS = SOURCE_KINDS + ("poor_gnss", "dgps_gnss")
 
 KINDS: dict[str, str] = {
     "corrupt": "bytes replaced by random values at `rate` per byte (source=all|bridge|depth|mavlink)",
@@ -26,6 +27,10 @@ KINDS: dict[str, str] = {
     "relay_position": "NMEA bus: the instrument bus re-sends the GNSS fix as IIRMC at 3 decimals",
     "second_compass": "NMEA bus: a damped IIHDT (2 s time constant, 1 Hz) beside the HCHDG fluxgate",
     "rate_of_turn": "NMEA bus: a rate gyro's TIROT at 2 Hz",
+    "poor_gnss": "NMEA bus: the GP receiver is autonomous with HDOP 2.1 and a 2 m error that "
+    "wanders in seconds",
+    "dgps_gnss": "NMEA bus: a second receiver, GN, 4 decimals, DGPS with HDOP 0.9 and a 0.3 m error; "
+    "it loses its corrections (autonomous, HDOP 4.5, 3 m error) from `at` for `for` s",
     "false_echoes": "the sounder returns 3-20 m at `rate` per sounding in water deeper than 70 m "
     "(a share of it from 40 m)",
 }
@@ -85,7 +90,7 @@ def default_set() -> list[Fault]:
 
 def sources_set() -> list[Fault]:
     """The `sources` set: two of everything on an NMEA bus, and false echoes (issue 20)."""
-    return [Fault(k, "nmea") for k in BUS_KINDS] + [Fault("false_echoes", "depth", rate=0.1)]
+    return [Fault(k, "nmea") for k in SOURCE_KINDS] + [Fault("false_echoes", "depth", rate=0.1)]
 
 
 SETS = {"default": default_set, "none": list, "sources": sources_set}

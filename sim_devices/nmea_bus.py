@@ -8,7 +8,12 @@ variation, 5 Hz, 1 deg noise) and a speed log (``VWVHW``, 1 Hz). The source faul
   whole seconds and 3-decimal minutes every 2 s, its sentences 1 s late;
 - ``relay_position``: the instrument bus re-sends the first GNSS's fix as ``IIRMC`` at 3 decimals;
 - ``second_compass``: the instrument bus's damped true heading, ``IIHDT`` at 1 Hz (2 s time constant);
-- ``rate_of_turn``: a rate gyro's ``TIROT`` at 2 Hz.
+- ``rate_of_turn``: a rate gyro's ``TIROT`` at 2 Hz;
+- ``poor_gnss``: the ``GP`` receiver is autonomous (GGA quality 1, HDOP 2.1), its error 2 m,
+  wandering in seconds (10 s time constant);
+- ``dgps_gnss``: a second receiver, ``GNRMC`` and ``GNGGA`` at 4-decimal minutes, 1 Hz, DGPS (GGA
+  quality 2, RMC mode D, HDOP 0.9), its error 0.3 m; for ``lost`` = (start s, duration s) it loses
+  its corrections: autonomous, HDOP 4.5, a 3 m error wandering in seconds.
 
 Every device's readings are the boat's true motion at the moment they describe (the truth table).
 """
@@ -27,7 +32,14 @@ from .nmea_sounder import sentence
 
 BUS_BYTES_PER_S = 3840.0  # 38400 baud, NMEA 0183-HS
 KNOT = 1852.0 / 3600.0
-FAULTS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
+FAULTS = (
+    "second_gnss",
+    "relay_position",
+    "second_compass",
+    "rate_of_turn",
+    "poor_gnss",
+    "dgps_gnss",
+)
 
 
 @dataclass
@@ -69,6 +81,22 @@ def _angle(value: float, deg_digits: int, decimals: int, hemis: str) -> tuple[st
     ]
 
 
+@dataclass
+class Fix:
+    """What a receiver's fix is: GGA quality, RMC mode, HDOP, and its error (m, time constant s)."""
+
+    quality: int = 1
+    mode: str = "A"
+    hdop: float = 0.9
+    err_m: float = 0.5
+    tau_s: float = 60.0
+
+
+POOR = Fix(1, "A", 2.1, 2.0, 10.0)
+DGPS = Fix(2, "D", 0.9, 0.3, 60.0)
+LOST = Fix(1, "A", 4.5, 3.0, 10.0)  # DGPS without its corrections
+
+
 class Gnss:
     """One receiver: its own fingerprint (time decimals, minute decimals), rate, lag and antenna."""
 
@@ -90,13 +118,19 @@ class Gnss:
         self.td, self.md = time_decimals, minute_decimals
         self.late, self.antenna, self.gga = late_s, antenna_m, gga
         self.next_t: float | None = None
-        self.err = [0.0, 0.0]  # a wandering error (m): tau 60 s, 0.5 m
+        self.err = [0.0, 0.0]  # a wandering error (m): its size and time constant are the fix's
+        self.set_fix(Fix())
+
+    def set_fix(self, q: Fix) -> None:
+        self.q = q
 
     def fix(self, m: Motion) -> tuple[float, float, float, float]:
         """(lat, lon, sog kn, cog deg) of the antenna at ``m``."""
-        a = 1.0 - math.exp(-self.period / 60.0)
+        a = 1.0 - math.exp(-self.period / self.q.tau_s)
         for i in (0, 1):
-            self.err[i] += a * (self.rng.gauss(0.0, 0.5) * math.sqrt(2.0 / a) - self.err[i])
+            self.err[i] += a * (
+                self.rng.gauss(0.0, self.q.err_m) * math.sqrt(2.0 / a) - self.err[i]
+            )
         h = math.radians(m.heading)
         f, s = self.antenna
         x = m.x + f * math.sin(h) + s * math.cos(h) + self.err[0]
@@ -112,6 +146,7 @@ class Gnss:
 
     def sentences(self, m: Motion, fix: tuple[float, float, float, float]) -> list[str]:
         lat, lon, sog, cog = fix
+        q = self.q
         la, ns = _angle(lat, 2, self.md, "NS")
         lo, ew = _angle(lon, 3, self.md, "EW")
         hms = _hhmmss(m.t, self.td)
@@ -119,11 +154,25 @@ class Gnss:
             sentence(
                 self.talker,
                 "RMC",
-                (hms, "A", la, ns, lo, ew, f"{sog:.1f}", f"{cog:.1f}", _ddmmyy(m.t), "", "", "A"),
+                (
+                    hms,
+                    "A",
+                    la,
+                    ns,
+                    lo,
+                    ew,
+                    f"{sog:.1f}",
+                    f"{cog:.1f}",
+                    _ddmmyy(m.t),
+                    "",
+                    "",
+                    q.mode,
+                ),
             )
         ]
         if self.gga:
-            gga = (hms, la, ns, lo, ew, "1", "09", "0.9", "12.0", "M", "0.0", "M", "", "")
+            gga = (hms, la, ns, lo, ew, str(q.quality), "09", f"{q.hdop:.1f}", "12.0", "M")
+            gga += ("0.0", "M", "", "")
             out.append(sentence(self.talker, "GGA", gga))
         return out
 
@@ -131,7 +180,14 @@ class Gnss:
 class NmeaBus:
     """Sentences due at each step; ``step`` gets the boat's true motion, returns (delay s, text)."""
 
-    def __init__(self, geo: LocalFrame, seed: int, variation_deg: float, faults: set[str]) -> None:
+    def __init__(
+        self,
+        geo: LocalFrame,
+        seed: int,
+        variation_deg: float,
+        faults: set[str],
+        lost: tuple[float, float] | None = None,
+    ) -> None:
         # one random stream per device: a fault added leaves the other devices' noise as it was
         self.rng = {k: random.Random(seed * 10 + i) for i, k in enumerate(("hdg", "rot", "vhw"))}
         self.variation = variation_deg
@@ -148,9 +204,23 @@ class NmeaBus:
             antenna_m=(0.0, 2.0),
             gga=False,
         )
+        if "poor_gnss" in self.faults:
+            self.gnss.set_fix(POOR)
+        self.gnss3 = Gnss(geo, random.Random(seed * 10 + 5), talker="GN", minute_decimals=4)
+        self.gnss3.set_fix(DGPS)
+        self.lost = lost  # (start, duration) s from the first step: the DGPS corrections lost
+        self.t_first: float | None = None
         self.relay_md = 3
-        self.next = {"gnss": 0.0, "gnss2": 0.0, "hdg": 0.0, "hdt": 0.0, "rot": 0.0, "vhw": 0.0}
-        self.period = {"gnss": 1.0, "gnss2": 2.0, "hdg": 0.2, "hdt": 1.0, "rot": 0.5, "vhw": 1.0}
+        self.next = dict.fromkeys(("gnss", "gnss2", "gnss3", "hdg", "hdt", "rot", "vhw"), 0.0)
+        self.period = {
+            "gnss": 1.0,
+            "gnss2": 2.0,
+            "gnss3": 1.0,
+            "hdg": 0.2,
+            "hdt": 1.0,
+            "rot": 0.5,
+            "vhw": 1.0,
+        }
         self.damped: float | None = None
         self.t_prev: float | None = None
         self.last_fix: tuple[Motion, tuple[float, float, float, float]] | None = None
@@ -186,6 +256,12 @@ class NmeaBus:
                 lo, ew = _angle(lon, 3, self.relay_md, "EW")
                 f = (_hhmmss(t, 0), "A", la, ns, lo, ew, f"{sog:.1f}", f"{cog:.1f}", _ddmmyy(t))
                 out.append(sentence("II", "RMC", f + ("", "", "A")))
+        if "dgps_gnss" in self.faults and self._due("gnss3", t):
+            self.t_first = t if self.t_first is None else self.t_first
+            s = t - self.t_first
+            lost = self.lost is not None and self.lost[0] <= s < self.lost[0] + self.lost[1]
+            self.gnss3.set_fix(LOST if lost else DGPS)
+            out += self.gnss3.sentences(m, self.gnss3.fix(m))
         if "second_gnss" in self.faults and self._due("gnss2", t):
             past = next((h for h in reversed(self.history) if h.t <= t - self.gnss2.late), None)
             if past is not None:

@@ -102,9 +102,11 @@ def test_every_fault_shows_at_its_time() -> None:
 def test_default_set_and_parsing() -> None:
     d = fl.parse("default")
     kinds = {f.kind for f in d}
-    # the default set has every kind but the sources' (issue 20), which are the `sources` set
+    # the default set has every kind but the sources' (issue 20), which are the `sources` set, and
+    # the two receivers of different fix quality, which are in no set
     sources = {f.kind for f in fl.parse("sources")}
-    assert kinds | sources == set(fl.KINDS) and not kinds & sources
+    quality = {"poor_gnss", "dgps_gnss"}
+    assert kinds | sources | quality == set(fl.KINDS) and not kinds & (sources | quality)
     f = fl.parse_one("pull:source=mavlink:at=12.5:for=3")
     assert (f.kind, f.source, f.start(100), f.end(100)) == ("pull", "mavlink", 12.5, 15.5)
     assert fl.parse("none") == [] and fl.parse(None) == []

@@ -21,6 +21,7 @@ class SourceCollector:
         self.readings: dict[str, dict[str, tuple[list[float], list[list], list[int]]]] = {}
         self.why: dict[str, str] = {}
         self.chosen: dict[str, str] = {}
+        self.fix: dict[str, dict[str, str]] = {}  # position: each source's fix quality
         self._result: dict[str, Any] | None = None
 
     def add(self, log_time_ns: int, data: bytes) -> None:
@@ -45,6 +46,8 @@ class SourceCollector:
                 continue
             self.why[q] = str(d.get("why", ""))
             self.chosen[q] = str(d.get("chosen", ""))
+            if isinstance(d.get("fix"), dict):
+                self.fix[q] = {str(k): str(v) for k, v in d["fix"].items()}
 
     def result(self) -> dict[str, Any]:
         """Per quantity, its sources compared with the chosen one (source_stats.analyse)."""
@@ -55,6 +58,10 @@ class SourceCollector:
             }
             chosen = {q: c for q, c in self.chosen.items() if c in tracks.get(q, {})}
             self._result = analyse(tracks, chosen, self.why)
+            for q, fixes in self.fix.items():
+                for name, row in self._result.get(q, {}).get("sources", {}).items():
+                    if fixes.get(name):
+                        row["fix"] = fixes[name]
         return self._result
 
     def lines(self) -> list[str]:
@@ -89,6 +96,8 @@ def format_sources(result: dict[str, Any]) -> list[str]:
                 )
             if r.get("latency_s") is not None and not (q == "position" and mark == "*"):
                 line += f"  latency {r['latency_s']:+.2f} s"
+            if r.get("fix"):
+                line += f"  fix {r['fix']}"
             if r.get("latency_note"):
                 line += f"  latency: {r['latency_note']}"
             out.append(line)

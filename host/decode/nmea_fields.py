@@ -42,6 +42,8 @@ SPECS: dict[str, tuple[int, int, tuple[str, ...]]] = {
     "MWD": (8, 8, ("f", "=T", "f", "=M", "f", "=N", "f", "=M")),
     "ZDA": (6, 6, ("t", "i", "i", "i", "i", "i")),
     "GLL": (6, 7, ("lat", "=NS", "lon", "=EW", "t", "=AV", "=ADENSMFRP")),
+    # GSA: mode, fix type, 12 satellite numbers, PDOP, HDOP, VDOP (and NMEA 4.10's system id)
+    "GSA": (17, 18, ("=AM", "i", *("s",) * 12, "f", "f", "f", "s")),
 }
 
 
@@ -117,6 +119,7 @@ def _rmc(d: list[str]) -> dict[str, Any]:
         "cog": _f(d[7]),
         "variation": _signed(d[9], d[10]),
         "utc": utc,
+        "mode": d[11].upper() or None,
     }
 
 
@@ -138,6 +141,7 @@ def _gll(d: list[str]) -> dict[str, Any]:
         "lon": _latlon(d[2], d[3], 3),
         "tod": _tod(d[4]),
         "status": d[5].upper() or None,
+        "mode": d[6].upper() or None,
     }
 
 
@@ -204,6 +208,10 @@ def _mwd(d: list[str]) -> dict[str, Any]:
     return {"dir": _f(d[0]), "dir_mag": _f(d[2]), "speed": sp}
 
 
+def _gsa(d: list[str]) -> dict[str, Any]:
+    return {"fix_type": int(d[1]) if d[1] else None, "hdop": _f(d[15])}
+
+
 def _zda(d: list[str]) -> dict[str, Any]:
     tod = _tod(d[0])
     utc = None
@@ -230,6 +238,7 @@ EXTRACTORS = {
     "VWR": _vwr,
     "MWD": _mwd,
     "ZDA": _zda,
+    "GSA": _gsa,
 }
 
 

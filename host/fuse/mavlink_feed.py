@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from forcemap.host.decode import mavlink as mav
 from forcemap.host.fuse import compensation as comp
+from forcemap.host.fuse import fix_quality as fq
 from forcemap.host.fuse.timesync import SourceClock
 from forcemap.host.log.messages import BoatStateRecord, ClockMapping, Depth, RawMessage, TrueWind
 
@@ -101,6 +102,7 @@ class MavDecoder:
                 BoatStateRecord(**st.at(t, edge=True).as_message(), source="mavlink"),
             )
         elif ty == "GPS_RAW_INT":
+            pipe.selector.report_fix(label, ty, t, fq.mav_fix(d["fix_type"]), d["eph"])
             fix = (d["lat"], d["lon"], d["sog"], d["cog"])
             if d["fix_type"] >= 2 and pipe.source_reading("position", label, t, fix):
                 pipe.take_nav()

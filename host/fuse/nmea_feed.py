@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
 from forcemap.host.fuse import compensation as comp
+from forcemap.host.fuse import fix_quality as fq
 from forcemap.host.fuse.sources import (
     nmea_fingerprint,
     receiver_name,
@@ -52,6 +53,8 @@ class NmeaDecoder:
         self.parser = NmeaParser()
         self.variation: float | None = pipe.cal.magnetic_variation_deg
         self.conn = "nmea"  # the port of the line being handled
+        # (port, talker) -> the receiver of its last position sentence: whose fix a GSA describes
+        self.receivers: dict[tuple[str, str], str] = {}
         self.bytes = 0
         self.handlers = {
             "DPT": self._depth,
@@ -61,6 +64,7 @@ class NmeaDecoder:
             "RMC": self._rmc,
             "GGA": self._gga,
             "GLL": self._gll,
+            "GSA": self._gsa,
             "VTG": self._vtg,
             "HDT": self._hdt,
             "ROT": self._rot,
@@ -202,20 +206,48 @@ class NmeaDecoder:
                 self.variation = s.data["variation"]
         return not self.pipe.mav_nav  # the autopilot is the navigation source when there is one
 
+    def _receiver(self, s: Sentence) -> str:
+        """The receiver (group) of a position sentence, remembered for the GSA that follows it."""
+        receiver = receiver_name(self.conn, s.talker, nmea_fingerprint(s.text, s.type))
+        self.receivers[(self.conn, s.talker)] = receiver
+        return receiver
+
+    def _quality(self, s: Sentence, t: float, fix: int | None, hdop: float | None = None) -> None:
+        self.pipe.selector.report_fix(self._receiver(s), s.type, t, fix, hdop)
+
     def _rmc(self, s: Sentence, t: float) -> None:
         d = s.data
-        if self._nav_ok(s) and d["status"] == "A" and d["lat"] is not None:
+        if not self._nav_ok(s):
+            return
+        self._quality(s, t, fq.mode_fix(d["mode"]) if d["status"] == "A" else fq.NO_FIX)
+        if d["status"] == "A" and d["lat"] is not None:
             self._fix(s, t, d["lat"], d["lon"], d["sog"], d["cog"])
 
     def _gga(self, s: Sentence, t: float) -> None:
         d = s.data
-        if self._nav_ok(s) and d["lat"] is not None and d.get("quality"):
+        if not self._nav_ok(s):
+            return
+        self._quality(s, t, fq.gga_fix(d["quality"]), d["hdop"] if d["quality"] else None)
+        if d["lat"] is not None and d.get("quality"):
             self._fix(s, t, d["lat"], d["lon"], None, None, d.get("alt") or 0.0)
 
     def _gll(self, s: Sentence, t: float) -> None:
         d = s.data
-        if self._nav_ok(s) and d["status"] == "A" and d["lat"] is not None:
+        if not self._nav_ok(s):
+            return
+        self._quality(s, t, fq.mode_fix(d["mode"]) if d["status"] == "A" else fq.NO_FIX)
+        if d["status"] == "A" and d["lat"] is not None:
             self._fix(s, t, d["lat"], d["lon"], None, None)
+
+    def _gsa(self, s: Sentence, t: float) -> None:
+        """A fix type and HDOP, for the receiver whose position came last on this port and talker
+        (a receiver sends its GSA with its fix; a GSA of a talker with no position is not used)."""
+        receiver = self.receivers.get((self.conn, s.talker))
+        if receiver is not None and self._nav_ok(s):
+            d = s.data
+            self.pipe.selector.report_fix(
+                receiver, "GSA", t, fq.gsa_fix(d["fix_type"]), d["hdop"] if d["fix_type"] else None
+            )
 
     def _vtg(self, s: Sentence, t: float) -> None:
         d = s.data
@@ -279,7 +311,7 @@ class NmeaDecoder:
         asm = self.pipe.assembler
         state = asm.state
         name = self.name(s)
-        receiver = receiver_name(self.conn, s.talker, nmea_fingerprint(s.text, s.type))
+        receiver = self._receiver(s)
         if not self.pipe.source_reading("position", name, t, (lat, lon, sog, cog), receiver):
             return
         if sog is not None:

@@ -329,4 +329,6 @@ def sources_metadata(selector: Any) -> dict[str, str]:
     for q, s in selector.summary().items():
         if q in result:
             result[q]["switches"] = s["switches"]
+            if "fix" in s:
+                result[q]["fix"] = s["fix"]
     return {q: json.dumps(v, sort_keys=True) for q, v in result.items()}

@@ -7,9 +7,12 @@ a talker. Every reading goes to ``/source/reading``; only the chosen source's re
 boat state and the assembler, so two receivers or two compasses are never interleaved.
 
 The choice follows the boat file's ``[sources]`` priorities (substrings of a source's name, first
-preferred), then the default quality order (``default_rank``). A source that has been silent for
-longer than ``timeout`` (or three of its own intervals, if longer) gives way to the next one; it is
-taken back as soon as it speaks again.
+preferred), then, for position, the receivers' fix quality (fix class, then a clearly worse HDOP:
+forcemap.host.fuse.fix_quality), then the default order (``default_rank``). A source that has been
+silent for longer than ``timeout`` (or three of its own intervals, if longer) gives way to the next
+one; it is taken back as soon as it speaks again. A receiver whose fix becomes better than the one
+in use takes over only once it has been the better for DWELL_S at each of its readings, so that a
+fix that hesitates between two classes does not make the position jump back and forth.
 """
 
 from __future__ import annotations
@@ -17,7 +20,10 @@ from __future__ import annotations
 import math
 from collections import Counter, deque
 from dataclasses import dataclass, field
+from functools import cmp_to_key
 from typing import Any
+
+from forcemap.host.fuse import fix_quality as fq
 
 QUANTITIES = (
     "position",
@@ -31,6 +37,7 @@ QUANTITIES = (
     "velocity",  # VTG, for a position source without its own (GGA, GLL)
 )
 DEFAULT_TIMEOUT_S = 5.0
+DWELL_S = 10.0  # a better fix takes over once it has been the better for this long
 KEEP_EVERY_S = 0.2  # readings kept for the disagreement analysis: at most one per 0.2 s
 KEEP_MAX = 40_000  # per source: over two hours at 5 Hz
 # talkers that re-send what another instrument measured: after the instrument itself
@@ -45,6 +52,7 @@ SENTENCE_ORDER = {
 WHY = {
     "priority": "listed first in the boat file's [sources]",
     "quality": "best by the default quality order",
+    "fix": "the better fix",
     "only": "the only instrument",
     "fallback": "the preferred source was silent",
 }
@@ -88,6 +96,13 @@ def split_name(name: str) -> tuple[str, str, str]:
 def message_of(name: str) -> str:
     """The sentence or message of a source name (``RMC`` of ``nmea GPRMC [hhmmss.ss 5dp]``)."""
     return split_name(name)[2] if name else ""
+
+
+def quality_key(name: str) -> str:
+    """Whose fix quality a position source carries: an autopilot's connection (GPS_RAW_INT says
+    how good the fix under GLOBAL_POSITION_INT is), else the receiver (its group) itself."""
+    conn = name.split(" ", 1)[0]
+    return conn if conn in AUTOPILOT_CONNECTIONS else name
 
 
 def default_rank(quantity: str, name: str) -> tuple:
@@ -147,12 +162,63 @@ class SourceSelector:
         self.chosen: dict[str, str] = {}  # quantity -> the chosen group
         self.member: dict[str, str] = {}  # quantity -> the source of its last reading used
         self.switches: Counter[str] = Counter()
+        self.fixes: dict[str, fq.FixReports] = {}  # quality_key -> what it said of its fix
+        self.group_of: dict[str, str] = {}  # position source -> its group
+        self.pending: dict[tuple[str, str], float] = {}  # (quantity, better group) -> since
 
     def rank(self, quantity: str, name: str) -> tuple:
         low = name.lower()
         prio = self.priorities.get(quantity, [])
         listed = next((i for i, p in enumerate(prio) if p in low), len(prio))
         return (listed, *default_rank(quantity, name))
+
+    def report_fix(
+        self, key: str, kind: str, t: float, fix: int | None, hdop: float | None = None
+    ) -> None:
+        """What receiver ``key`` (a group, or an autopilot's source) says of its fix at ``t``."""
+        reports = self.fixes.setdefault(quality_key(key), fq.FixReports())
+        reports.report(kind, t, fix, hdop)
+
+    def quality(self, key: str) -> fq.Quality:
+        """(fix class, HDOP) of a position group or source (None where unknown)."""
+        reports = self.fixes.get(quality_key(self.group_of.get(key, key)))
+        return reports.current() if reports else (None, None)
+
+    def compare(self, quantity: str, a: SourceTrack, b: SourceTrack) -> tuple[int, str]:
+        """(sign, what decides): sign < 0 if group ``a`` is preferred to ``b``; what decides is
+        ``priority`` (the boat file), ``fix`` (position: the fix quality), ``quality`` (the
+        default order) or empty (a tie)."""
+        if a.rank[0] != b.rank[0]:
+            return a.rank[0] - b.rank[0], "priority"
+        if quantity == "position":
+            c = fq.compare(self.quality(a.name), self.quality(b.name))
+            if c:
+                return c, "fix"
+        if a.rank != b.rank:
+            return (-1 if a.rank < b.rank else 1), "quality"
+        return 0, ""
+
+    def _switch(
+        self, quantity: str, key: str, t: float, ct: SourceTrack | None, first: bool
+    ) -> None:
+        """Make ``key`` the chosen group if the current one ``ct`` is silent or worse (a better
+        fix must have held DWELL_S, unless ``key`` is seen for the first time: at the start of a
+        log, the first receiver heard is not kept for its luck)."""
+        if ct is not None:
+            timeout = self.timeouts.get(quantity, DEFAULT_TIMEOUT_S)
+            if not ct.silent(t, timeout):
+                sign, what = self.compare(quantity, self.groups[quantity][key], ct)
+                if sign >= 0:
+                    self.pending.pop((quantity, key), None)
+                    return
+                if what == "fix" and not first:
+                    since = self.pending.setdefault((quantity, key), t)
+                    if t - since < DWELL_S:
+                        return
+            self.switches[quantity] += 1
+        for k in [k for k in self.pending if k[0] == quantity]:
+            del self.pending[k]
+        self.chosen[quantity] = key
 
     def accept(
         self, quantity: str, name: str, t: float, value: tuple, group: str | None = None
@@ -168,21 +234,19 @@ class SourceSelector:
             tr = tracks[name] = SourceTrack(name, self.rank(quantity, name))
         tr.observe(t, value)
         key = group or name
+        if quantity == "position":
+            self.group_of[name] = key
         groups = self.groups.setdefault(quantity, {})
         g = groups.get(key)
+        first = g is None
         if g is None:
             g = groups[key] = SourceTrack(key, tr.rank)
         g.rank = min(g.rank, tr.rank)
         g.last_t = max(g.last_t, t)
         g.interval = max(g.interval, tr.interval)
         cur = self.chosen.get(quantity)
-        timeout = self.timeouts.get(quantity, DEFAULT_TIMEOUT_S)
         if cur != key:
-            ct = groups.get(cur) if cur else None
-            if ct is None or ct.silent(t, timeout) or g.rank < ct.rank:
-                if ct is not None:
-                    self.switches[quantity] += 1
-                self.chosen[quantity] = key
+            self._switch(quantity, key, t, groups.get(cur) if cur else None, first)
         ok = self.chosen.get(quantity) == key
         if ok:
             tr.used += 1
@@ -190,18 +254,25 @@ class SourceSelector:
         return ok
 
     def reason(self, quantity: str) -> str:
-        """Why the chosen source of ``quantity`` is the one in use."""
+        """Why the chosen source of ``quantity`` is the one in use (with, for position, the
+        fix quality its receiver reported: ``the better fix: DGPS, HDOP 0.9 vs GPS, HDOP 2.1 ...``)."""
         groups = self.groups.get(quantity, {})
         g = groups.get(self.chosen.get(quantity, ""))
         if g is None:
             return ""
-        if any(o.rank < g.rank for o in groups.values()):
+        own = fq.describe(self.quality(g.name)) if quantity == "position" else ""
+        others = [o for o in groups.values() if o is not g]
+        if not others:
+            return WHY["only"] + (f"; fix {own}" if own else "")
+        order = cmp_to_key(lambda a, b: self.compare(quantity, a, b)[0])
+        best = min(others, key=order)
+        sign, what = self.compare(quantity, g, best)
+        if sign > 0:
             return WHY["fallback"]
-        if len(groups) == 1:
-            return WHY["only"]
-        if g.rank[0] < len(self.priorities.get(quantity, [])):
-            return WHY["priority"]
-        return WHY["quality"]
+        if what == "fix":
+            return f"{WHY['fix']}: {own} vs {fq.describe(self.quality(best.name))} of {best.name}"
+        why = WHY["priority"] if what == "priority" else WHY["quality"]
+        return why + (f"; fix {own}" if own else "")
 
     def chosen_track(self, quantity: str) -> str:
         """The best-ranked source (sentence) of the chosen group: RMC of a receiver's RMC and GGA."""
@@ -232,4 +303,6 @@ class SourceSelector:
                     for n, tr in tracks.items()
                 },
             }
+            if q == "position":
+                out[q]["fix"] = {n: fq.describe(self.quality(n)) for n in tracks}
         return out

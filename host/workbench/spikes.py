@@ -25,6 +25,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.workbench.seabed import reference_on, seabed_path
 from forcemap.host.workbench.table import FLAG_PREFIX, NOT_COVARIATES, Survey, family
 
 WINDOW = 9  # along-track neighbours of the running median (odd: the reading in the middle)
@@ -140,10 +141,16 @@ def resolution(values: np.ndarray) -> float:
     return float(np.min(d)) if len(d) else 0.0
 
 
-def _departure(parts: list[np.ndarray], masked: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def _departure(
+    parts: list[np.ndarray], masked: list[np.ndarray], fam: str | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Each reading's departure from the running median of its neighbours (`masked`: the spikes found so
     far are NaN), and that median (a vector's departure is the length of the vector of departures, and
-    its reference its speed)."""
+    its reference its speed). Depth's neighbours are those left in `masked` (on the seabed's path:
+    forcemap.host.workbench.seabed), and where none is, the reference is interpolated between them."""
+    if fam == "depth" and len(parts) == 1:
+        ref = reference_on(masked[0], WINDOW, _running)
+        return parts[0] - ref, ref
     meds = [_running(m, WINDOW, np.nanmedian) for m in masked]
     if len(parts) == 1:
         return parts[0] - meds[0], meds[0]
@@ -161,8 +168,12 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
     first = np.flatnonzero(np.diff(group, prepend=-1))
     readings = [p[first] for p in parts]
     flagged = np.zeros(len(first), bool)
+    off = np.zeros(len(first), bool)
+    if fam == "depth" and len(parts) == 1:  # the reference from the seabed's continuous path only
+        d = readings[0]
+        off = ~seabed_path(d, FLOORS["depth"] + DEPTH_FLOOR_SHARE * np.abs(d))
     for _ in range(MAX_PASSES):
-        masked = [np.where(flagged, np.nan, p) for p in readings]
+        masked = [np.where(flagged | off, np.nan, p) for p in readings]
         found = _one_pass(name, readings, masked, fam)
         if np.array_equal(found.flagged, flagged):
             break
@@ -195,11 +206,14 @@ def _readings(parts: list[np.ndarray]) -> np.ndarray:
 def _one_pass(
     name: str, parts: list[np.ndarray], masked: list[np.ndarray], fam: str | None
 ) -> Spikes:
-    dev, ref = _departure(parts, masked)
+    dev, ref = _departure(parts, masked, fam)
     absdev = np.abs(dev)
     scale_of = 1.0 / 1.1774 if len(parts) == 2 else MAD_TO_STD  # Rayleigh median / Gaussian MAD
-    overall = float(np.nanmedian(absdev)) * scale_of if np.isfinite(absdev).any() else 0.0
     good = np.where(np.isnan(masked[0]), np.nan, absdev)
+    # depth's spread: of the soundings on the seabed (where echoes are the majority, all of them
+    # would make it the echoes')
+    spread_of = good if fam == "depth" and np.isfinite(good).any() else absdev
+    overall = float(np.nanmedian(spread_of)) * scale_of if np.isfinite(spread_of).any() else 0.0
     local = _running(good, SCALE_WINDOW, np.nanmedian) * scale_of
     spread = np.fmax(np.nan_to_num(local, nan=overall), 0.5 * overall)
     floor = FLOORS.get(fam or "", 0.0)
