@@ -10,6 +10,7 @@ a worker holds one log's samples while it works on it and the m x m results unti
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable
 from typing import Any
@@ -84,6 +85,8 @@ class DaskRunner:
                 self.client = Client(address, timeout=30)
             except (OSError, TimeoutError, ValueError) as e:
                 raise CliError(f"cannot reach the Dask scheduler at {address}: {e}") from None
+        # the workers import the per-log code now, as this process already has: not in the first tasks
+        self.client.run(_warm_up)
         self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
         self.name = f"Dask, {self.workers} worker(s) at {self.client.scheduler.address}"
 
@@ -129,6 +132,14 @@ def _workers(address: str) -> int:
             f"--dask {address}: give local, local:N (N workers, at least 1) or tcp://HOST:PORT"
         )
     return int(text)
+
+
+def _warm_up() -> None:
+    import importlib
+
+    for name in ("forcemap.host.season.tasks", "pyarrow.parquet"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
 
 
 def _big(obj: Any) -> bool:
