@@ -48,10 +48,10 @@ def run_config(config: str, folder: Path) -> dict:
     t0 = time.perf_counter()
     runner = LocalRunner() if config == "one" else DaskRunner(f"local:{config}")
     start = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         season = run_season(paths, runner, cv=False)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         workers = (
             [] if config == "one" else sorted(runner.client.run(_peak_rss_mib).values())  # type: ignore[attr-defined]
         )
@@ -63,6 +63,7 @@ def run_config(config: str, folder: Path) -> dict:
         "samples": int(sum(s.n for s in season.surveys)),
         "wall_s": wall,
         "start_s": start,
+        "client_cpu_s": cpu,
         "phases_s": season.timings,
         "client_peak_mib": _peak_rss_mib(),
         "worker_peak_mib": workers,
@@ -117,9 +118,10 @@ def report(rows: list[dict]) -> None:
     print(f"\n{base['surveys']} surveys, {base['samples']:,} samples, basis {base['basis']}")
     print(
         "| run | wall s | footprints s | statistics s | models s (depth, current, staleness) "
-        "| speed-up | statistics speed-up | peak MiB per worker | client MiB | cluster start s |"
+        "| speed-up | statistics speed-up | peak MiB per worker | client MiB | client CPU s "
+        "| cluster start s |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         ph = r["phases_s"]
         name = "one process" if r["config"] == "one" else f"LocalCluster, {r['config']} worker(s)"
@@ -131,7 +133,7 @@ def report(rows: list[dict]) -> None:
             f"| {name} | {r['wall_s']:.1f} | {ph['footprints_s']:.2f} | {ph['statistics_s']:.1f} | "
             f"{ph['models_s']:.2f} ({parts}) | {base['wall_s'] / r['wall_s']:.2f} | "
             f"{base['phases_s']['statistics_s'] / ph['statistics_s']:.2f} | {peaks} | "
-            f"{r['client_peak_mib']:.0f} | {r.get('start_s', 0.0):.1f} |"
+            f"{r['client_peak_mib']:.0f} | {r['client_cpu_s']:.1f} | {r['start_s']:.1f} |"
         )
     one = next((r for r in rows if r["config"] == "1"), base)
     per_log = (one["phases_s"]["statistics_s"] + one["phases_s"]["footprints_s"]) / one["surveys"]
