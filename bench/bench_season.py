@@ -5,7 +5,8 @@ Each configuration runs in a fresh Python process (clean peak memory), on the sa
 footprints, the statistics pass with its tree reduction, the models (no depth CV). Reported: wall time of
 `run_season` and of each phase (footprints, statistics, models: depth, current, staleness), the speed-up
 against one process (whole run and statistics pass), the peak RSS of every worker (and of the client), the
-cluster's start (not in the wall time: the one-process baseline has no cluster to start, and has already
+CPU seconds of the client and of every worker (a
+loaded machine stretches wall times, not these), the cluster's start (not in the wall time: the one-process baseline has no cluster to start, and has already
 imported the code its first log needs; the workers import it while the cluster starts), and the cost per
 log of the statistics pass, from which a 27 M-sample season on 16 workers is extrapolated. The one-process
 baseline runs with one BLAS thread, like the workers (OPENBLAS/OMP/MKL_NUM_THREADS=1): one core each.
@@ -48,12 +49,19 @@ def run_config(config: str, folder: Path) -> dict:
     t0 = time.perf_counter()
     runner = LocalRunner() if config == "one" else DaskRunner(f"local:{config}")
     start = time.perf_counter() - t0
+    started = {} if config == "one" else runner.client.run(time.process_time)  # type: ignore[attr-defined]
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         season = run_season(paths, runner, cv=False)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         workers = (
             [] if config == "one" else sorted(runner.client.run(_peak_rss_mib).values())  # type: ignore[attr-defined]
+        )
+        # each worker's CPU during the run (not its start and imports)
+        worker_cpu = (
+            []
+            if config == "one"
+            else sorted(c - started[w] for w, c in runner.client.run(time.process_time).items())  # type: ignore[attr-defined]
         )
     finally:
         runner.close()
@@ -67,6 +75,7 @@ def run_config(config: str, folder: Path) -> dict:
         "phases_s": season.timings,
         "client_peak_mib": _peak_rss_mib(),
         "worker_peak_mib": workers,
+        "worker_cpu_s": worker_cpu,
         "basis": len(season.frame.space.J) + 1,
     }
 
@@ -119,9 +128,9 @@ def report(rows: list[dict]) -> None:
     print(
         "| run | wall s | footprints s | statistics s | models s (depth, current, staleness) "
         "| speed-up | statistics speed-up | peak MiB per worker | client MiB | client CPU s "
-        "| cluster start s |"
+        "| worker CPU s | cluster start s |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         ph = r["phases_s"]
         name = "one process" if r["config"] == "one" else f"LocalCluster, {r['config']} worker(s)"
@@ -133,8 +142,22 @@ def report(rows: list[dict]) -> None:
             f"| {name} | {r['wall_s']:.1f} | {ph['footprints_s']:.2f} | {ph['statistics_s']:.1f} | "
             f"{ph['models_s']:.2f} ({parts}) | {base['wall_s'] / r['wall_s']:.2f} | "
             f"{base['phases_s']['statistics_s'] / ph['statistics_s']:.2f} | {peaks} | "
-            f"{r['client_peak_mib']:.0f} | {r['client_cpu_s']:.1f} | {r['start_s']:.1f} |"
+            f"{r['client_peak_mib']:.0f} | {r['client_cpu_s']:.1f} | "
+            f"{', '.join(f'{c:.1f}' for c in r['worker_cpu_s']) or '-'} | {r['start_s']:.1f} |"
         )
+    if base["config"] == "one":
+        print(
+            "\nCPU seconds (what a loaded machine does not inflate): the one-process run's CPU against, for each "
+            "cluster run, its busiest worker's CPU during the run plus the client's models; "
+            "their ratio is the speed-up the run would show with a free core per worker:"
+        )
+        for r in rows:
+            if r["worker_cpu_s"]:
+                ideal = max(r["worker_cpu_s"]) + r["phases_s"]["models_s"]
+                print(
+                    f"  {r['config']} worker(s): {base['client_cpu_s']:.1f} / ({max(r['worker_cpu_s']):.1f} + "
+                    f"{r['phases_s']['models_s']:.1f}) = {base['client_cpu_s'] / ideal:.2f}"
+                )
     one = next((r for r in rows if r["config"] == "1"), base)
     per_log = (one["phases_s"]["statistics_s"] + one["phases_s"]["footprints_s"]) / one["surveys"]
     per_sample = per_log / (one["samples"] / one["surveys"])

@@ -140,6 +140,9 @@ def _warm_up() -> None:
     for name in ("forcemap.host.season.tasks", "pyarrow.parquet"):
         with contextlib.suppress(ImportError):
             importlib.import_module(name)
+    from forcemap.host.season.tasks import roomy_heap
+
+    roomy_heap()
 
 
 def _big(obj: Any) -> bool:
