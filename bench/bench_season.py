@@ -11,8 +11,8 @@ imported the code its first log needs; the workers import it while the cluster s
 log of the statistics pass, from which a 27 M-sample season on 16 workers is extrapolated. The one-process
 baseline runs with one BLAS thread, like the workers (OPENBLAS/OMP/MKL_NUM_THREADS=1): one core each.
 
-The full measurement (issue 24: 100 surveys of 54,000 samples, one process and 1 and 2 workers; ~5 min on
-an idle 2-core machine, plus ~1 min to simulate the season; the JSON line of every run shows all timings):
+The full measurement (issue 24: 100 surveys of 54,000 samples, one process and 1 and 2 workers; ~3 min on
+an idle 2-core machine, plus ~10 s to simulate the season; the JSON line of every run shows all timings):
 
     python bench/bench_season.py
 
