@@ -118,7 +118,8 @@ class Design:
 
     def _pass(self, rows, r: np.ndarray | None, want_gram: bool):
         """Phi'Phi (if `want_gram`) and Phi'r (if `r`) over `rows`, in one pass over their features."""
-        if self.fast is not None and len(self.sizes) - 1 + (r is not None) <= FAST_PRODUCT_COLS:
+        other = self.M - self.sizes[self.fast[0]] if self.fast is not None else 0
+        if self.fast is not None and other + (r is not None) <= FAST_PRODUCT_COLS:
             return self._fast_pass(rows, r, want_gram)
         G = np.zeros((self.M, self.M)) if want_gram and self.fast is None else None
         b = None if r is None else np.zeros(self.M)
