@@ -33,10 +33,7 @@ def _blas_controller():
 def blas_threads(n: int | None) -> Iterator[None]:
     """Limit BLAS threads (None: no limit). Without threadpoolctl this is a no-op."""
     ctl = _blas_controller() if n is not None else None
-    if ctl is None:
-        yield
-        return
-    with ctl.limit(limits=n, user_api="blas"):
+    with ctl.limit(limits=n, user_api="blas") if ctl else contextlib.nullcontext():
         yield
 
 
@@ -49,7 +46,7 @@ def small_blas():
 # rows per chunk when features are computed on demand: 4096 x 2048 features are 64 MB
 CHUNK_ROWS = 4096
 # a fast GP block's products with up to this many other columns come from sine tables (beyond: features)
-FAST_PRODUCT_COLS = 8
+SINE_COLS = 8
 # a design with features below this size holds them; a larger one computes them chunk by chunk when needed
 DENSE_BYTES = 160 * 2**20
 
@@ -118,8 +115,7 @@ class Design:
 
     def _pass(self, rows, r: np.ndarray | None, want_gram: bool):
         """Phi'Phi (if `want_gram`) and Phi'r (if `r`) over `rows`, in one pass over their features."""
-        other = self.M - self.sizes[self.fast[0]] if self.fast is not None else 0
-        if self.fast is not None and other + (r is not None) <= FAST_PRODUCT_COLS:
+        if self._sines_pay(r is not None):
             return self._fast_pass(rows, r, want_gram)
         G = np.zeros((self.M, self.M)) if want_gram and self.fast is None else None
         b = None if r is None else np.zeros(self.M)
@@ -143,15 +139,18 @@ class Design:
             G[fcols, fcols] = fourier.gram(fast[1], Z)
         return G, b
 
+    def _sines_pay(self, extra: int) -> bool:
+        """The fast block's products with the other columns (and `extra` more) from sine tables."""
+        return self.fast is not None and self.M - self.sizes[self.fast[0]] + extra <= SINE_COLS
+
     def _fast_pass(self, rows, r: np.ndarray | None, want_gram: bool):
         """`_pass` without the fast block's features: its Gram matrix from cosine tables, its products with
         the other blocks' few columns and with `r` from sine tables (`fourier.transpose_products`)."""
         i, term, Zall = self.fast
         idx = as_rows(rows, self.n)
         fcols, slow = self.fast_cols
-        S = np.hstack(
-            [np.zeros((len(idx), 0))] + [b[idx] for k, b in enumerate(self.blocks) if k != i]
-        )
+        others = [b[idx] for k, b in enumerate(self.blocks) if k != i]
+        S = np.hstack([np.zeros((len(idx), 0)), *others])
         cols = ([S] if want_gram else []) + ([] if r is None else [r[idx][:, None]])
         Z = Zall[idx]
         Ft = fourier.transpose_products(term, Z, np.hstack(cols)) if cols else None
@@ -159,8 +158,7 @@ class Design:
         if want_gram:
             G = np.zeros((self.M, self.M))
             G[fcols, fcols] = fourier.gram(term, Z)
-            cross = Ft[:, : len(slow)]
-            G[fcols, slow], G[slow, fcols] = cross, cross.T
+            G[fcols, slow], G[slow, fcols] = Ft[:, : len(slow)], Ft[:, : len(slow)].T
             G[np.ix_(slow, slow)] = S.T @ S
         if r is not None:
             b = np.zeros(self.M)
@@ -234,6 +232,8 @@ class Design:
 
     def rmatvec(self, r: np.ndarray, rows=slice(None)) -> np.ndarray:
         """Phi[rows]' r[rows] (`r` has a value for every row)."""
+        if self._sines_pay(1):
+            return self._fast_pass(rows, r, False)[1]
         out = np.zeros(self.M)
         for idx, F in self.row_chunks(rows):
             out += F.T @ r[idx]

@@ -105,15 +105,6 @@ def gram(term, Z: np.ndarray) -> np.ndarray:
     return G * _scale(term)
 
 
-def _sines(term, Z: np.ndarray) -> list[np.ndarray]:
-    """sin(p u_d) / sqrt(L_d) for p = 1 .. max J_d, per input axis: (n, K_d) each (the features' factors)."""
-    out = []
-    for d, u in enumerate(term.angles(Z)):
-        p = np.arange(1, int(term.J[:, d].max()) + 1)
-        out.append(np.sin(u[:, None] * p[None, :]) / math.sqrt(term.L[d]))
-    return out
-
-
 def transpose_products(term, Z: np.ndarray, W: np.ndarray, rows: int = 4096) -> np.ndarray:
     """Phi' W for the term's features Phi at the rows of `Z` and a few columns W (n x k): (M, k).
 
@@ -125,7 +116,7 @@ def transpose_products(term, Z: np.ndarray, W: np.ndarray, rows: int = 4096) -> 
     J = term.J - 1
     tables = None
     for a in range(0, len(Z), rows):
-        S = _sines(term, Z[a : a + rows])
+        S = waves(term, Z[a : a + rows], cosines=False)[1]
         w = W[a : a + rows]
         if len(S) == 1:
             part = [S[0].T @ w]
