@@ -142,9 +142,12 @@ def all_targets(n: int, baseline_src: str | None) -> None:
     print(
         f"\nevery target of a {n}-sample survey: fit + blocked 5-fold CV + mean and sd on 10,000 nodes"
     )
-    head = f"{'target':<14} {'basis':>5} {'time s':>7} {'cpu s':>6} {'peak MB':>8}"
+    head = f"{'target':<14} {'basis':>5} {'time s':>7} {'cpu s':>6} {'peak MB':>8} {'CV RMSE':>9}"
     if old:
-        head += f" {'before s':>9} {'cpu s':>6} {'before MB':>10} {'cpu speed-up':>12} {'max rel diff':>13}"
+        head += (
+            f" {'before s':>9} {'cpu s':>6} {'before MB':>10} {'CV RMSE':>9} {'cpu speed-up':>12}"
+            f" {'max rel diff':>13}"
+        )
     print(head)
     print("-" * len(head))
     worst_t, worst_m = 0.0, 0.0
@@ -153,14 +156,14 @@ def all_targets(n: int, baseline_src: str | None) -> None:
         worst_t, worst_m = max(worst_t, new["total_s"]), max(worst_m, new["peak_rss_mb"])
         line = (
             f"{target:<14} {new['n_basis']:>5} {new['total_s']:>7.2f} {new['cpu_s']:>6.2f} "
-            f"{new['peak_rss_mb']:>8.0f}"
+            f"{new['peak_rss_mb']:>8.0f} {new['cv_rmse']:>9.6f}"
         )
         if old:
             before = run_target(table, target, Path(d) / f"{target}-old.npz", old)
             diff = agreement(Path(d) / f"{target}-old.npz", Path(d) / f"{target}-new.npz")
             line += (
                 f" {before['total_s']:>9.2f} {before['cpu_s']:>6.2f} {before['peak_rss_mb']:>10.0f}"
-                f" {before['cpu_s'] / new['cpu_s']:>11.1f}x {diff:>13.1e}"
+                f" {before['cv_rmse']:>9.6f} {before['cpu_s'] / new['cpu_s']:>11.2f}x {diff:>13.1e}"
             )
         print(line, flush=True)
     ok = worst_t <= BUDGET_S and worst_m <= BUDGET_MB

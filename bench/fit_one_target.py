@@ -35,11 +35,17 @@ def main() -> None:
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     t0, c0 = time.perf_counter(), time.process_time()
     with small_blas():
-        folds = fitting.make_folds(survey, "blocked")
+        try:  # as fit_target: the folds of the rows the model is fitted on (spikes left out)
+            from forcemap.host.workbench.spikes import without_spikes
+
+            clean = without_spikes(survey, args.target)[0]
+        except ImportError:
+            clean = survey
+        folds = fitting.make_folds(clean, "blocked")
         try:  # the Gram matrices accumulate fold by fold (this version's fit_target does it)
             from forcemap.host.workbench.survey_fits import survey_fits
 
-            survey_fits(survey).grams.plan = folds
+            survey_fits(clean).grams.plan = folds
         except (ImportError, AttributeError):
             pass
         sm = SurveyModel(survey, args.target).fit()

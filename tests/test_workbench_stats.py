@@ -45,6 +45,39 @@ def test_cosine_tables_equal_the_direct_products(field, dims, n_basis):
         assert got.shape == want.shape and np.abs(got - want).max() < 1e-13
 
 
+@pytest.mark.parametrize("dims, n_basis", [(2, 300), (1, 80)])
+def test_sine_table_products_equal_the_direct_products(field, dims, n_basis):
+    xy, y, t = field
+    Z = xy if dims == 2 else t[:, None]
+    term = HilbertGPTerm(("position",) if dims == 2 else ("t",), "matern32", n_basis, dims)
+    term.setup(Z)
+    W = np.column_stack([np.ones(len(y)), y, np.cos(t)])
+    direct = term.features(Z).T @ W
+    got = fourier.transpose_products(term, Z, W, rows=700)  # several row chunks
+    np.testing.assert_allclose(got, direct, rtol=0, atol=1e-12 * np.abs(direct).max())
+
+
+def test_design_pass_without_the_gp_features_equals_the_dense_pass(field):
+    """A design with a fast GP block takes its Gram matrix from cosine tables and its products with the other
+    blocks and with the residual from sine tables; the results are the products of the features."""
+    xy, y, t = field
+    gp = HilbertGPTerm(("position",), "matern32", 300, 2)
+    gp.setup(xy)
+    slow = np.column_stack([np.ones(len(y)), (t - t.mean()) / t.std()])
+    blocks = [slow[:, :1], evidence.TermBlock(gp, xy), slow[:, 1:]]
+    folds = np.arange(len(y)) % 3
+    fast = evidence.Design(blocks, plan=folds, fast=(1, gp, xy))
+    Phi = np.hstack([slow[:, :1], gp.features(xy), slow[:, 1:]])
+    G, b, fold_b = fast.products(y)
+    scale = np.abs(Phi.T @ Phi).max()
+    np.testing.assert_allclose(G, Phi.T @ Phi, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(b, Phi.T @ y, rtol=0, atol=1e-12 * np.abs(Phi.T @ y).max())
+    for f, (Gf, bf) in enumerate(zip(fast.fold_grams(folds), fold_b, strict=True)):
+        rows = folds == f
+        np.testing.assert_allclose(Gf, Phi[rows].T @ Phi[rows], rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(bf, Phi[rows].T @ y[rows], rtol=0, atol=1e-12 * scale)
+
+
 def test_chunk_statistics_add_up_to_the_whole(field):
     xy, y, _ = field
     X = {"position": xy}
@@ -88,13 +121,14 @@ def test_features_chunk_by_chunk_fit_as_held_features(field, monkeypatch):
     X = {"position": xy, "t": t}
     folds = (xy[:, 0] // 120).astype(int) % 5
     held = Model(["const", "gp(position, matern32)"], hyper_spacing_s=2.0).fit(X, y)
+    # neither the fit nor the CV forms the GP block's features (cosine and sine tables)
+    held_cv = held.cv_predict(folds)
+    held_map = held.predict(X, return_std=True)
     monkeypatch.setattr(evidence, "DENSE_BYTES", 0)
     monkeypatch.setattr(evidence, "CHUNK_ROWS", 300)
     chunked = Model(["const", "gp(position, matern32)"], hyper_spacing_s=2.0).fit(X, y)
-    assert chunked.design_.lazy and not held.design_.lazy
     np.testing.assert_allclose(chunked.theta_, held.theta_, rtol=1e-8, atol=1e-8)
-    for a, b in zip(chunked.cv_predict(folds), held.cv_predict(folds), strict=True):
+    for a, b in zip(chunked.cv_predict(folds), held_cv, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-10)
-    np.testing.assert_allclose(
-        chunked.predict(X, return_std=True), held.predict(X, return_std=True), rtol=1e-8, atol=1e-10
-    )
+    assert chunked.design_.lazy and held.design_.lazy
+    np.testing.assert_allclose(chunked.predict(X, return_std=True), held_map, rtol=1e-8, atol=1e-10)

@@ -10,6 +10,7 @@ a worker holds one log's samples while it works on it and the m x m results unti
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable
 from typing import Any
@@ -17,6 +18,11 @@ from typing import Any
 from forcemap.host.errors import CliError
 
 INSTALL = 'pip install "forcemap[dask]"'
+QUIET_TIMERS = {
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.scheduler.work-stealing-interval": "1s",
+    "distributed.admin.tick.interval": "200ms",
+}
 
 
 def summable(x: Any):
@@ -74,16 +80,23 @@ class DaskRunner:
             raise CliError(f"--dask needs Dask and distributed: {INSTALL}") from None
         self.cluster = None
         if address == "local" or address.startswith("local:"):
+            import dask
+
             n = _workers(address)
-            self.cluster = LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
-            )
+            # housekeeping every second, not every 0.1 s: on a machine with a core per worker, the client's
+            # scheduler and nannies and the workers' own timers take their CPU from the workers' share
+            with dask.config.set(QUIET_TIMERS):
+                self.cluster = LocalCluster(
+                    n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
+                )
             self.client = Client(self.cluster)
         else:
             try:
                 self.client = Client(address, timeout=30)
             except (OSError, TimeoutError, ValueError) as e:
                 raise CliError(f"cannot reach the Dask scheduler at {address}: {e}") from None
+        # the workers import the per-log code now, as this process already has: not in the first tasks
+        self.client.run(_warm_up)
         self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
         self.name = f"Dask, {self.workers} worker(s) at {self.client.scheduler.address}"
 
@@ -129,6 +142,17 @@ def _workers(address: str) -> int:
             f"--dask {address}: give local, local:N (N workers, at least 1) or tcp://HOST:PORT"
         )
     return int(text)
+
+
+def _warm_up() -> None:
+    import importlib
+
+    for name in ("forcemap.host.season.tasks", "pyarrow.parquet"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
+    from forcemap.host.season.tasks import roomy_heap
+
+    roomy_heap()
 
 
 def _big(obj: Any) -> bool:

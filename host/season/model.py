@@ -43,8 +43,12 @@ def without_offset(st: Stats) -> Stats:
     """The statistics with a free per-survey constant projected out of every target column (column 0 of
     the basis is the constant): the offset's flat-prior profile."""
     g, ysum, n = st.G[:, 0], st.B[0], max(st.n, 1)
+    # G - g g' / n with one temporary, not three (the same roundings: the product, its quotient, the sum)
+    G = np.multiply.outer(g, g)
+    G /= -n
+    G += st.G
     return Stats(
-        st.G - np.outer(g, g) / n,
+        G,
         st.B - np.outer(g, ysum) / n,
         st.R - np.outer(ysum, ysum) / n,
         st.n,
@@ -138,7 +142,9 @@ def fit_current(
         return None
     full = [columns(r.stats["space"], [1, 2]) for r in use]
     hyper = [columns(r.stats["space_hyper"], [1, 2]) for r in use]
-    y_scale = float(np.mean(target_scale(tree_sum(full))))
+    # the targets' scale needs only the const row of B, R and n: summed without the m x m Gram matrices
+    light = [Stats(st.G[:1, :1], st.B[:1], st.R, st.n) for st in full]
+    y_scale = float(np.mean(target_scale(tree_sum(light))))
     prior = Prior(frame.space)
     fits = {}
     for flag in [False, True] if offsets is None else [offsets]:

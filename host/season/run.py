@@ -85,7 +85,9 @@ def run_season(
     surveys = [surveys[i] for i in order]
     t = time.perf_counter()
     depth = fit_depth(frame, total, surveys)
+    tm["depth_s"] = time.perf_counter() - t
     current = fit_current(frame, surveys, offsets)
+    tm["current_s"] = time.perf_counter() - t - tm["depth_s"]
     wind = [s.wind for s in surveys]
     stale = None
     if current is not None and len(current.own) >= 2:
@@ -97,6 +99,7 @@ def run_season(
             [columns(s.stats["space"], [1, 2]) for s in cur],
         )
     tm["models_s"] = time.perf_counter() - t
+    tm["staleness_s"] = tm["models_s"] - tm["depth_s"] - tm["current_s"]
     season = Season(
         frame, surveys, rejected, total, depth, current, wind, stale, runner=runner.name
     )

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.season.stats import Stats, sq_error
+from forcemap.host.season.stats import Stats
 from forcemap.host.workbench.errors import WorkbenchError
 
 DAY_S = 86400.0
@@ -57,11 +57,12 @@ def staleness(
 ) -> Staleness:
     """`own_maps[k]`: survey k's own current weights (m x 2); `stats[k]`: its current statistics."""
     order = np.argsort(t_mid, kind="stable")
+    sq = _pair_sq_errors([own_maps[i] for i in order], [stats[j] for j in order])
     rows = []
     for a, i in enumerate(order):
-        for j in order[a + 1 :]:
-            st = stats[j]
-            err = (max(sq_error(st, own_maps[i]), 0.0) / max(st.n, 1)) ** 0.5
+        for b in range(a + 1, len(order)):
+            j, st = order[b], stats[order[b]]
+            err = (max(sq[a, b], 0.0) / max(st.n, 1)) ** 0.5
             rows.append((i, j, (t_mid[j] - t_mid[i]) / DAY_S, abs(scales[j] - scales[i]), err))
     arr = np.array(rows, float).reshape(-1, 5)
     age, ds, rmse = arr[:, 2], arr[:, 3], arr[:, 4]
@@ -71,6 +72,24 @@ def staleness(
     return Staleness(
         arr[:, 0].astype(int), arr[:, 1].astype(int), age, ds, rmse, e0, per_day, per_ds, doubling
     )
+
+
+def _pair_sq_errors(maps: list[np.ndarray], stats: list[Stats]) -> np.ndarray:
+    """sq[a, b] = `sq_error(stats[b], maps[a])` for every a < b (the rest is not computed): per later survey b
+    one product of its Gram matrix with every earlier map at once, O(K^2 m^2) in K matrix products rather
+    than K^2 / 2 matrix-vector products."""
+    K = len(maps)
+    sq = np.zeros((K, K))
+    if K < 2:
+        return sq
+    m, k = maps[0].shape
+    W = np.stack(maps, axis=1).reshape(m, K * k)  # column a * k + c: map a, target column c
+    for b in range(1, K):
+        st, Wa = stats[b], W[:, : b * k]
+        quad = (Wa * (st.G @ Wa)).sum(axis=0).reshape(b, k).sum(axis=1)
+        cross = (Wa * np.tile(st.B, b)).sum(axis=0).reshape(b, k).sum(axis=1)
+        sq[:b, b] = np.trace(st.R) - 2.0 * cross + quad
+    return sq
 
 
 def binned(x: np.ndarray, y: np.ndarray, bins: int = 8) -> tuple[np.ndarray, np.ndarray]:

@@ -5,10 +5,8 @@ top-level function of small arguments: the same code runs in one process or on a
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
-import os
-from collections.abc import Iterator
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +28,7 @@ from forcemap.host.workbench.table import Survey, VectorTarget, load_survey
 SPACE_TARGETS = ("depth", "current_east", "current_north")
 WIND_TARGETS = ("wind_east", "wind_north")
 # glibc's mallopt parameters
-M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8
 
 
 @dataclass
@@ -182,36 +180,33 @@ def read_placed(path: str, frame: Frame) -> tuple[Survey, np.ndarray]:
     return s, frame.xy(s.columns["lat"], s.columns["lon"])
 
 
-@contextlib.contextmanager
-def roomy_heap() -> Iterator[None]:
-    """Large temporaries from the heap, not fresh pages, while a log is reduced.
+@functools.lru_cache(maxsize=1)
+def roomy_heap() -> None:
+    """Large temporaries from the heap, not fresh pages, in this process from now on (once per process).
 
     A Dask worker runs with MALLOC_TRIM_THRESHOLD_=65536 (distributed's default, to give memory back),
     which makes glibc map every block over 128 kB afresh: each 8,192 x m feature chunk and its
     temporaries are page-faulted and zeroed again, and the statistics pass ran 25-30 % slower on a
-    worker than in one process. For the length of a task the heap keeps up to 256 MB; after it, the
-    thresholds go back and the heap is trimmed. Elsewhere than glibc, nothing happens."""
+    worker than in one process. The heap keeps up to 256 MB. (It used to be given back after every log:
+    the next log then faulted its pages in again, and a worker spent 5-10 % more CPU per log than one
+    process; a worker's peak RSS stays ~400 MB either way.) A task runs in a worker's thread, and glibc
+    gives a thread its own arena, grown 64 MB at a time and trimmed apart from these settings: one arena for
+    all threads (`engine` calls this when a worker starts, before its task threads exist) makes a log cost
+    on a worker what it costs in one process. Elsewhere than glibc, nothing happens."""
     try:
         libc = ctypes.CDLL("libc.so.6")
         libc.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     except (OSError, AttributeError):
-        yield
         return
-    trim = os.environ.get("MALLOC_TRIM_THRESHOLD_")
     libc.mallopt(M_TRIM_THRESHOLD, 256 << 20)
     libc.mallopt(M_MMAP_THRESHOLD, 64 << 20)
-    try:
-        yield
-    finally:
-        if trim is not None and trim.isdigit():
-            libc.mallopt(M_TRIM_THRESHOLD, int(trim))
-            libc.malloc_trim(0)
+    libc.mallopt(M_ARENA_MAX, 1)
 
 
 def survey_stats(path: str, frame: Frame) -> SurveyResult | Rejected:
     """A log's sufficient statistics in the season's frame (streamed over row chunks)."""
-    with roomy_heap():
-        return _survey_stats(path, frame)
+    roomy_heap()
+    return _survey_stats(path, frame)
 
 
 def _survey_stats(path: str, frame: Frame) -> SurveyResult | Rejected:

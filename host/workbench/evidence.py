@@ -19,15 +19,21 @@ from scipy import linalg
 LOG_2PI = math.log(2 * math.pi)
 
 
+@functools.lru_cache(maxsize=1)
+def _blas_controller():
+    """threadpoolctl's BLAS libraries, found once (`threadpool_limits` reads /proc/self/maps every call)."""
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:
+        return None
+    return ThreadpoolController()
+
+
 @contextlib.contextmanager
 def blas_threads(n: int | None) -> Iterator[None]:
     """Limit BLAS threads (None: no limit). Without threadpoolctl this is a no-op."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        yield
-        return
-    with threadpool_limits(limits=n, user_api="blas"):
+    ctl = _blas_controller() if n is not None else None
+    with ctl.limit(limits=n, user_api="blas") if ctl else contextlib.nullcontext():
         yield
 
 
@@ -39,6 +45,8 @@ def small_blas():
 
 # rows per chunk when features are computed on demand: 4096 x 2048 features are 64 MB
 CHUNK_ROWS = 4096
+# a fast GP block's products with up to this many other columns come from sine tables (beyond: features)
+SINE_COLS = 8
 # a design with features below this size holds them; a larger one computes them chunk by chunk when needed
 DENSE_BYTES = 160 * 2**20
 
@@ -107,6 +115,8 @@ class Design:
 
     def _pass(self, rows, r: np.ndarray | None, want_gram: bool):
         """Phi'Phi (if `want_gram`) and Phi'r (if `r`) over `rows`, in one pass over their features."""
+        if self._sines_pay(r is not None):
+            return self._fast_pass(rows, r, want_gram)
         G = np.zeros((self.M, self.M)) if want_gram and self.fast is None else None
         b = None if r is None else np.zeros(self.M)
         fast = self.fast if want_gram else None
@@ -127,6 +137,32 @@ class Design:
             G[:, slow], G[slow, :] = cross, cross.T
             Z = fast[2][as_rows(rows, self.n)]
             G[fcols, fcols] = fourier.gram(fast[1], Z)
+        return G, b
+
+    def _sines_pay(self, extra: int) -> bool:
+        """The fast block's products with the other columns (and `extra` more) from sine tables."""
+        return self.fast is not None and self.M - self.sizes[self.fast[0]] + extra <= SINE_COLS
+
+    def _fast_pass(self, rows, r: np.ndarray | None, want_gram: bool):
+        """`_pass` without the fast block's features: its Gram matrix from cosine tables, its products with
+        the other blocks' few columns and with `r` from sine tables (`fourier.transpose_products`)."""
+        i, term, Zall = self.fast
+        idx = as_rows(rows, self.n)
+        fcols, slow = self.fast_cols
+        others = [b[idx] for k, b in enumerate(self.blocks) if k != i]
+        S = np.hstack([np.zeros((len(idx), 0)), *others])
+        cols = ([S] if want_gram else []) + ([] if r is None else [r[idx][:, None]])
+        Z = Zall[idx]
+        Ft = fourier.transpose_products(term, Z, np.hstack(cols)) if cols else None
+        G = b = None
+        if want_gram:
+            G = np.zeros((self.M, self.M))
+            G[fcols, fcols] = fourier.gram(term, Z)
+            G[fcols, slow], G[slow, fcols] = Ft[:, : len(slow)], Ft[:, : len(slow)].T
+            G[np.ix_(slow, slow)] = S.T @ S
+        if r is not None:
+            b = np.zeros(self.M)
+            b[fcols], b[slow] = Ft[:, -1], S.T @ r[idx]
         return G, b
 
     def products(self, r: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None, list | None]:
@@ -196,6 +232,8 @@ class Design:
 
     def rmatvec(self, r: np.ndarray, rows=slice(None)) -> np.ndarray:
         """Phi[rows]' r[rows] (`r` has a value for every row)."""
+        if self._sines_pay(1):
+            return self._fast_pass(rows, r, False)[1]
         out = np.zeros(self.M)
         for idx, F in self.row_chunks(rows):
             out += F.T @ r[idx]
@@ -326,11 +364,6 @@ class SufficientStats:
         )
 
 
-@functools.lru_cache(maxsize=4)
-def _upper_mask(m: int) -> np.ndarray:
-    return np.triu(np.ones((m, m), bool), 1)
-
-
 def evidence(G, b, rr, n, loglam, logsn2, grad=True):
     """Log marginal likelihood of y = Phi w + e, w ~ N(0, diag(lam)), e ~ N(0, sn2 I) from the statistics
     G = Phi'Phi, b = Phi'y, rr = y'y; with its gradient by log(lam) and log(sn2), and the posterior."""
@@ -342,7 +375,10 @@ def evidence(G, b, rr, n, loglam, logsn2, grad=True):
     B = G * t[:, None]
     B *= t
     B.flat[:: len(B) + 1] += 1.0
-    L, _ = linalg.cho_factor(B, lower=True, check_finite=False)
+    # in place (B' is the Fortran-ordered B), the upper triangle cleared: no M x M copy, no mask after dtrtri
+    L, info = linalg.lapack.dpotrf(B.T, lower=1, clean=1, overwrite_a=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("dpotrf failed: the matrix is not positive definite")
     c = s * b
     alpha = linalg.cho_solve((L, True), c, check_finite=False)
     quad = (rr - c @ alpha / sn2) / sn2
@@ -356,7 +392,6 @@ def evidence(G, b, rr, n, loglam, logsn2, grad=True):
     Linv, info = linalg.lapack.dtrtri(L, lower=1)
     if info != 0:
         raise np.linalg.LinAlgError("dtrtri failed")
-    Linv[_upper_mask(len(Linv))] = 0.0
     dBinv = np.einsum("ij,ij->j", Linv, Linv)
     g_lam = 0.5 * (mu**2 / lam + dBinv - 1.0)
     resid2 = rr - 2.0 * mu @ b + mu @ G @ mu

@@ -105,6 +105,31 @@ def gram(term, Z: np.ndarray) -> np.ndarray:
     return G * _scale(term)
 
 
+def transpose_products(term, Z: np.ndarray, W: np.ndarray, rows: int = 4096) -> np.ndarray:
+    """Phi' W for the term's features Phi at the rows of `Z` and a few columns W (n x k): (M, k).
+
+    Column c is the gather of the table sum_i w_ic sin(p u_1i) sin(q u_2i) at (J_j1, J_j2): one n x K_1 x K_2
+    matrix product (K_d about the largest frequency index, a few thousand products per row in all) instead of
+    the n x M features and their product. Worth it for a few columns (a Gram matrix's cross products with a
+    constant, Phi'r); for many, the features are cheaper."""
+    W = np.asarray(W, float).reshape(len(Z), -1)
+    J = term.J - 1
+    tables = None
+    for a in range(0, len(Z), rows):
+        S = waves(term, Z[a : a + rows], cosines=False)[1]
+        w = W[a : a + rows]
+        if len(S) == 1:
+            part = [S[0].T @ w]
+        else:
+            part = [(S[0] * w[:, c : c + 1]).T @ S[1] for c in range(w.shape[1])]
+        tables = part if tables is None else [t + p for t, p in zip(tables, part, strict=True)]
+    if tables is None:
+        return np.zeros((len(J), W.shape[1]))
+    if J.shape[1] == 1:
+        return tables[0][J[:, 0]]
+    return np.column_stack([t[J[:, 0], J[:, 1]] for t in tables])
+
+
 def variance_table(term, C: np.ndarray) -> np.ndarray:
     """The table D with phi' C phi = sum_pq D[p, q] cos(p u_1) cos(q u_2); C may also be a symmetric matrix's
     lower triangle with its off-diagonal entries doubled (phi_j phi_k and phi_k phi_j share a table entry)."""

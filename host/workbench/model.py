@@ -22,6 +22,7 @@ from forcemap.host.workbench.evidence import (
     DesignCache,
     SufficientStats,
     blas_threads,
+    chunks,
     evidence,
     folds_key,
     small_blas,
@@ -264,13 +265,20 @@ class Model(HyperSearch):
         """`_predict_rows` where the design has a fast GP block, from inputs: the block's features are never
         formed, its linear forms (the mean, the slow columns' covariances with it) come from sine tables."""
         i, term = self.design_.fast[:2]
-        fcols, slow = cols = self.design_.fast_cols
         feats = [t.features(term_inputs(t, Xc)) for k, t in enumerate(self.feat_terms_) if k != i]
         Zf = term_inputs(term, Xc)
         S = np.hstack(feats) if feats else np.empty((len(Zf), 0))
+        return self._predict_fast(S, Zf, mean_part, post, return_std)
+
+    def _predict_fast(self, S, Zf, mean_part, post: dict, return_std: bool, cosines=None):
+        """`_predict_fast_rows` from the other blocks' features `S` and the fast block's inputs `Zf`. The
+        sines come from a table of twice the phases when the cosines are made too (`cosines`, by default
+        `return_std`): the means agree with those from the sines alone to an ulp, not to the bit."""
+        term = self.design_.fast[1]
+        fcols, slow = cols = self.design_.fast_cols
         if "mean_table" not in post:
             post["mean_table"] = fourier.linear_table(term, post["mu"][fcols])
-        waves = fourier.waves(term, Zf, cosines=return_std)
+        waves = fourier.waves(term, Zf, cosines=return_std if cosines is None else cosines)
         mu = fourier.linear_form(term, Zf, post["mean_table"], waves)[:, 0] + S @ post["mu"][slow]
         mu = mu * self.y_scale_ + mean_part
         if not return_std:
@@ -346,12 +354,24 @@ class Model(HyperSearch):
                 self.theta_[0],
                 grad=False,
             )
-            for idx, Phi in design.row_chunks(test):
-                Zf = None if design.fast is None else design.fast[2][idx]
-                mu, sd = self._predict_rows(Phi, Zf, mean_part[idx], post, sd_out is not None)
+            for idx, mu, sd in self._fold_predictions(test, mean_part, post, sd_out is not None):
                 mu_out[idx] = mu
                 if sd_out is not None:
                     sd_out[idx] = sd
+
+    def _fold_predictions(self, test, mean_part, post: dict, return_std: bool):
+        """(rows, mean, std) of a fold's held-out rows in chunks; a fast GP block's without its features."""
+        design = self.design_
+        if design.fast is None:
+            for idx, Phi in design.row_chunks(test):
+                yield idx, *self._predict_rows(Phi, None, mean_part[idx], post, return_std)
+            return
+        i, _, Zf = design.fast
+        for idx in chunks(np.flatnonzero(test), CHUNK):
+            S = [b[idx] for k, b in enumerate(design.blocks) if k != i]
+            S = np.hstack(S) if S else np.empty((len(idx), 0))
+            # the same tables with or without the spread: the held-out means do not depend on asking for it
+            yield idx, *self._predict_fast(S, Zf[idx], mean_part[idx], post, return_std, True)
 
     def extended(self, term: Term, X: Mapping[str, np.ndarray], y: np.ndarray) -> Model:
         """A new, fitted model with one more feature term, sharing this model's design (only cross products
