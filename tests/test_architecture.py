@@ -52,9 +52,12 @@ def modules() -> dict[str, Path]:
 
 
 def repo_path(name: str, file: Path) -> str:
-    """The module's path in the repository: `host/vessel/geodesy.py`, a package as `host/vessel/`."""
-    rel = file.resolve().relative_to(ROOT).as_posix()
-    return rel[: -len("__init__.py")] if file.name == "__init__.py" else rel
+    """The module's path in the repository: `host/vessel/geodesy.py`, a package as `host/vessel/`. From the
+    name, as pyproject's package-dir maps it, since the package may be installed anywhere (`forcemap` is `api/`,
+    `forcemap.host` is `host/`)."""
+    parts = name.split(".")
+    path = "/".join(["api"] if len(parts) == 1 else parts[1:])
+    return path + "/" if file.name == "__init__.py" else path + ".py"
 
 
 def imports_of(name: str, file: Path, known: set[str]) -> set[str]:

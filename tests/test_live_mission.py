@@ -71,7 +71,7 @@ def test_the_live_server_shows_the_mission_and_the_log_does_not_have_it(tmp_path
             fix = LocationFix(Time(t // 10**9, 0), "gps", LAT0 + k * M_LAT, LON0, 0.0, [0.0] * 9, 0)
             log.write("/fix", t, fix)
         log.close()
-        # the closing view follows the last fix on the same connection: wait for it, not for a time
+        live.finish()  # the survey's last view goes out, the server stays up: wait for it, not for a time
         client.wait_for(lambda c: c.topics().get("/fix", 0) == 120 and _last_track_len(c) == 40, 60)
     finally:
         live.close()

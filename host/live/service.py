@@ -47,6 +47,7 @@ class LiveService:
         self.published: dict[str, int] = {}
         self.errors: dict[str, int] = {}
         self._last_t = 0
+        self._finished = False
         self.thread = threading.Thread(target=self._run, name="forcemap-live", daemon=True)
         self.thread.start()
 
@@ -68,6 +69,8 @@ class LiveService:
             if self._last_t and self.mission.due(self._last_t):  # a new plan, between fixes
                 self._guard("mission", self._mission)
             if self.tee.closed and not items:
+                if self.mission.due(self._last_t + 10**18):  # the log closed: the track's last metres
+                    self._guard("mission", self._mission)
                 return
 
     def _guard(self, what: str, fn: Any, *args: Any) -> None:
@@ -126,13 +129,19 @@ class LiveService:
             out["map_updates"] = self.board.updates
         return out
 
-    def close(self, final_maps_s: float = 10.0) -> None:
-        """Publish what is queued and the final maps (waiting at most ``final_maps_s`` for them: the
-        map process runs at a low priority and may be behind), then stop the server."""
+    def finish(self, final_maps_s: float = 10.0) -> None:
+        """Publish what is queued, the track's last metres and the final maps (waiting at most
+        ``final_maps_s`` for them: the map process runs at a low priority and may be behind). The server
+        stays up, so a viewer ashore sees the survey's last state. Once only."""
+        if self._finished:
+            return
+        self._finished = True
         self.tee.close()
         self.thread.join(timeout=30.0)
-        if self.mission.due(self._last_t + 10**18):  # the track's last few metres
-            self._guard("mission", self._mission)
         if self.mapper is not None:
             self._guard("maps", self._maps, self.mapper.close(final_maps_s))
+
+    def close(self, final_maps_s: float = 10.0) -> None:
+        """`finish`, then stop the server."""
+        self.finish(final_maps_s)
         self.server.stop()
