@@ -69,7 +69,9 @@ class LiveService:
             if self._last_t and self.mission.due(self._last_t):  # a new plan, between fixes
                 self._guard("mission", self._mission)
             if self.tee.closed and not items:
-                if self.mission.due(self._last_t + 10**18):  # the log closed: the track's last metres
+                if self.mission.due(
+                    self._last_t + 10**18
+                ):  # the log closed: the track's last metres
                     self._guard("mission", self._mission)
                 return
 
