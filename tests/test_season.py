@@ -35,6 +35,9 @@ def test_dask_local2_equals_one_process(twenty):
     try:
         assert dask.workers == 2
         two = run_season(twenty, dask, n_basis=120, cv=False)
+        # no task failed on the way (a map without a reduction once summed its footprints and failed)
+        logs = dask.client.get_worker_logs()
+        assert not [m for w in logs.values() for _, m in w if "Compute Failed" in m]
     finally:
         dask.close()
     assert "Dask, 2 worker(s)" in two.runner

@@ -113,9 +113,11 @@ class DaskRunner:
         shared = [self.client.scatter(a, broadcast=True) if _big(a) else a for a in args]
         leaves = self.client.map(fn, items, *[[a] * len(items) for a in shared], pure=False)
         index = {f.key: i for i, f in enumerate(leaves)}
-        total = tree_shape(leaves, lambda a, b: self.client.submit(add_pair, a, b, pure=False))
-        if total is not None and total in leaves:
-            total = self.client.submit(add_pair, total, None, pure=False)
+        total = None
+        if reduce:
+            total = tree_shape(leaves, lambda a, b: self.client.submit(add_pair, a, b, pure=False))
+            if total is not None and total in leaves:
+                total = self.client.submit(add_pair, total, None, pure=False)
         results: list = [None] * len(items)
         for done, fut in enumerate(as_completed(leaves), 1):
             i = index[fut.key]
@@ -124,7 +126,7 @@ class DaskRunner:
             leaves[i] = None
             if progress:
                 progress(done, len(items))
-        summed = summable(total.result()) if reduce and total is not None else None
+        summed = summable(total.result()) if total is not None else None
         return results, summed
 
     def close(self) -> None:
