@@ -22,6 +22,8 @@ QUIET_TIMERS = {
     "distributed.worker.memory.monitor-interval": "1s",
     "distributed.scheduler.work-stealing-interval": "1s",
     "distributed.admin.tick.interval": "200ms",
+    # the statistical profiler samples the task's stack every 10 ms, holding the worker's interpreter
+    "distributed.worker.profile.enabled": False,
 }
 
 
