@@ -81,9 +81,9 @@ class CurrentFit:
     log_evidence: float
     rounds: int
     evidence_gain: float = 0.0  # log evidence with offsets minus without
-    own: list[Posterior] = field(
+    own: list[np.ndarray] = field(
         default_factory=list
-    )  # each survey's own map (season hyperparameters)
+    )  # each survey's own map's weights (season hyperparameters)
 
 
 def fit_depth(frame: Frame, total: dict, results: list[SurveyResult]) -> StaticFit | None:
@@ -162,5 +162,6 @@ def fit_current(
     if chosen:
         for k, st in enumerate(full):
             off[k] = (st.B[0] - s[k] * (st.G[0] @ post.mean)) / max(st.n, 1)
-    own = [posterior(prior, theta, st, y_scale) for st in full]
+    # the weights only: the staleness needs no more, and a factor per survey is m x m each
+    own = [posterior(prior, theta, st, y_scale).mean for st in full]
     return CurrentFit(prior, theta, y_scale, post, s, off, chosen, logp, rounds, gain, own)

@@ -95,7 +95,7 @@ def run_season(
         stale = staleness(
             np.array([s.t_mid for s in cur]),
             current.scales,
-            [p.mean for p in current.own],
+            current.own,
             [columns(s.stats["space"], [1, 2]) for s in cur],
         )
     tm["models_s"] = time.perf_counter() - t
