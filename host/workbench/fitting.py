@@ -115,6 +115,8 @@ def record(table: Path, result: FitResult) -> dict:
         "n_basis": m.primary.n_basis_,
         "log_marginal_likelihood": m.primary.log_marginal_likelihood_,
         "n": m.survey.n,
+        # the flow frame and the other component of a vector: a map rebuilt later needs no optimiser
+        "shared": survey_fits(m.survey).shared_hypers(),
     }
     entry = {k: v for k, v in result.to_json().items() if k != "spikes"}
     entry.update(folds=result.folds, n=m.survey.n)
@@ -149,9 +151,9 @@ def refit_or_restore(
             break
         note(f"  from fit {entry['fit']}'s saved hyperparameters", progress)
         try:
-            return SurveyModel(survey, target, model["terms"]).fit(
-                theta=np.asarray(model["theta"], float), n_basis=model["n_basis"]
-            )
+            sm = SurveyModel(survey, target, model["terms"])
+            survey_fits(sm.survey).saved.update(model.get("shared", {}))
+            return sm.fit(theta=np.asarray(model["theta"], float), n_basis=model["n_basis"])
         except WorkbenchError:
             break
     return SurveyModel(survey, target, terms).fit()

@@ -15,8 +15,9 @@ from forcemap.host.workbench.model import (
     Model,
     spaced_rows,
 )
-from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.spec import BASELINE, build_term, parse_terms
 from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
+from forcemap.host.workbench.terms import HilbertGPTerm
 
 # the names callers have always found here (hyperparameters come from samples HYPER_SPACING_S apart)
 __all__ = ["HYPER_SPACING_S", "MIN_HYPER_ROWS", "SurveyFits", "hyper_rows", "survey_fits"]
@@ -34,6 +35,18 @@ FRAME_MAX_BASIS = 800  # the frame is a smooth direction field; it needs no fine
 DERIVED = ("stw", "heading_rel_current", "heading_rel_wind")
 
 
+def terms_with_basis(terms, n_basis=None) -> list:
+    """Built terms (from specs or strings), the GP terms with the basis sizes `n_basis` gives by term name
+    (`Model.n_basis_` of an earlier fit)."""
+    specs = parse_terms(terms, is_circular) if all(isinstance(t, str) for t in terms) else terms
+    built = [build_term(t, is_circular) for t in specs]
+    for t in built:
+        if isinstance(t, HilbertGPTerm) and n_basis and t.describe() in n_basis:
+            t.n_basis = int(n_basis[t.describe()])
+            t.max_basis = max(t.max_basis, t.n_basis)
+    return built
+
+
 class SurveyFits:
     """What every model of one survey shares, each computed once on first use: the rows that set the
     hyperparameters, the depth map, the flow frames and the secondary (across/along) components of
@@ -45,6 +58,10 @@ class SurveyFits:
         self._secondary: dict[tuple[str, bool], Model] = {}
         self._frame_cv: dict[tuple[str, str, bytes], tuple[np.ndarray, np.ndarray]] = {}
         self._derived: dict[str, np.ndarray] = {}
+        # hyperparameters of the shared models from an earlier fit on this survey (`shared_hypers`), by key:
+        # the models are then rebuilt without the optimiser, the same maps
+        self.saved: dict[str, dict] = {}
+        self._fitted: dict[str, Model] = {}
         # Gram matrices shared by models of the same features (a vector's components); `plan` is the
         # cross-validation folds to accumulate with them
         self.grams = DesignCache()
@@ -79,7 +96,8 @@ class SurveyFits:
             n = finite_target(survey, n, f"{vt.prefix} north component")
             terms = FRAME_TERMS[kind]
             self._frames[key] = tuple(
-                self.model(terms, max_basis=FRAME_MAX_BASIS).fit(X, c) for c in (e, n)
+                self._fit(f"frame/{vt.prefix}/{kind}/{c}", terms, X, y, max_basis=FRAME_MAX_BASIS)
+                for c, y in (("east", e), ("north", n))
             )
         return self._frames[key]
 
@@ -88,8 +106,28 @@ class SurveyFits:
         key = (vt.prefix, primary_is_along)
         if key not in self._secondary:
             X = {"position": self.survey.xy, "t": self.survey.trel}
-            self._secondary[key] = self.model(BASELINE).fit(X, y)
+            along = "along" if primary_is_along else "across"
+            self._secondary[key] = self._fit(f"secondary/{vt.prefix}/{along}", BASELINE, X, y)
         return self._secondary[key]
+
+    def _fit(self, key: str, terms, X: dict, y: np.ndarray, **kw) -> Model:
+        """A shared model, fitted anew or rebuilt from its saved hyperparameters; kept for `shared_hypers`."""
+        saved = self.saved.get(key)
+        if saved is None:
+            model = self.model(terms, **kw).fit(X, y)
+        else:
+            built = terms_with_basis(terms, saved["n_basis"])
+            init = np.asarray(saved["theta"], float)
+            model = self.model(built, init=init, optimize=False, **kw).fit(X, y)
+        self._fitted[key] = model
+        return model
+
+    def shared_hypers(self) -> dict[str, dict]:
+        """The hyperparameters and basis sizes of every shared model fitted so far (for `saved`)."""
+        return {
+            k: {"theta": [float(v) for v in m.theta_], "n_basis": dict(m.n_basis_)}
+            for k, m in self._fitted.items()
+        }
 
     def frame_cv(self, vt: VectorTarget, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The flow frame's unit vector at each sample from the frame models refitted without its fold."""

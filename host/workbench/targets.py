@@ -17,7 +17,7 @@ from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.cv import CVResult
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
-from forcemap.host.workbench.spec import BASELINE, build_term, parse_terms
+from forcemap.host.workbench.spec import BASELINE, parse_terms
 from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import (
     derived_column,
@@ -27,9 +27,9 @@ from forcemap.host.workbench.survey_fits import (
     hyper_rows,
     survey_fits,
     survey_inputs,
+    terms_with_basis,
 )
 from forcemap.host.workbench.table import NOT_COVARIATES, Survey, is_circular, prepare_column
-from forcemap.host.workbench.terms import HilbertGPTerm
 
 N_DRAWS = 128
 # the names callers have always imported from here
@@ -139,11 +139,7 @@ class SurveyModel:
         self, terms: list | None = None, n_basis: Mapping[str, int] | None = None
     ) -> Model:
         """An unfitted model of the primary component; `n_basis` sets GP terms' bases by term name."""
-        built = [build_term(t, is_circular) for t in (terms or self.term_specs)]
-        for t in built:
-            if isinstance(t, HilbertGPTerm) and n_basis and t.describe() in n_basis:
-                t.n_basis = int(n_basis[t.describe()])
-                t.max_basis = max(t.max_basis, t.n_basis)
+        built = terms_with_basis(terms or self.term_specs, n_basis)
         return survey_fits(self.survey).model(built, max_basis=self.max_basis)
 
     def fit(
