@@ -8,7 +8,7 @@ The synthetic river survey (`bench.synth_survey`, 1 Hz, depth-dependent current)
 seconds, its track stretched to a 1 km x 1 km square. depth, current_speed and wind_speed are fitted
 and recorded first (`forcemap fit`'s work, not timed as gridding); then `forcemap grid` runs as a user
 runs it, from the table and the workspace, stage by stage through the API it calls: read the table,
-rebuild the latest fits from their saved hyperparameters (and fit what a vector map shares: the flow
+rebuild the latest fits from their saved hyperparameters (and what a vector map shares: the flow
 frame and the cross-flow component), evaluate every map on the grid's mapped cells (the gridding the
 issue bounds), write the files. `--cli` also times the command end to end. CPU time is printed beside
 wall time: on a shared machine the wall time mostly measures the neighbours.
@@ -84,8 +84,8 @@ def stages(table: Path, resolution: float, work: Path) -> tuple[list, object]:
     with small_blas():
         survey = timed("read the table", lambda: forcemap.read_survey(table))
         fits = timed(
-            "rebuild the latest fits (saved hyperparameters; a vector's flow frame and cross-flow "
-            "component fitted)",
+            "rebuild the latest fits (saved hyperparameters, a vector's flow frame and other component "
+            "too: no optimiser)",
             lambda: [survey.latest_fit(t) for t in TARGETS],
         )
         grid = timed(
