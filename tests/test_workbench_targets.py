@@ -25,9 +25,10 @@ def test_construction_validates_but_does_not_fit(table):
     survey = load_survey(table)
     sm = SurveyModel(survey, "current_speed", ["const", "gp(position, matern32)", "depth"])
     assert not hasattr(sm, "primary") and not hasattr(sm, "X")
-    assert not survey_fits(survey)._frames  # the flow frame is fitted by fit(), not before
+    assert not survey_fits(survey).shared_hypers()  # the flow frame is fitted by fit(), not before
     sm.fit()
-    assert len(survey_fits(survey)._frames) == 1
+    frames = [k for k in survey_fits(survey).shared_hypers() if k.startswith("frame/")]
+    assert len(frames) == 2  # one flow frame: its east and north models
     again = SurveyModel(survey, "current_speed").fit()
     assert again.secondary is sm.secondary  # one secondary component per survey
     with pytest.raises(WorkbenchError, match="unknown target"):

@@ -152,11 +152,25 @@ def refit_or_restore(
         note(f"  from fit {entry['fit']}'s saved hyperparameters", progress)
         try:
             sm = SurveyModel(survey, target, model["terms"])
-            survey_fits(sm.survey).saved.update(model.get("shared", {}))
+            survey_fits(sm.survey).saved.update(_shared_entries(model.get("shared")))
             return sm.fit(theta=np.asarray(model["theta"], float), n_basis=model["n_basis"])
         except WorkbenchError:
             break
     return SurveyModel(survey, target, terms).fit()
+
+
+def _shared_entries(shared) -> dict[str, dict]:
+    """The saved shared models' entries that have what a rebuild needs (a hand-edited file loses the rest:
+    those models are fitted anew)."""
+    if not isinstance(shared, dict):
+        return {}
+    return {
+        k: v
+        for k, v in shared.items()
+        if isinstance(v, dict)
+        and isinstance(v.get("theta"), list)
+        and isinstance(v.get("n_basis"), dict)
+    }
 
 
 def latest_terms(history: list[dict], target: str) -> list[str]:

@@ -54,14 +54,13 @@ class SurveyFits:
 
     def __init__(self, survey: Survey) -> None:
         self.survey = survey
-        self._frames: dict[tuple[str, str], tuple[Model, Model]] = {}
-        self._secondary: dict[tuple[str, bool], Model] = {}
         self._frame_cv: dict[tuple[str, str, bytes], tuple[np.ndarray, np.ndarray]] = {}
         self._derived: dict[str, np.ndarray] = {}
         # hyperparameters of the shared models from an earlier fit on this survey (`shared_hypers`), by key:
         # the models are then rebuilt without the optimiser, the same maps
         self.saved: dict[str, dict] = {}
-        self._fitted: dict[str, Model] = {}
+        # the flow frames and secondary components fitted so far, by the same keys
+        self._shared: dict[str, Model] = {}
         # Gram matrices shared by models of the same features (a vector's components); `plan` is the
         # cross-validation folds to accumulate with them
         self.grams = DesignCache()
@@ -85,8 +84,8 @@ class SurveyFits:
     def frame(self, vt: VectorTarget) -> tuple[Model, Model]:
         """Smooth models of a vector's east and north components (see `flow_frame`)."""
         kind = "dir" if vt.aspect == "dir" else "speed"
-        key = (vt.prefix, kind)
-        if key not in self._frames:
+        key = f"frame/{vt.prefix}/{kind}"
+        if key + "/east" not in self._shared:
             survey = self.survey
             e, n = survey.components(vt)
             if e is None:
@@ -94,21 +93,16 @@ class SurveyFits:
             X = {"position": survey.xy, "t": survey.trel}
             e = finite_target(survey, e, f"{vt.prefix} east component")
             n = finite_target(survey, n, f"{vt.prefix} north component")
-            terms = FRAME_TERMS[kind]
-            self._frames[key] = tuple(
-                self._fit(f"frame/{vt.prefix}/{kind}/{c}", terms, X, y, max_basis=FRAME_MAX_BASIS)
-                for c, y in (("east", e), ("north", n))
-            )
-        return self._frames[key]
+            for c, y in (("east", e), ("north", n)):
+                self._fit(f"{key}/{c}", FRAME_TERMS[kind], X, y, max_basis=FRAME_MAX_BASIS)
+        return self._shared[key + "/east"], self._shared[key + "/north"]
 
     def secondary(self, vt: VectorTarget, primary_is_along: bool, y: np.ndarray) -> Model:
         """The baseline model of the flow-frame component a target's terms do not act on (`y`)."""
-        key = (vt.prefix, primary_is_along)
-        if key not in self._secondary:
-            X = {"position": self.survey.xy, "t": self.survey.trel}
-            along = "along" if primary_is_along else "across"
-            self._secondary[key] = self._fit(f"secondary/{vt.prefix}/{along}", BASELINE, X, y)
-        return self._secondary[key]
+        key = f"secondary/{vt.prefix}/{'across' if primary_is_along else 'along'}"
+        if key not in self._shared:
+            self._fit(key, BASELINE, {"position": self.survey.xy, "t": self.survey.trel}, y)
+        return self._shared[key]
 
     def _fit(self, key: str, terms, X: dict, y: np.ndarray, **kw) -> Model:
         """A shared model, fitted anew or rebuilt from its saved hyperparameters; kept for `shared_hypers`."""
@@ -119,14 +113,14 @@ class SurveyFits:
             built = terms_with_basis(terms, saved["n_basis"])
             init = np.asarray(saved["theta"], float)
             model = self.model(built, init=init, optimize=False, **kw).fit(X, y)
-        self._fitted[key] = model
+        self._shared[key] = model
         return model
 
     def shared_hypers(self) -> dict[str, dict]:
         """The hyperparameters and basis sizes of every shared model fitted so far (for `saved`)."""
         return {
             k: {"theta": [float(v) for v in m.theta_], "n_basis": dict(m.n_basis_)}
-            for k, m in self._fitted.items()
+            for k, m in self._shared.items()
         }
 
     def frame_cv(self, vt: VectorTarget, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
