@@ -28,7 +28,7 @@ from forcemap.host.cli import main as forcemap
 
 from bench.field_sources import report as sources_report
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared/data/real/nmea/PacCupStartNMEA.txt"
+DEFAULT = Path(__file__).resolve().parents[1] / "tests/data/real/nmea/PacCupStartNMEA.txt"
 # every real NMEA capture that gives samples (NeutronDance is a corrupted stream kept for robustness)
 CAPTURES = ("PacCupStartNMEA.txt", "plaka.log", "bundg_zeus_9.log")
 SPIKE_TARGETS = ("depth", "current_speed", "wind_speed", "water_temp", "stw")

@@ -99,7 +99,7 @@ def run_pipeline(reads, sync: str) -> tuple[float, Pipeline, NullSink]:
     return time.process_time() - t0, pipe, sink
 
 
-REAL_NMEA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "nmea"
+REAL_NMEA = Path(__file__).resolve().parents[1] / "tests" / "data" / "real" / "nmea"
 
 
 def run_real_nmea(target: float) -> bool:

@@ -5,16 +5,16 @@ from __future__ import annotations
 import csv
 import math
 import random
-from pathlib import Path
 
 import pytest
 from forcemap.host.decode.nmea import KNOT, NmeaParser, depth_below_surface_m
 from forcemap.host.fuse import compensation as c
 from forcemap.host.vessel import geodesy as g
 
+from tests.tools import REAL as REAL_DATA
 from tests.tools import real_data
 
-REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "nmea"
+REAL = REAL_DATA / "nmea"
 WHEELS = (45.0, 135.0, -135.0, -45.0)
 
 

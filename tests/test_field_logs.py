@@ -10,7 +10,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 import struct
 from pathlib import Path
 
@@ -24,12 +23,10 @@ from forcemap.host.log.mcap import FileScan, iter_records, read_messages
 from forcemap.host.vessel.geodesy import to_direction, velocity, wrap_to_180
 from mcap.records import Message
 
+from tests.tools import REAL
+
 KN = 1852.0 / 3600.0
-# ../shared/data/real beside the checkout; FORCEMAP_REAL_DATA for a checkout elsewhere (a worktree)
-REAL = Path(
-    os.environ.get("FORCEMAP_REAL_DATA")
-    or Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
-)
+
 PACCUP = REAL / "nmea" / "PacCupStartNMEA.txt"
 REFERENCE = REAL / "nmea" / "reference_true_wind.csv"
 

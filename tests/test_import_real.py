@@ -8,7 +8,6 @@ log, to keep the suite fast.
 
 from __future__ import annotations
 
-import os
 from collections import Counter
 from pathlib import Path
 
@@ -18,17 +17,9 @@ from forcemap.host.convert import importers
 from forcemap.host.convert.importers import import_file, tlog_records, why_no_samples
 from forcemap.host.log.mcap import McapLog, read_messages
 
-from tests.tools import IN_CI
+from tests.tools import real_data
 
-# ../shared/data/real beside the checkout; FORCEMAP_REAL_DATA for a checkout elsewhere (a worktree)
-REAL = Path(
-    os.environ.get("FORCEMAP_REAL_DATA")
-    or Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
-)
-if not REAL.is_dir():
-    if IN_CI:  # under CI the data set must be there: a missing one fails, never skips
-        pytest.fail(f"the real data set {REAL} is missing", pytrace=False)
-    pytest.skip("../shared/data/real is not here", allow_module_level=True)
+REAL = real_data()
 
 NMEA = {
     "PacCupStartNMEA.txt": (

@@ -7,7 +7,6 @@ tests hold on a busy machine.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import socket
 import time
@@ -28,6 +27,7 @@ from tests.test_daemon_support import (
     nmea_line,
     wait_drained,
 )
+from tests.tools import REAL
 
 BOUND_S = 60.0  # far beyond what a busy machine needs; a failure is a lost message, not slowness
 
@@ -207,13 +207,7 @@ def test_nmea_connection_strings():
             nmea_opener(bad)
 
 
-REAL_NMEA = (
-    Path(
-        os.environ.get("FORCEMAP_REAL_DATA")
-        or Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
-    )
-    / "nmea"
-)
+REAL_NMEA = REAL / "nmea"
 
 
 def independent_counts(lines: list[bytes]) -> Counter:

@@ -5,7 +5,6 @@ file still overrides. On the simulator (two receivers, known truth) and on the r
 from __future__ import annotations
 
 import json
-import os
 from collections import Counter
 from functools import reduce
 from pathlib import Path
@@ -22,6 +21,7 @@ from forcemap.host.log.mcap import read_messages
 from forcemap.sim_devices.nmea_sounder import sentence
 
 from tests.sim_sources import figures, run
+from tests.tools import REAL
 
 A, B = "nmea GP* [hhmmss.ss 5dp]", "nmea GN* [hhmmss.ss 4dp]"
 RMC_A, RMC_B = "nmea GPRMC [hhmmss.ss 5dp]", "nmea GNRMC [hhmmss.ss 4dp]"
@@ -217,10 +217,7 @@ def test_a_receiver_that_loses_its_corrections_hands_over_and_back(tmp_path):
 
 # --- the real captures: what fix they report, and that it changes no choice -------------------------
 
-REAL = Path(
-    os.environ.get("FORCEMAP_REAL_DATA")
-    or Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
-)
+
 # per capture: the chosen position source and why (the receiver's fix at the end of the capture:
 # the median HDOP of its last 10 s), and by hand from the raw lines: GGA (quality, HDOP) counts,
 # RMC/GLL (sentence, mode) counts
@@ -296,8 +293,6 @@ class MetaSink:
 
 @pytest.mark.parametrize("name", sorted(CAPTURES))
 def test_the_real_captures_fix_quality(name):
-    if not REAL.is_dir():
-        pytest.skip("../shared/data/real is not here")
     path = REAL / "nmea" / name
     chosen, why, gga_counts, mode_counts = CAPTURES[name]
     gga, mode = _by_hand(path)

@@ -26,12 +26,17 @@ def _missing(what: str) -> None:
     pytest.skip(msg)
 
 
+# The real captures the readers are pinned against, copied into the repository with their provenance
+# (``tests/data/real/*/PROVENANCE.md``) so a clone runs its tests alone; ``../shared/data/real`` is
+# where new material arrives.
+REAL = Path(__file__).resolve().parent / "data" / "real"
+
+
 def real_data() -> Path:
-    """``../shared/data/real``: the real captures the readers are pinned against."""
-    real = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
-    if not real.is_dir():
-        _missing(f"the real data set in {real}")
-    return real
+    """``tests/data/real``: the real captures; its absence fails the test (a broken checkout)."""
+    if not REAL.is_dir():
+        pytest.fail(f"the real data set {REAL} is missing from this checkout", pytrace=False)
+    return REAL
 
 
 def micropython() -> str:
