@@ -1,4 +1,5 @@
-"""`forcemap import`: an NMEA 0183 capture or a MAVLink tlog into an MCAP log with the daemon's topics."""
+"""`forcemap import`: an NMEA 0183 capture, a MAVLink tlog, a DataFlash log or a TRDI PD0 ADCP file into an
+MCAP log with the daemon's topics (the ADCP's: forcemap.host.convert.adcp_import)."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ examples:
   forcemap import capture.nmea                 # -> capture.mcap beside it
   forcemap import flight.tlog -o logs/         # -> logs/flight.mcap
   forcemap import capture.txt --from nmea -o survey.mcap --boat boat.toml
+  forcemap import transect.PD0 --reference gps # a moving-boat ADCP (pip install "forcemap[adcp]")
   forcemap export survey.mcap -o survey.csv    # then the samples table, as for `forcemap run`
 
 An existing output is replaced only with --force; a file that cannot be imported leaves nothing
@@ -34,7 +36,8 @@ behind. `forcemap export` takes the same -o and --force.
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = textwrap.fill(
         "Run an existing NMEA 0183 capture, MAVLink telemetry log (.tlog) or ArduPilot DataFlash "
-        "log (.BIN) through the daemon's pipeline into an MCAP log with the samples table.",
+        "log (.BIN) through the daemon's pipeline into an MCAP log with the samples table; or read "
+        "a TRDI PD0 ADCP transect (.PD0, .000) into one, with its profiles and QA (docs/ADCP.md).",
         88,
     )
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
@@ -42,7 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "file",
         metavar="FILE",
-        help="NMEA 0183 capture (text), MAVLink telemetry log (.tlog) or DataFlash log (.BIN)",
+        help="NMEA 0183 capture (text), MAVLink telemetry log (.tlog), DataFlash log (.BIN) or "
+        "TRDI PD0 ADCP file",
     )
     add_output(
         parser,
@@ -54,17 +58,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--from",
         dest="source_format",
-        choices=("nmea", "tlog", "dataflash"),
+        choices=("nmea", "tlog", "dataflash", "adcp"),
         default=None,
         help="the input's format (default: from the name and the first bytes)",
     )
-    add_deprecated(parser, "--format", "--from nmea|tlog|dataflash", "source_format")
+    add_deprecated(parser, "--format", "--from nmea|tlog|dataflash|adcp", "source_format")
+    parser.add_argument(
+        "--reference",
+        choices=("bt", "gps"),
+        default="bt",
+        help="ADCP only: the boat's velocity over ground from bottom track (default, as WinRiver) "
+        "or GPS",
+    )
+    parser.add_argument(
+        "--heading-offset",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="ADCP only: pin the compass correction (deg, added to the heading) instead of "
+        "estimating it from bottom track against GPS",
+    )
     add_boat(parser, "calibration (default: built-in; see host/data/boat.example.toml)")
     add_sync(parser)
     add_sample_rate(parser)
 
 
-_UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records"}
+_UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records", "adcp": "ensembles"}
 
 
 def summary(res: Any) -> list[str]:
@@ -131,10 +150,26 @@ def run(args: argparse.Namespace) -> int:
     except (ConfigError, ImportFailed) as e:
         raise CliError(str(e)) from None
     out = check_output(_output(args, path), [path], args.force)
+    if fmt == "adcp":
+        return _run_adcp(args, path, out)
     try:
         res = import_to_mcap(
             path, out, fmt, cal, args.sync, check=check_found, sample_rate_hz=sample_rate(args)
         )
+    except ImportFailed as e:
+        raise CliError(str(e)) from None
+    for line in summary(res):
+        print(line)
+    print(f"  -> {out}")
+    return 0
+
+
+def _run_adcp(args: argparse.Namespace, path: Path, out: Path) -> int:
+    from forcemap.host.convert.adcp_import import import_adcp_to_mcap
+    from forcemap.host.convert.importers import ImportFailed
+
+    try:
+        res, _ = import_adcp_to_mcap(path, out, args.reference, args.heading_offset)
     except ImportFailed as e:
         raise CliError(str(e)) from None
     for line in summary(res):

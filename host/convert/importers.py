@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from forcemap.host.convert.adcp_read import is_pd0
 from forcemap.host.convert.dataflash import DataflashDecoder
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser
 from forcemap.host.fuse.calibration import Calibration
@@ -28,7 +29,7 @@ from forcemap.host.fuse.pipeline import Pipeline, Sink
 from forcemap.host.log.mcap import McapLog
 from forcemap.host.outputs import atomic_path
 
-FORMATS = ("nmea", "tlog", "dataflash")
+FORMATS = ("nmea", "tlog", "dataflash", "adcp")  # adcp: forcemap.host.convert.adcp_import
 DATAFLASH_MAGIC = b"\xa3\x95"
 DAY = 86400.0
 MAX_TLOG_US = (1 << 63) // 1000  # the latest time an MCAP log can hold (year 2262)
@@ -62,7 +63,7 @@ def is_dataflash(head: bytes) -> bool:
 
 
 def detect_format(path: str | Path) -> str:
-    """``nmea``, ``tlog`` or ``dataflash`` from the name and the first bytes; else ImportFailed."""
+    """``nmea``, ``tlog``, ``dataflash`` or ``adcp`` from the name and the first bytes; else ImportFailed."""
     p = Path(path)
     try:
         with open(p, "rb") as f:
@@ -71,6 +72,8 @@ def detect_format(path: str | Path) -> str:
         raise ImportFailed(f"{p}: cannot read: {e.strerror or e}") from None
     if is_dataflash(head):
         return "dataflash"
+    if is_pd0(head):
+        return "adcp"
     if p.suffix.lower() == ".tlog":
         return "tlog"
     if len(head) > 8 and head[8] in (0xFD, 0xFE):
@@ -80,7 +83,8 @@ def detect_format(path: str | Path) -> str:
         return "nmea"
     raise ImportFailed(
         f"{p.name}: not a format forcemap recognises (NMEA 0183 text, a MAVLink tlog or an "
-        "ArduPilot .BIN log); if it is one of them, give --from nmea|tlog|dataflash"
+        "ArduPilot .BIN log, a TRDI PD0 ADCP file); if it is one of them, give "
+        "--from nmea|tlog|dataflash|adcp"
     )
 
 
