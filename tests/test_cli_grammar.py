@@ -43,6 +43,8 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--keep-outliers": (FLAG, "fit the readings the spike test flagged too"),
     "--reset-history": (FLAG, "move a corrupt workspace history aside"),
     "--from": (VALUE, "the format of the input to import"),
+    "--reference": (VALUE, "what an ADCP's water velocity is referenced to: bottom track or GPS"),
+    "--heading-offset": (VALUE, "a compass correction pinned instead of estimated (deg)"),
     "--to": (VALUE, "the format of the export, where the output's name does not say"),
     "--sync": (VALUE, "how samples are matched to the boat's state"),
     "--sample-rate": (VALUE, "samples per second in the table"),

@@ -24,7 +24,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from forcemap.host.convert.adcp_nav import (
     ClockFix,
     CompassFit,
@@ -133,9 +132,7 @@ def depth_average(
     return np.where(enough, de, math.nan), np.where(enough, dn, math.nan)
 
 
-def near_surface(
-    e: np.ndarray, n: np.ndarray, valid: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def near_surface(e: np.ndarray, n: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The shallowest valid cell among the first NEAR_SURFACE_CELLS of each ensemble."""
     top = valid[:NEAR_SURFACE_CELLS]
     has = top.any(axis=0)
@@ -179,9 +176,7 @@ def _positions(
     return np.asarray(lat, float), np.asarray(lon, float), flag
 
 
-def process(
-    raw: AdcpRaw, reference: str = "bt", compass_offset: float | None = None
-) -> AdcpSurvey:
+def process(raw: AdcpRaw, reference: str = "bt", compass_offset: float | None = None) -> AdcpSurvey:
     """The transect from its raw ensembles (see the module docstring)."""
     if reference not in REFERENCES:
         raise ValueError(f"reference {reference!r} is not one of {REFERENCES}")

@@ -13,7 +13,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-
 from forcemap.host.convert.importers import ImportFailed, ImportResult
 from forcemap.host.log.adcp_records import PROFILE_TOPIC, AdcpProfile, AdcpSample
 from forcemap.host.log.mcap import McapLog

@@ -16,7 +16,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 from forcemap.host.vessel.geodesy import LocalFrame
 
 MAX_FIX_GAP_S = 30.0  # positions and GPS velocities are interpolated across gaps up to this
@@ -101,7 +100,10 @@ def gps_track(
         spd, crs = vtg[0][ok][order], vtg[1][ok][order]
         good = np.isfinite(spd) & np.isfinite(crs)
         if good.sum() >= 2:
-            e, nn = spd[good] * np.sin(np.radians(crs[good])), spd[good] * np.cos(np.radians(crs[good]))
+            e, nn = (
+                spd[good] * np.sin(np.radians(crs[good])),
+                spd[good] * np.cos(np.radians(crs[good])),
+            )
             ve = np.where(inside, np.interp(t_ens, tg[good], e), math.nan)
             vn = np.where(inside, np.interp(t_ens, tg[good], nn), math.nan)
     return GpsTrack(frame, tg, x, y, inside, ex, ey, ve, vn)

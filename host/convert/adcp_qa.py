@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from forcemap.host.convert.adcp import AdcpSurvey
 from forcemap.host.log.qa_records import QaFinding
 
@@ -73,7 +72,9 @@ def ground_velocity(s: AdcpSurvey) -> list[QaFinding]:
             why.append("no GPS in the file")
         elif no_gps.all():
             why.append("no usable GPS fix")
-        msg = f"no velocity over ground ({', '.join(why) or 'reference ' + s.reference}): no current"
+        msg = (
+            f"no velocity over ground ({', '.join(why) or 'reference ' + s.reference}): no current"
+        )
         fix = "record with bottom track locked (depth in range) or with GPS"
         if s.reference == "bt" and not no_gps.all():
             fix = "reference to GPS: --reference gps"

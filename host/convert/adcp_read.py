@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import struct
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +70,24 @@ class AdcpRaw:
     @property
     def has_gps(self) -> bool:
         return bool(np.isfinite(self.lat).any())
+
+    def head(self, k: int) -> AdcpRaw:
+        """The first ``k`` ensembles (and the fixes they carried), as dolfyn's ``nens=k`` reads them."""
+        last = self.t_inst[min(k, self.n) - 1] if k else -math.inf
+        g = self.t_gps_inst <= last if self.t_gps_inst.size else slice(None)
+        ens = {
+            f.name: getattr(self, f.name)[..., :k]
+            for f in fields(self)
+            if f.name in ("t_inst", "number", "heading", "pitch", "roll", "temp", "draft")
+            or f.name in ("vel_raw", "vel_bt_raw", "dist_bt", "vel", "vel_bt")
+        }
+        gps = {
+            f.name: getattr(self, f.name)[g]
+            for f in fields(self)
+            if f.name in ("t_gps", "t_gps_inst", "lat", "lon", "fix", "hdop", "n_sat")
+            or (f.name in ("vtg_speed", "vtg_course") and getattr(self, f.name) is not None)
+        }
+        return replace(self, **ens, **gps)
 
 
 def is_pd0(head: bytes) -> bool:
