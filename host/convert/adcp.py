@@ -7,10 +7,13 @@ From ``AdcpRaw`` (forcemap.host.convert.adcp_read):
 - the compass: the offset that makes bottom track agree with GPS is estimated and applied to every
   earth-frame vector (``adcp_nav.fit_compass``); ``compass_offset`` pins it instead;
 - the boat's velocity over ground: the bottom track's (``-vel_bt``) or the GPS's (``reference``),
-  filled across gaps of at most ``MAX_FILL_S`` by linear interpolation (flagged), as QRev does;
+  filled across gaps of at most ``MAX_FILL_S`` by linear interpolation (flagged), as QRev does, where
+  the heading turned by at most ``MAX_FILL_TURN_DEG`` across the gap (not through a line's end turn);
 - the water over ground in each cell: ``R(delta) vel + V_boat``; cells below the side-lobe cutoff
   (``range + cell/2 > (depth - draft) cos(beam angle)``) are left out;
-- depth: the mean of the bottom-track beams' vertical ranges (at least 3) plus the draft;
+- depth: the mean of the bottom-track beams' vertical ranges (at least 3) plus the draft; across a
+  bottom-track gap of at most ``MAX_FILL_S`` it is interpolated for the cutoff and the depth average
+  (and in the table's ``depth`` column);
 - the depth average: a 1/6 power law ``u = a z^(1/6)`` (z above the bed) fitted per component to the
   valid cells and averaged over the whole column (QRev's default extrapolation to surface and bed);
 - near the surface: the shallowest valid cell among the first ``NEAR_SURFACE_CELLS``;
@@ -39,6 +42,7 @@ from forcemap.host.convert.adcp_read import AdcpRaw
 REFERENCES = ("bt", "gps")
 POWER = 1.0 / 6.0
 MAX_FILL_S = 10.0  # a boat velocity is interpolated across a gap of at most this
+MAX_FILL_TURN_DEG = 20.0  # ... in which the heading turns by at most this
 MIN_BT_BEAMS = 3
 NEAR_SURFACE_CELLS = 3
 
@@ -57,6 +61,7 @@ class AdcpSurvey:
     lon: np.ndarray
     position_dr: np.ndarray  # 1 dead-reckoned, 0 GPS, NaN none
     depth: np.ndarray
+    depth_filled: np.ndarray  # depth interpolated across bottom-track gaps of at most MAX_FILL_S
     heading: np.ndarray  # corrected
     bt_e: np.ndarray  # bottom-track boat velocity (corrected), NaN where no lock
     bt_n: np.ndarray
@@ -103,13 +108,25 @@ def fill_gaps(t: np.ndarray, v: np.ndarray, max_gap_s: float) -> tuple[np.ndarra
     return out, short
 
 
+def steady_fill(filled: np.ndarray, valid: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """The filled ensembles whose gap the boat crossed without turning more than MAX_FILL_TURN_DEG
+    (a velocity interpolated through a turn is wrong: the turns at a line's end are left empty)."""
+    idx = np.flatnonzero(valid)
+    out = filled.copy()
+    for i in np.flatnonzero(filled):
+        k = np.searchsorted(idx, i)
+        if k == 0 or k >= idx.size:
+            out[i] = False
+            continue
+        turn = abs((heading[idx[k]] - heading[idx[k - 1]] + 180.0) % 360.0 - 180.0)
+        out[i] = bool(turn <= MAX_FILL_TURN_DEG)
+    return out
+
+
 def cell_mask(raw: AdcpRaw, depth: np.ndarray) -> np.ndarray:
     """(m, n) cells with a velocity and above the side-lobe cutoff (where the depth is known)."""
     finite = np.isfinite(raw.vel).all(axis=0)
-    below = depth - raw.draft
-    known = np.isfinite(below)
-    fill = np.interp(raw.t_inst, raw.t_inst[known], below[known]) if known.any() else below
-    cutoff = fill * math.cos(math.radians(raw.beam_angle))
+    cutoff = (depth - raw.draft) * math.cos(math.radians(raw.beam_angle))
     edge = raw.range[:, None] + raw.cell_size / 2
     return finite & ~(edge > cutoff[None, :])
 
@@ -190,16 +207,20 @@ def process(raw: AdcpRaw, reference: str = "bt", compass_offset: float | None = 
     src = (bt_e, bt_n) if reference == "bt" else (track.vel_e, track.vel_n)
     boat_e, filled = fill_gaps(t, src[0], MAX_FILL_S)
     boat_n, _ = fill_gaps(t, src[1], MAX_FILL_S)
+    keep = steady_fill(filled, np.isfinite(src[0]), raw.heading)
+    boat_e[filled & ~keep] = boat_n[filled & ~keep] = math.nan
+    filled = keep
     depth = bt_depth(raw.dist_bt, raw.draft)
-    valid = cell_mask(raw, depth)
+    depth_filled, _ = fill_gaps(t, depth, MAX_FILL_S)  # the cutoff and the column's extent
+    valid = cell_mask(raw, depth_filled)
     we, wn = rotate(raw.vel[0], raw.vel[1], delta)
     cur_e = np.where(valid, we + boat_e[None, :], math.nan)
     cur_n = np.where(valid, wn + boat_n[None, :], math.nan)
     cur_u = np.where(valid, raw.vel[2], math.nan)
     draft = float(np.nanmedian(raw.draft)) if np.isfinite(raw.draft).any() else 0.0
-    z = (depth - raw.draft)[None, :] - raw.range[:, None]
+    z = (depth_filled - raw.draft)[None, :] - raw.range[:, None]
     good = valid & np.isfinite(cur_e) & np.isfinite(cur_n)
-    davg_e, davg_n = depth_average(cur_e, cur_n, good, z, depth)
+    davg_e, davg_n = depth_average(cur_e, cur_n, good, z, depth_filled)
     ns_e, ns_n = near_surface(cur_e, cur_n, good)
     lat, lon, flag = _positions(t, track, boat_e, boat_n)
     return AdcpSurvey(
@@ -213,6 +234,7 @@ def process(raw: AdcpRaw, reference: str = "bt", compass_offset: float | None = 
         lon=lon,
         position_dr=flag,
         depth=depth,
+        depth_filled=depth_filled,
         heading=np.mod(raw.heading + delta, 360.0),
         bt_e=bt_e,
         bt_n=bt_n,

@@ -1,7 +1,8 @@
 """`forcemap import FILE.PD0`: a moving-boat ADCP transect into an MCAP log like any survey's.
 
-Writes ``/samples`` (``AdcpSample``: the samples table's columns plus the ADCP's), ``/adcp/profile``
-(each ensemble's profile over ground), ``/fix`` (the positions), and metadata: ``config`` (file,
+Writes ``/samples`` (``AdcpSample``: the samples table's columns plus the ADCP's; one row per ensemble
+with a depth-averaged current over ground, so a map's target has no gaps), ``/adcp/profile``
+(every ensemble's profile over ground), ``/fix`` (the rows' positions), and metadata: ``config`` (file,
 format, reference, clock and compass), ``columns`` (who fed each column) and one ``qa.*`` record per
 quality finding (forcemap.host.log.qa_records), which ``check`` reads. Without the ``adcp`` extra the
 import stops with a one-line message naming the pip install.
@@ -32,11 +33,18 @@ def _vector(e: float, n: float) -> tuple[float | None, float | None, float | Non
     return math.hypot(e, n), math.degrees(math.atan2(e, n)) % 360.0, float(e), float(n)
 
 
+def row_ensembles(s) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The ensembles that become rows: those with a depth-averaged current over ground, else (no
+    ensemble has one) all of them, without current columns. The others stay in /adcp/profile."""
+    has = np.isfinite(s.davg_e)
+    return np.flatnonzero(has) if has.any() else np.arange(s.raw.n)
+
+
 def sample_rows(s) -> list[AdcpSample]:  # type: ignore[no-untyped-def]
-    """One samples-table row per ensemble (AdcpSurvey from forcemap.host.convert.adcp)."""
+    """The samples-table rows (AdcpSurvey from forcemap.host.convert.adcp; see ``row_ensembles``)."""
     rows = []
     raw = s.raw
-    for i in range(raw.n):
+    for i in row_ensembles(s):
         sog, cog, be, bn = _vector(s.boat_e[i], s.boat_n[i])
         cs, cd, ce, cn = _vector(s.ns_e[i], s.ns_n[i])
         ds, dd, de, dn = _vector(s.davg_e[i], s.davg_n[i])
@@ -48,7 +56,7 @@ def sample_rows(s) -> list[AdcpSample]:  # type: ignore[no-untyped-def]
                 heading=_opt(s.heading[i]),
                 sog=sog,
                 cog=cog,
-                depth=_opt(s.depth[i]),
+                depth=_opt(s.depth_filled[i]),
                 water_temp=_opt(raw.temp[i]),
                 current_speed=cs,
                 current_dir=cd,
@@ -121,11 +129,12 @@ def write(s, log: McapLog, path: str | Path, found: list[QaFinding]) -> int:  # 
     log.metadata("columns", _columns(s))
     for f in found:
         log.metadata(f.name, f.to_metadata())
+    for i in range(s.raw.n):
+        log.write(PROFILE_TOPIC, int(round(s.t[i] * 1e9)), _profile(s, i))
     rows = sample_rows(s)
-    for i, row in enumerate(rows):
+    for row in rows:
         ns = int(round(row.t * 1e9))
         log.write("/samples", ns, row)
-        log.write(PROFILE_TOPIC, ns, _profile(s, i))
         if row.lat is not None and row.lon is not None:
             log.write("/fix", ns, LocationFix.at(ns, row.lat, row.lon, frame_id="adcp"))
     return len(rows)
@@ -141,7 +150,10 @@ def summary_lines(s, found: list[QaFinding]) -> list[str]:  # type: ignore[no-un
         f"  clock: {_config(s, raw.path)['timing']}",
     ]
     n_cur = int(np.isfinite(s.davg_e).sum())
-    out.append(f"  current over ground in {n_cur} of {raw.n} ensembles")
+    out.append(
+        f"  current over ground in {n_cur} of {raw.n} ensembles"
+        + (f" (the table's rows; all {raw.n} in /adcp/profile)" if n_cur else "")
+    )
     out.extend(f"  qa {f.verdict:6} {f.category}.{f.check}: {f.message}" for f in found)
     return out
 
