@@ -95,9 +95,7 @@ def _fixed(s: AdcpSetup) -> bytes:
     return b"\x00\x00" + head + body + tail
 
 
-def _variable(
-    s: AdcpSetup, number: int, t_inst: float, heading: float, temp: float
-) -> bytes:
+def _variable(s: AdcpSetup, number: int, t_inst: float, heading: float, temp: float) -> bytes:
     d = datetime.fromtimestamp(t_inst, UTC)
     hund = min(99, round(d.microsecond / 1e4))
     rtc = bytes([d.year % 100, d.month, d.day, d.hour, d.minute, d.second, hund])
@@ -180,14 +178,23 @@ class SimAdcp:
         t = np.arange(truth["t"][0], truth["t"][-1], s.period_s)
         at = {k: np.interp(t, truth["t"], truth[k]) for k in truth if k not in ("heading",)}
         hd = np.radians(truth["heading"])
-        at["heading"] = np.degrees(
-            np.arctan2(np.interp(t, truth["t"], np.sin(hd)), np.interp(t, truth["t"], np.cos(hd)))
-        ) % 360.0
+        at["heading"] = (
+            np.degrees(
+                np.arctan2(
+                    np.interp(t, truth["t"], np.sin(hd)), np.interp(t, truth["t"], np.cos(hd))
+                )
+            )
+            % 360.0
+        )
         lost = _bt_lost(t.size, s.bt_loss, rng) if s.bt_loss > 0 else np.zeros(t.size, bool)
         fixed = _fixed(s)
         cells = s.bin1 + np.arange(s.n_cells) * s.cell_size
         out = bytearray()
-        truth_out = {"t": t, "davg_e": at["current_east"] * 6 / 7, "davg_n": at["current_north"] * 6 / 7}
+        truth_out = {
+            "t": t,
+            "davg_e": at["current_east"] * 6 / 7,
+            "davg_n": at["current_north"] * 6 / 7,
+        }
         for i in range(t.size):
             out += self._one(i, t[i], at, cells, fixed, lost[i], rng)
         return bytes(out), truth_out
