@@ -205,3 +205,28 @@ def test_without_the_extra_a_pd0_gets_one_line_naming_the_install(tmp_path, monk
     assert rc == 2 and len(err) == 1
     assert 'pip install "forcemap[adcp]"' in err[0]
     assert not (tmp_path / "w.mcap").exists()
+
+
+def test_damaged_ensembles_are_left_out_and_counted(raws, tmp_path, capsys):
+    """Bytes flipped in a copy of winriver01: the ensembles whose checksum still holds read exactly
+    as in the clean file; the rest are left out and counted. A file with one ensemble: one line."""
+    data = bytearray((_dir() / "winriver01.PD0").read_bytes())
+    rng = np.random.default_rng(7)
+    for i in rng.integers(0, len(data), 40):
+        data[i] ^= 0x5A
+    bad = tmp_path / "damaged.PD0"
+    bad.write_bytes(bytes(data))
+    raw = read_pd0(bad)
+    clean = raws["winriver01.PD0"]
+    assert 0 < raw.n < clean.n and raw.skipped_bytes > 0
+    k = np.searchsorted(clean.number, raw.number)
+    assert np.array_equal(clean.number[k], raw.number)
+    np.testing.assert_array_equal(raw.vel_raw, clean.vel_raw[..., k])
+    out = tmp_path / "d.mcap"
+    assert main(["import", str(bad), "-o", str(out)]) == 0
+    assert "damaged bytes left out" in capsys.readouterr().out
+    one = tmp_path / "one.PD0"
+    one.write_bytes((_dir() / "winriver01.PD0").read_bytes()[:4000])
+    assert main(["import", str(one), "-o", str(tmp_path / "one.mcap")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "at least 2" in err[0]

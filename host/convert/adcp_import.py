@@ -149,6 +149,10 @@ def summary_lines(s, found: list[QaFinding]) -> list[str]:  # type: ignore[no-un
         f"{raw.t_gps.size} GPS fixes, reference {s.reference}",
         f"  clock: {_config(s, raw.path)['timing']}",
     ]
+    if raw.skipped_bytes:
+        out.append(
+            f"  {raw.skipped_bytes} damaged bytes left out (outside ensembles whose checksum holds)"
+        )
     n_cur = int(np.isfinite(s.davg_e).sum())
     out.append(
         f"  current over ground in {n_cur} of {raw.n} ensembles"
@@ -167,14 +171,21 @@ def import_adcp_to_mcap(
     """Import a PD0 file into the MCAP ``out`` (whole or not at all); ImportFailed on a bad file."""
     from forcemap.host.convert.adcp import process
     from forcemap.host.convert.adcp_qa import findings
-    from forcemap.host.convert.adcp_read import AdcpUnavailable, read_pd0
+    from forcemap.host.convert.adcp_read import AdcpUnavailable, count_ensembles, read_pd0
 
+    whole = count_ensembles(path)
+    if whole < 2:
+        raise ImportFailed(
+            f"{Path(path).name}: {whole} complete PD0 ensemble(s) in it; at least 2 are needed"
+        )
     try:
         raw = read_pd0(path)
     except AdcpUnavailable as e:
         raise ImportFailed(str(e)) from None
     except Exception as e:  # dolfyn on bytes that are not PD0 ensembles
-        raise ImportFailed(f"{Path(path).name}: not a readable TRDI PD0 file ({e})") from None
+        raise ImportFailed(
+            f"{Path(path).name}: not a readable TRDI PD0 file (dolfyn stopped: {type(e).__name__} {e})"
+        ) from None
     if raw.n == 0:
         raise ImportFailed(f"{Path(path).name}: no complete PD0 ensemble in it")
     s = process(raw, reference, compass_offset)

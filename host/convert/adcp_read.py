@@ -62,6 +62,7 @@ class AdcpRaw:
     n_sat: np.ndarray
     vtg_speed: np.ndarray | None  # (g,) m/s, where the file has VTG
     vtg_course: np.ndarray | None  # (g,) deg
+    skipped_bytes: int = 0  # bytes outside ensembles whose checksum holds, left out before reading
 
     @property
     def n(self) -> int:
@@ -102,23 +103,35 @@ def is_pd0(head: bytes) -> bool:
     return first == 6 + 2 * ndat and head[first : first + 2] in (b"\x00\x00", b"\x01\x00", b"")
 
 
-def count_ensembles(path: str | Path) -> int:
-    """Ensembles whose PD0 checksum holds, counted from the bytes alone (dolfyn's count checked)."""
-    data = Path(path).read_bytes()
-    i = n = 0
+def _ensembles(data: bytes) -> list[tuple[int, int]]:
+    """(start, end) of every ensemble whose PD0 checksum holds, its checksum word included."""
+    out = []
+    i = 0
     while True:
         i = data.find(PD0_ID, i)
         if i < 0 or i + 4 > len(data):
-            return n
+            return out
         (nbytes,) = struct.unpack_from("<H", data, i + 2)
         end = i + nbytes
         if nbytes > 4 and end + 2 <= len(data):
             (check,) = struct.unpack_from("<H", data, end)
             if sum(data[i:end]) & 0xFFFF == check:
-                n += 1
+                out.append((i, end + 2))
                 i = end + 2
                 continue
         i += 1
+
+
+def count_ensembles(path: str | Path) -> int:
+    """Ensembles whose PD0 checksum holds, counted from the bytes alone (dolfyn's count checked)."""
+    return len(_ensembles(Path(path).read_bytes()))
+
+
+def clean_bytes(data: bytes) -> tuple[bytes, int]:
+    """The ensembles whose checksum holds, back to back, and how many bytes were left out."""
+    spans = _ensembles(data)
+    kept = b"".join(data[a:b] for a, b in spans)
+    return kept, len(data) - len(kept)
 
 
 def dolfyn() -> Any:
@@ -147,10 +160,15 @@ def read_dataset(path: str | Path) -> Any:
     dol = dolfyn()
     import contextlib
     import io
+    import logging
 
-    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
-        warnings.simplefilter("ignore")
-        return dol.read(str(path))
+    logging.disable(logging.WARNING)  # dolfyn logs each bad checksum on the root logger
+    try:
+        with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
+            warnings.simplefilter("ignore")
+            return dol.read(str(path))
+    finally:
+        logging.disable(logging.NOTSET)
 
 
 def _earth(ds: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -170,8 +188,37 @@ def _earth(ds: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_pd0(path: str | Path) -> AdcpRaw:
-    """Every ensemble and fix of a PD0 file (AdcpUnavailable without the extra)."""
-    ds = read_dataset(path)
+    """Every ensemble and fix of a PD0 file (AdcpUnavailable without the extra).
+
+    Bytes outside ensembles whose checksum holds (damage, a cut end) are left out before dolfyn
+    reads the rest, and counted in ``skipped_bytes``."""
+    dolfyn()
+    data = Path(path).read_bytes()
+    kept, skipped = clean_bytes(data)
+    damaged = skipped > 0 and _ensembles(data) and not _tail_only(data)
+    if damaged:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            clean = Path(tmp) / Path(path).name
+            clean.write_bytes(kept)
+            ds = read_dataset(clean)
+    else:
+        ds = read_dataset(path)
+    raw = _from_dataset(ds, path)
+    raw.skipped_bytes = skipped if damaged else 0
+    return raw
+
+
+def _tail_only(data: bytes) -> bool:
+    """True when the only bytes outside good ensembles are after the last one (a cut file)."""
+    spans = _ensembles(data)
+    return spans[0][0] == 0 and all(
+        b == a2 for (_, b), (a2, _) in zip(spans, spans[1:], strict=False)
+    )
+
+
+def _from_dataset(ds: Any, path: str | Path) -> AdcpRaw:
     vel, bt = _earth(ds)
     dist = np.asarray(ds["dist_bt"].values, dtype=float)[:4]
     dist = np.where(dist > 0, dist, np.nan)
