@@ -19,12 +19,12 @@ MAX_MISSING_FRACTION = 0.05
 MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
-NOT_COVARIATES = {"t", "lat", "lon", "x", "y"}
+NOT_COVARIATES = {"t", "lat", "lon", "x", "y", "position_dr", "boat_vel_filled"}  # an ADCP's flags
 # flag columns (spike_depth, spike_current, ...): bookkeeping too
 FLAG_PREFIX = "spike_"
 # boat kinematics that respond to the current and wind pushing the boat (yaw_rate is not here: in a survey the
 # turns are commanded by the mission, see docs/WORKBENCH.md)
-KINEMATIC = ("sog", "cog", "throttle", "crab")
+KINEMATIC = ("sog", "cog", "throttle", "crab", "boat_east", "boat_north")  # boat_*: an ADCP's
 
 
 def is_circular(name: str) -> bool:
@@ -32,6 +32,7 @@ def is_circular(name: str) -> bool:
     return (
         name in {"heading", "cog", "app_wind_angle", "crab"}
         or name.endswith("_dir")
+        or name.endswith("_dir_davg")
         or "_rel_" in name
     )
 
@@ -52,7 +53,7 @@ def family(name: str) -> str | None:
 class VectorTarget:
     """A target that is one aspect (speed, dir or a component) of a 2-D vector field."""
 
-    prefix: str  # "wind", "current", "current_paper"
+    prefix: str  # "wind", "current", "current_paper", "current_davg" (an ADCP's depth average)
     aspect: str  # "speed", "dir", "east", "north"
 
     @property
@@ -61,8 +62,8 @@ class VectorTarget:
 
     def column(self, aspect: str) -> str:
         """The table column of one aspect of this vector: wind_east, current_dir_paper, ..."""
-        if self.prefix == "current_paper":
-            return f"current_{aspect}_paper"
+        if self.prefix in ("current_paper", "current_davg"):
+            return f"current_{aspect}_{self.prefix[len('current_') :]}"
         return f"{self.prefix}_{aspect}"
 
     def direction(self, east: np.ndarray, north: np.ndarray) -> np.ndarray:
@@ -147,10 +148,10 @@ class Survey:
 
     def vector_target(self, name: str) -> VectorTarget | None:
         """If `name` is the speed, direction or a component of wind or current, the vector it belongs to."""
-        m = re.fullmatch(r"(wind|current)_(speed|dir|east|north)(_paper)?", name)
+        m = re.fullmatch(r"(wind|current)_(speed|dir|east|north)(_paper|_davg)?", name)
         if not m:
             return None
-        prefix = m.group(1) + ("_paper" if m.group(3) else "")
+        prefix = m.group(1) + (m.group(3) or "")
         vt = VectorTarget(prefix, m.group(2))
         e, nn = self.components(vt)
         return vt if e is not None and nn is not None else None
