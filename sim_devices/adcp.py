@@ -19,7 +19,7 @@ from __future__ import annotations
 import csv
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -241,3 +241,28 @@ def write_pd0(path: str | Path, data: bytes) -> Path:
     p = Path(path)
     p.write_bytes(data)
     return p
+
+
+def parse_setup(text: str) -> AdcpSetup:
+    """``key=value,...`` of AdcpSetup's fields (``bt_loss=0.1,compass_error_deg=6``); ValueError."""
+    known = {f.name: f.type for f in fields(AdcpSetup)}
+    kw: dict[str, float | int] = {}
+    for item in filter(None, (p.strip() for p in text.split(","))):
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in known:
+            raise ValueError(
+                f"ADCP setting {item!r}: give key=value with a key of {', '.join(sorted(known))}"
+            )
+        try:
+            kw[key] = int(value) if known[key] in ("int", int) else float(value)
+        except ValueError:
+            raise ValueError(f"ADCP setting {key}: {value!r} is not a number") from None
+    return AdcpSetup(**kw)  # type: ignore[arg-type]
+
+
+def record_run(truth_dir: str | Path, setup: AdcpSetup) -> Path:
+    """``truth_dir/adcp.PD0`` from the run's true track (``truth_dir/samples.csv``)."""
+    truth = read_truth(Path(truth_dir) / "samples.csv")
+    data, _ = SimAdcp(setup).record(truth)
+    return write_pd0(Path(truth_dir) / "adcp.PD0", data)

@@ -113,3 +113,16 @@ def test_an_adcp_survey_goes_through_fit_diagnose_grid_report_and_season(run, tm
     season = tmp_path / "season"
     assert main(["season", str(mcap), str(mcap2), "-o", str(season), "--quiet"]) == 0
     assert len(json.loads((season / "season.json").read_text())["surveys"]) == 2
+
+
+def test_sim_records_an_adcp_beside_the_truth(tmp_path, capsys):
+    out = tmp_path / "truth"
+    cmd = ["sim", "--scenario", "river", "--duration", "4m", "-o", str(out)]
+    assert main([*cmd, "--adcp", "bt_loss=0.1,compass_error_deg=6,seed=2"]) == 0
+    assert main(["import", str(out / "adcp.PD0"), "-o", str(tmp_path / "a.mcap")]) == 0
+    s = process(read_pd0(out / "adcp.PD0"))
+    assert s.compass.offset_deg == pytest.approx(-6.0, abs=1.0)
+    capsys.readouterr()
+    assert main([*cmd, "--force", "--adcp", "compass=6"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "compass_error_deg" in err[0]

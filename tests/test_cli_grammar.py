@@ -45,6 +45,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--from": (VALUE, "the format of the input to import"),
     "--reference": (VALUE, "what an ADCP's water velocity is referenced to: bottom track or GPS"),
     "--heading-offset": (VALUE, "a compass correction pinned instead of estimated (deg)"),
+    "--adcp": (VALUE, "record a simulated moving-boat ADCP too, with these settings"),
     "--to": (VALUE, "the format of the export, where the output's name does not say"),
     "--sync": (VALUE, "how samples are matched to the boat's state"),
     "--sample-rate": (VALUE, "samples per second in the table"),

@@ -82,6 +82,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     add_output(parser, "folder for the ground truth (created if missing)", metavar="DIR")
+    parser.add_argument(
+        "--adcp",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="SETTINGS",
+        help="also record a moving-boat ADCP along the track: DIR/adcp.PD0 beside the truth, for "
+        "`forcemap import` (docs/ADCP.md); SETTINGS key=value,... e.g. "
+        "bt_loss=0.1,compass_error_deg=6",
+    )
     add_deprecated(parser, "--truth", "-o/--output DIR", "output")
     season = parser.add_argument_group("a season of offline surveys (docs/SEASON.md), into -o DIR")
     season.add_argument("--season", type=int, metavar="N", help="N surveys of the river")
@@ -150,7 +160,30 @@ def run_offline(args: argparse.Namespace) -> int:
     print(
         f"done: {sim.t:.1f} s simulated in {time.monotonic() - t_start:.1f} s; truth in {args.output}"
     )
+    _adcp(args)
     return 0
+
+
+def _adcp_setup(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    """The simulated ADCP's setup from --adcp (None without it), checked before the run."""
+    if args.adcp is None:
+        return None
+    from forcemap.sim_devices.adcp import parse_setup
+
+    if not args.output:
+        raise CliError("--adcp records beside the truth: give -o DIR")
+    try:
+        return parse_setup(args.adcp)
+    except ValueError as e:
+        raise CliError(str(e)) from None
+
+
+def _adcp(args: argparse.Namespace) -> None:
+    setup = _adcp_setup(args)
+    if setup is not None:
+        from forcemap.sim_devices.adcp import record_run
+
+        print(f"ADCP: {record_run(args.output, setup)}")
 
 
 def check_arguments(args: argparse.Namespace) -> None:
@@ -211,6 +244,7 @@ def run(args: argparse.Namespace) -> int:
     if args.season is not None:
         return run_season(args)
     check_arguments(args)
+    _adcp_setup(args)
     if not args.ports:
         return run_offline(args)
     from forcemap.sim_devices.engine import Simulation
@@ -252,4 +286,5 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.output:
         print(f"truth in {args.output}")
+        _adcp(args)
     return 0
