@@ -174,6 +174,7 @@ def test_import_writes_findings_and_a_table_with_the_adcp_columns(tmp_path, caps
     found = [QaFinding.from_metadata(dict(r.metadata)) for r in recs]
     assert {f.category for f in found} >= {"adcp", "heading", "position"}
     assert any(f.check == "compass_offset" and f.applied for f in found)
+    _every_message_matches_its_schema(out)
     csv_path = tmp_path / "rp.csv"
     assert main(["export", str(out), "-o", str(csv_path)]) == 0
     rows = list(csv.DictReader(csv_path.open()))
@@ -230,3 +231,26 @@ def test_damaged_ensembles_are_left_out_and_counted(raws, tmp_path, capsys):
     assert main(["import", str(one), "-o", str(tmp_path / "one.mcap")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "at least 2" in err[0]
+
+
+def _every_message_matches_its_schema(mcap) -> None:
+    import json
+
+    import jsonschema
+    from forcemap.host.log.mcap import FileScan
+    from mcap.records import Message
+
+    scan = FileScan(mcap)
+    validators: dict[int, jsonschema.Validator] = {}
+    n = 0
+    for record in iter_records(mcap, scan):
+        if isinstance(record, Message):
+            ch = scan.channels[record.channel_id]
+            if ch.schema_id not in validators:
+                schema = json.loads(scan.schemas[ch.schema_id].data)
+                validators[ch.schema_id] = jsonschema.Draft202012Validator(schema)
+            validators[ch.schema_id].validate(json.loads(record.data))
+            n += 1
+    assert n > 272
+    names = {s.name for s in scan.schemas.values()}
+    assert {"forcemap.AdcpSample", "forcemap.AdcpProfile", "foxglove.LocationFix"} <= names
