@@ -127,13 +127,6 @@ def count_ensembles(path: str | Path) -> int:
     return len(_ensembles(Path(path).read_bytes()))
 
 
-def clean_bytes(data: bytes) -> tuple[bytes, int]:
-    """The ensembles whose checksum holds, back to back, and how many bytes were left out."""
-    spans = _ensembles(data)
-    kept = b"".join(data[a:b] for a, b in spans)
-    return kept, len(data) - len(kept)
-
-
 def dolfyn() -> Any:
     """MHKiT's dolfyn, or AdcpUnavailable naming the pip install."""
     try:
@@ -194,11 +187,15 @@ def read_pd0(path: str | Path) -> AdcpRaw:
     reads the rest, and counted in ``skipped_bytes``."""
     dolfyn()
     data = Path(path).read_bytes()
-    kept, skipped = clean_bytes(data)
-    damaged = skipped > 0 and _ensembles(data) and not _tail_only(data)
+    spans = _ensembles(data)
+    # damage: bytes outside the good ensembles anywhere but after the last one (a cut file)
+    damaged = bool(spans) and (
+        spans[0][0] != 0 or any(b != a2 for (_, b), (a2, _) in zip(spans, spans[1:], strict=False))
+    )
     if damaged:
         import tempfile
 
+        kept = b"".join(data[a:b] for a, b in spans)
         with tempfile.TemporaryDirectory() as tmp:
             clean = Path(tmp) / Path(path).name
             clean.write_bytes(kept)
@@ -206,16 +203,8 @@ def read_pd0(path: str | Path) -> AdcpRaw:
     else:
         ds = read_dataset(path)
     raw = _from_dataset(ds, path)
-    raw.skipped_bytes = skipped if damaged else 0
+    raw.skipped_bytes = len(data) - sum(b - a for a, b in spans) if damaged else 0
     return raw
-
-
-def _tail_only(data: bytes) -> bool:
-    """True when the only bytes outside good ensembles are after the last one (a cut file)."""
-    spans = _ensembles(data)
-    return spans[0][0] == 0 and all(
-        b == a2 for (_, b), (a2, _) in zip(spans, spans[1:], strict=False)
-    )
 
 
 def _from_dataset(ds: Any, path: str | Path) -> AdcpRaw:
