@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from forcemap.host.cli.common import check_json_output, write_json
+    from forcemap.host.convert.export import TRUNCATED
     from forcemap.host.errors import CliError
     from forcemap.host.season.engine import runner
     from forcemap.host.season.output import write
@@ -114,6 +115,10 @@ def run(args: argparse.Namespace) -> int:
         work.close()
     for r in season.rejected:
         print(f"left out: {r.reason}", file=sys.stderr)
+    for s in season.surveys:  # a truncated log: how much of it the season holds
+        for note in s.notes:
+            if TRUNCATED in note:
+                print(f"note: {note}", file=sys.stderr)
     args.output.mkdir(exist_ok=True)
     written = write(season, args.output)
     data = json.loads((args.output / "season.json").read_text())
