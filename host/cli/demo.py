@@ -29,6 +29,7 @@ from forcemap.host.cli.common import (
     parse_duration,
 )
 from forcemap.host.errors import CliError
+from forcemap.host.extras import install_hint
 
 EPILOG = """\
 examples:
@@ -81,7 +82,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="HOST:PORT",
         help="serve the survey to Foxglove while it runs (default 127.0.0.1:8765; docs/LIVE.md); "
-        'needs pip install "forcemap[live]"',
+        f"needs {install_hint('live')}",
     )
 
 

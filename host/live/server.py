@@ -17,6 +17,7 @@ import threading
 from typing import Any
 
 from forcemap.host.errors import CliError
+from forcemap.host.extras import install_hint
 from forcemap.host.live.front import SubprotocolFront
 from forcemap.host.log.live_messages import LIVE_TOPIC_TYPES, MAP_TARGETS
 from forcemap.host.log.mcap import schema_for
@@ -37,7 +38,6 @@ PUBLIC_WARNING = (
     "live view on {host}:{port}: anyone on that network can watch the boat, its track and its "
     "maps (no password, no encryption); bind to 127.0.0.1 and use an SSH tunnel to keep it private"
 )
-INSTALL = 'the live view needs foxglove-sdk: pip install "forcemap[live]"'
 
 
 def parse_address(text: str | None) -> tuple[str, int]:
@@ -67,7 +67,7 @@ def require_sdk() -> Any:
     try:
         import foxglove
     except ImportError:
-        raise CliError(INSTALL) from None
+        raise CliError(f"the live view needs foxglove-sdk: {install_hint('live')}") from None
     return foxglove
 
 
