@@ -85,7 +85,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SOURCES",
         help="with --ports: drive the daemon's clock (`run --clock sim:DIR/clock`) in lockstep with "
         "its readers of these ports (e.g. bridge,depth,mavlink): each chunk stamped at its send "
-        "time and written once the last is queued, so the same seed gives the same log on any "
+        "time and sent once the last is queued, so the same seed gives the same log on any "
         "machine; --speed then only caps the pace",
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
