@@ -10,8 +10,9 @@ chunk. So every byte the daemon reads carries its send time and reaches its queu
 order. A cable pulled or plugged waits for the reader to see it. ``speed`` only caps the pace (for a
 viewer of `--live`); a slow machine makes the run slower, never different.
 
-A reader that does not answer within ``patience_s`` of host time is not waited for any longer on that
-chunk (counted in ``Lockstep.timeouts``: a run with timeouts is no longer guaranteed to repeat).
+A reader that does not answer within ``patience_s`` of host time (no daemon, or one stalled that long)
+is not waited for again: its port goes on as without lockstep (counted in ``Lockstep.timeouts``; a run
+with timeouts is no longer guaranteed to repeat).
 """
 
 from __future__ import annotations
@@ -104,7 +105,12 @@ class Lockstep:
                 return True
             return False
 
-        return self._until(seen)
+        if source not in self.sources:
+            return False
+        if self._until(seen):
+            return True
+        self.sources.discard(source)  # not answering: not waited for again
+        return False
 
     def write(self, source: str, t_ns: int, data: bytes) -> None:
         """Set the clock to the chunk's send time, write it, and wait until the daemon has queued it."""
@@ -117,7 +123,7 @@ class Lockstep:
         self.sent[source] += self.ports.bytes_written[source] - before
         self.chunks += 1
         if not self._until(lambda: self.acked[source] >= self.sent[source]):
-            self.acked[source] = self.sent[source]  # given up on this chunk: start afresh
+            self.sources.discard(source)  # not answering: its port goes on without lockstep
 
     def event(self, kind: str, source: str, t_ns: int) -> None:
         """A cable pulled or plugged, in time order with the bytes; the reader must see it first."""

@@ -77,6 +77,20 @@ def test_each_chunk_is_stamped_at_its_send_time_and_queued_in_order(tmp_path):
         ports.close()
 
 
+def test_a_daemon_that_never_answers_is_given_up_once_not_at_every_chunk(tmp_path):
+    ports = PortSet(tmp_path / "ports")
+    lock = Lockstep(ports, ["depth"], patience_s=0.2)
+    try:
+        lock.set_clock(T0)
+        assert not lock.wait_news("depth", "+")  # nobody reads the port
+        for k in range(50):
+            lock.write("depth", T0 + k * 10**7, b"$SDDPT,1*00\r\n")
+        assert lock.timeouts == 1 and ports.bytes_written["depth"] > 0
+    finally:
+        lock.close()
+        ports.close()
+
+
 def _joined(got: list[Chunk]) -> list[tuple[str, int, bytes]]:
     """Pieces of one chunk (same source and stamp, in a row) joined again."""
     out: list[tuple[str, int, bytes]] = []
