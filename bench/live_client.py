@@ -15,16 +15,23 @@ import time
 
 import jsonschema
 import websockets
+from forcemap.host.log.mcap import McapLog
+from forcemap.host.log.messages import SAMPLE_COLUMNS, Sample
+from forcemap.host.log.record import LocationFix, Time
 
-SUBPROTOCOL = (
-    "foxglove.sdk.v1"  # what foxglove-sdk 0.30 advertises (foxglove.websocket.v1 is refused)
-)
+from bench.synth_survey import simulate
+
+SUBPROTOCOL = "foxglove.sdk.v1"  # what foxglove-sdk 0.30 speaks
+# the ws-protocol spec's name (Lichtblick, @foxglove/ws-protocol); host/live/front.py accepts it too
+SPEC_SUBPROTOCOL = "foxglove.websocket.v1"
 MESSAGE_DATA = 1
 
 
 class LiveClient:
-    def __init__(self, url: str, *, stall: bool = False):
-        self.url, self.stall = url, stall
+    def __init__(
+        self, url: str, *, stall: bool = False, subprotocols: tuple[str, ...] = (SUBPROTOCOL,)
+    ):
+        self.url, self.stall, self.offered = url, stall, list(subprotocols)
         self.channels: dict[int, dict] = {}
         self.subs: dict[int, int] = {}  # subscription id -> channel id
         self.messages: list[tuple[str, int, bytes]] = []
@@ -49,7 +56,7 @@ class LiveClient:
         kw = {"max_size": None}
         if self.stall:  # the smallest buffers: the server sees a slow client at once
             kw |= {"max_queue": 1}
-        async with websockets.connect(self.url, subprotocols=[SUBPROTOCOL], **kw) as ws:
+        async with websockets.connect(self.url, subprotocols=self.offered, **kw) as ws:
             self.subprotocol = ws.subprotocol
             while not self._stop.is_set():
                 try:
@@ -115,3 +122,21 @@ class LiveClient:
     def close(self) -> None:
         self._stop.set()
         self.thread.join(10)
+
+
+def survey_log(log_dir, duration_s: float = 400, seed: int = 4):
+    """A synthetic survey's MCAP with ``/samples`` and ``/fix`` (what `replay --live` streams and maps):
+    its path and the number of rows."""
+    cols = simulate(duration_s=duration_s, seed=seed)
+    log = McapLog(log_dir)
+    for i in range(len(cols["t"])):
+        t_ns = int(cols["t"][i] * 1e9)
+        row = {k: float(cols[k][i]) for k in cols if k in SAMPLE_COLUMNS}
+        log.write("/samples", t_ns, Sample(**row))
+        fix = LocationFix(
+            Time(t_ns // 10**9, t_ns % 10**9), "", float(cols["lat"][i]), float(cols["lon"][i]),
+            0.0, [0.0] * 9, 0,
+        )  # fmt: skip
+        log.write("/fix", t_ns, fix)
+    log.close()
+    return log.path, len(cols["t"])

@@ -61,6 +61,10 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--speed": (VALUE, "the speed-up over real time: the simulator's clock, a replay's pace"),
     "--faults": (VALUE, "the simulated instruments' faults"),
     "--seed": (VALUE, "the simulator's random seed"),
+    "--lockstep": (
+        VALUE,
+        "the ports whose daemon readers the simulator's clock drives (each chunk acknowledged)",
+    ),
     "--list": (FLAG, "list what the simulator knows, then exit"),
     "--ports": (
         VALUE,

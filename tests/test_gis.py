@@ -15,6 +15,7 @@ import pytest
 import rasterio
 import xarray as xr
 from forcemap.host.cli import main
+from forcemap.host.extras import install_hint
 from forcemap.host.gis.grid import cell_of, make_grid, utm_epsg
 from forcemap.host.workbench.table import load_survey
 from pyproj import Transformer
@@ -235,8 +236,8 @@ def test_without_the_extra_grid_names_it_and_exits_2(tmp_path):
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 2
-    assert proc.stderr.strip() == (
-        'forcemap grid: forcemap grid\'s maps need rasterio: pip install "forcemap[gis]"'
+    assert proc.stderr.strip() == (  # the spelling for how forcemap was installed: a clone here
+        f"forcemap grid: forcemap grid's maps need rasterio: {install_hint('gis')}"
     )
 
 

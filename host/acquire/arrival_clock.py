@@ -1,5 +1,13 @@
 """Clocks that stamp arriving bytes: the host's own, or the simulator's virtual clock (and its clock file,
-which the simulator writes and the daemon reads)."""
+which the simulator writes and the daemon reads).
+
+In lockstep (`forcemap sim --lockstep`, what `forcemap demo` runs) the simulator's clock drives the
+daemon: the clock file's speed is 0, so the clock stands at the file's virtual time, which the
+simulator sets to each chunk's send time before writing it; the daemon's readers tell it, through the
+FIFO ``<clock>.ack``, each chunk they have stamped and queued (and each connect and disconnect), and
+the simulator writes nothing more until they have. Every byte is then stamped with its virtual send
+time and queued in the simulator's order, however busy the machine: the same seed gives the same log.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +19,13 @@ from typing import Protocol
 
 CLOCK_FORMAT = "<qqd"  # virtual_ns_at_anchor, host_monotonic_ns_at_anchor, speed
 CLOCK_SIZE = struct.calcsize(CLOCK_FORMAT)  # 24 bytes
+LOCKSTEP = 0.0  # the speed that says: the clock stands where the simulator put it
+CONNECTED, DISCONNECTED = "+", "-"  # what a reader says on the ack FIFO besides byte counts
+
+
+def ack_path(clock_path: str | os.PathLike[str]) -> str:
+    """The FIFO on which a lockstep daemon acknowledges what it has read."""
+    return os.fspath(clock_path) + ".ack"
 
 
 def write_anchor(path: str | os.PathLike[str], virtual_ns: int, mono_ns: int, speed: float) -> None:
@@ -22,15 +37,44 @@ def write_anchor(path: str | os.PathLike[str], virtual_ns: int, mono_ns: int, sp
     os.replace(tmp, path)
 
 
+class AnchorWriter:
+    """Rewrites the clock file in place (a lockstep simulator moves it at every chunk: a new file and a
+    rename each time would cost a millisecond). The first anchor still appears whole (`write_anchor`)."""
+
+    def __init__(self, path: str | os.PathLike[str]):
+        self.path = os.fspath(path)
+        self._fd: int | None = None
+
+    def write(self, virtual_ns: int, mono_ns: int, speed: float) -> None:
+        if self._fd is None:
+            write_anchor(self.path, virtual_ns, mono_ns, speed)
+            self._fd = os.open(self.path, os.O_WRONLY)
+            return
+        os.pwrite(self._fd, struct.pack(CLOCK_FORMAT, int(virtual_ns), int(mono_ns), speed), 0)
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
 def read_anchor(path: str | os.PathLike[str]) -> tuple[int, int, float] | None:
-    """The clock file's (virtual_ns, host monotonic ns, speed), or None while it is missing or short."""
-    try:
-        with open(path, "rb") as f:
-            raw = f.read(CLOCK_SIZE)
-    except OSError:
-        return None
-    if len(raw) < CLOCK_SIZE:
-        return None
+    """The clock file's (virtual_ns, host monotonic ns, speed), or None while it is missing or short.
+
+    Read until two reads agree, so an anchor rewritten in place (`AnchorWriter`) is never read half old,
+    half new."""
+    previous = None
+    for _ in range(5):
+        try:
+            with open(path, "rb") as f:
+                raw = f.read(CLOCK_SIZE)
+        except OSError:
+            return None
+        if len(raw) < CLOCK_SIZE:
+            return None
+        if raw == previous:
+            break
+        previous = raw
     return struct.unpack(CLOCK_FORMAT, raw)
 
 
@@ -44,6 +88,9 @@ class Clock(Protocol):
 
     def wall_ns(self) -> int: ...
 
+    def note(self, source: str, what: str) -> None:
+        """A reader's news: bytes stamped and queued (their count), `+` connected, `-` disconnected."""
+
 
 class SystemClock:
     """The host's clocks: ``time.monotonic_ns`` and ``time.time_ns``."""
@@ -56,6 +103,9 @@ class SystemClock:
 
     def wall_ns(self) -> int:
         return time.time_ns()
+
+    def note(self, source: str, what: str) -> None:
+        pass
 
 
 class SimClock:
@@ -77,10 +127,12 @@ class SimClock:
         self._read_at = 0
         self._last = 0
         self._lock = threading.Lock()
+        self._ack: int | None = None  # the lockstep FIFO's write end, once open
 
     def _current_anchor(self) -> tuple[int, int, float]:
         host = time.monotonic_ns()
-        if self._anchor is None or host - self._read_at >= self._reread_ns:
+        lockstep = self._anchor is not None and self._anchor[2] == LOCKSTEP
+        if self._anchor is None or lockstep or host - self._read_at >= self._reread_ns:
             anchor = read_anchor(self.path)
             deadline = time.monotonic() + self._wait_s
             while anchor is None and self._anchor is None:
@@ -112,6 +164,24 @@ class SimClock:
 
     def wall_ns(self) -> int:
         return self.now_ns()
+
+    def note(self, source: str, what: str) -> None:
+        """Tell a lockstep simulator (one line on its FIFO); nothing when it is not listening."""
+        with self._lock:
+            if self._anchor is None or self._anchor[2] != LOCKSTEP:
+                return
+            if self._ack is None:
+                try:
+                    self._ack = os.open(ack_path(self.path), os.O_WRONLY | os.O_NONBLOCK)
+                except OSError:  # no FIFO, or nobody reads it: the simulator is not in lockstep
+                    return
+            try:
+                os.write(self._ack, f"{source} {what}\n".encode())  # < PIPE_BUF: one write
+            except BlockingIOError:  # the simulator stopped reading: it has given up waiting
+                pass
+            except OSError:
+                os.close(self._ack)
+                self._ack = None
 
 
 def parse_clock(spec: str) -> Clock:

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import serial
-from forcemap.host.acquire.arrival_clock import Clock, SystemClock
+from forcemap.host.acquire.arrival_clock import CONNECTED, DISCONNECTED, Clock, SystemClock
 from forcemap.host.acquire.transports import (  # noqa: F401 - part of this API
     MAX_READ,
     READ_TIMEOUT_S,
@@ -213,6 +213,7 @@ class Reader(threading.Thread):
             self.stats.connected = False
             self.stats.disconnects += 1
             self._event("disconnected", reason, str(exc))
+            self._clock.note(self.source, DISCONNECTED)
 
     def run(self) -> None:
         while not self._stop_event.is_set():
@@ -239,6 +240,7 @@ class Reader(threading.Thread):
             self.stats.connected = True
             self.stats.connects += 1
             self._event("connected")
+            self._clock.note(self.source, CONNECTED)
             opened = time.monotonic()
             failure: Exception | None = None
             self._transport = transport
@@ -280,3 +282,4 @@ class Reader(threading.Thread):
             stats.bytes += len(data)
             stats.chunks += 1
             self._emit(Chunk(self.source, t_mono, t_wall, bytes(data)))
+            clock.note(self.source, str(len(data)))  # queued: a lockstep simulator may go on

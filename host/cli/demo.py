@@ -29,6 +29,7 @@ from forcemap.host.cli.common import (
     parse_duration,
 )
 from forcemap.host.errors import CliError
+from forcemap.host.extras import install_hint
 
 EPILOG = """\
 examples:
@@ -81,7 +82,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="HOST:PORT",
         help="serve the survey to Foxglove while it runs (default 127.0.0.1:8765; docs/LIVE.md); "
-        'needs pip install "forcemap[live]"',
+        f"needs {install_hint('live')}",
     )
 
 
@@ -100,6 +101,9 @@ def _run(cmd: list[str]) -> None:
         raise SystemExit(f"demo: step failed (exit {res.returncode}): forcemap {' '.join(cmd[3:])}")
 
 
+LOCKSTEP_SOURCES = ("bridge", "depth", "mavlink")  # the ports the demo's daemon reads
+
+
 def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     """Simulator and daemon as two processes on real ptys; returns the MCAP files."""
     ports, logs, truth = out / "ports", out / "logs", out / "truth"
@@ -114,6 +118,8 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
         "--faults", args.faults,
         "--seed", str(args.seed),
         "--ports", str(ports),
+        # the simulator's clock drives the daemon: the same seed gives the same numbers, busy or not
+        "--lockstep", ",".join(LOCKSTEP_SOURCES),
         "-o", str(truth),
     )  # fmt: skip
     run_cmd = _forcemap(
@@ -141,7 +147,7 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
         if sim.returncode != 0:
             raise SystemExit(f"demo: the simulator failed (exit {sim.returncode})")
         for line in sim_out.splitlines():
-            if line.startswith("the machine fell behind"):
+            if line.startswith(("the machine fell behind", "lockstep")):
                 print(line, flush=True)
         time.sleep(0.5)  # let the daemon drain the last bytes
     finally:

@@ -94,7 +94,10 @@ def run(args: argparse.Namespace) -> int:
     out = output_for(given, files[0], "." + fmt)
     if out != "-":
         check_output(out, files, args.force)
-    summary = export(files, fmt, out)
+    notes: list[str] = []
+    summary = export(files, fmt, out, notes)
+    for note in notes:  # a truncated log: how much of it was read, always on stderr
+        print(f"note: {note}", file=sys.stderr)
     if out != "-":
         print(summary, file=sys.stderr)
     return 0

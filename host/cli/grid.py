@@ -21,6 +21,7 @@ from forcemap.host.cli.common import (
     write_json,
 )
 from forcemap.host.errors import CliError
+from forcemap.host.extras import install_hint
 
 EPILOG = """\
 The maps are the workspace's latest fits of each target (the rule of `report` and `plan`: the terms of
@@ -39,7 +40,7 @@ examples:
   forcemap grid survey.csv -o survey.nc
   forcemap grid survey.csv -o maps/ --json maps.json
 
-Needs the extra: pip install "forcemap[gis]". Surveys beyond UTM's limits (north of 84 N, south of 80 S)
+Needs the extra: {install}. Surveys beyond UTM's limits (north of 84 N, south of 80 S)
 or across the antimeridian are refused; one across a zone boundary is gridded in its centre's zone.
 """
 
@@ -48,7 +49,7 @@ FORMATS = {".tif": "geotiff", ".tiff": "geotiff", ".nc": "netcdf", ".geojson": "
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    teach(parser, EPILOG)
+    teach(parser, EPILOG.replace("{install}", install_hint("gis")))
     add_table(parser)
     add_output(
         parser, "OUT.tif, OUT.nc, OUT.geojson, or a folder for all three", required=True, type=Path

@@ -8,18 +8,19 @@ from pathlib import Path
 from typing import Any
 
 from forcemap.host.cli.common import add_duration
+from forcemap.host.extras import install_hint
 
 LIVE_HELP = (
     "serve everything logged, /health, /alerts and the growing maps to Foxglove (WebSocket) on "
     "HOST:PORT (default 127.0.0.1:8765: this machine only). 0.0.0.0:8765 lets anyone on the boat's "
-    'network watch, and says so. Needs pip install "forcemap[live]"; see docs/LIVE.md'
+    "network watch, and says so. Needs {install}; see docs/LIVE.md"
 )
 
 
 def add_live_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--live", nargs="?", const="127.0.0.1:8765", default=None, metavar="HOST:PORT",
-        help=LIVE_HELP,
+        help=LIVE_HELP.replace("{install}", install_hint("live")),
     )  # fmt: skip
     add_duration(
         parser, "--map-every", 60.0,

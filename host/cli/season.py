@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from forcemap.host.cli.common import add_json, add_output, add_quiet, human, teach
+from forcemap.host.extras import install_hint
 
 EPILOG = """\
 examples:
@@ -23,7 +24,7 @@ out with one line, and the season is made of the rest.
 
 --dask local[:N] runs the per-log work on a LocalCluster of N single-threaded worker processes,
 --dask tcp://HOST:8786 on a running cluster (every worker needs forcemap installed); without it,
-everything runs in this process with the same result. Needs: pip install "forcemap[dask]".
+everything runs in this process with the same result. Needs: {install}.
 
 writes SEASON_DIR/season.json, maps.npz, season.html and the figures. `forcemap plan --season
 SEASON_DIR` then says how old its map is and what that costs. Docs: docs/SEASON.md.
@@ -31,7 +32,7 @@ SEASON_DIR` then says how old its map is and what that costs. Docs: docs/SEASON.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    teach(parser, EPILOG)
+    teach(parser, EPILOG.replace("{install}", install_hint("dask")))
     parser.add_argument("inputs", nargs="+", metavar="LOG_OR_TABLE", help="logs or tables (globs)")
     add_output(
         parser, "the season's folder (created if missing)", required=True, metavar="SEASON_DIR"
@@ -87,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from forcemap.host.cli.common import check_json_output, write_json
+    from forcemap.host.convert.export import TRUNCATED
     from forcemap.host.errors import CliError
     from forcemap.host.season.engine import runner
     from forcemap.host.season.output import write
@@ -114,6 +116,10 @@ def run(args: argparse.Namespace) -> int:
         work.close()
     for r in season.rejected:
         print(f"left out: {r.reason}", file=sys.stderr)
+    for s in season.surveys:  # a truncated log: how much of it the season holds
+        for note in s.notes:
+            if TRUNCATED in note:
+                print(f"note: {note}", file=sys.stderr)
     args.output.mkdir(exist_ok=True)
     written = write(season, args.output)
     data = json.loads((args.output / "season.json").read_text())

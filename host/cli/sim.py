@@ -80,6 +80,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--ports", metavar="DIR", help="directory for the port symlinks and the clock file"
     )
+    parser.add_argument(
+        "--lockstep",
+        metavar="SOURCES",
+        help="with --ports: drive the daemon's clock (`run --clock sim:DIR/clock`) in lockstep with "
+        "its readers of these ports (e.g. bridge,depth,mavlink): each chunk stamped at its send "
+        "time and sent once the last is queued, so the same seed gives the same log on any "
+        "machine; --speed then only caps the pace",
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     add_output(parser, "folder for the ground truth (created if missing)", metavar="DIR")
     parser.add_argument(
@@ -192,6 +200,17 @@ def check_arguments(args: argparse.Namespace) -> None:
         raise CliError(
             f"--speed must be a finite number above 0 (1 is real time), not {args.speed:g}"
         )
+    if args.lockstep is not None:
+        if not args.ports:
+            raise CliError("--lockstep needs --ports DIR: it paces the daemon that reads them")
+        from forcemap.sim_devices.ports import SOURCES
+
+        bad = sorted(set(args.lockstep.split(",")) - set(SOURCES))
+        if bad or not args.lockstep:
+            raise CliError(
+                f"--lockstep {args.lockstep}: name the ports the daemon reads, from "
+                f"{', '.join(SOURCES)}"
+            )
     if not args.ports and not args.output:
         raise CliError(
             "give --ports DIR (live, behind virtual serial ports) or -o DIR for the truth "
@@ -274,11 +293,26 @@ def run(args: argparse.Namespace) -> int:
             f"  t={t:7.1f} s of {total:.0f} s ({time.monotonic() - t_start:.1f} s wall)", flush=True
         )
 
+    lock = None
     try:
-        sim = run_live(factory, ports, args.duration, args.speed, stop, on_progress=progress)
+        if args.lockstep:
+            from forcemap.sim_devices.lockstep import run_lockstep
+
+            sim, lock = run_lockstep(
+                factory, ports, args.duration, args.lockstep.split(","), args.speed, stop,
+                on_progress=progress,
+            )  # fmt: skip
+        else:
+            sim = run_live(factory, ports, args.duration, args.speed, stop, on_progress=progress)
     finally:
         ports.close()
     print(f"{'stopped' if stop.is_set() else 'done'}: {sim.t:.1f} s simulated; bytes {sim.stats}")
+    if lock is not None:
+        print(
+            f"lockstep with the daemon: {lock.chunks} chunks, {time.monotonic() - t_start:.1f} s "
+            f"wall, {lock.waited_s:.1f} s of it waiting for the daemon; {lock.timeouts} timeouts"
+            + ("" if not lock.timeouts else " (this run may not repeat exactly)")
+        )
     if ports.reanchors:
         print(
             f"the machine fell behind x{args.speed:g} {ports.reanchors} time(s); the clock waited "

@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import io
 import json
 import math
 import os
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 from typing import Any, TextIO
 from xml.sax.saxutils import escape
 
 from forcemap.host.errors import CliError
-from forcemap.host.log.mcap import MCAP_MAGIC, read_messages
+from forcemap.host.log.mcap import MCAP_MAGIC, FileScan, read_messages
 from forcemap.host.log.messages import SAMPLE_COLUMNS
 from forcemap.host.outputs import atomic_path, atomic_write
 
@@ -32,12 +34,47 @@ def _number(value: Any) -> float | None:
     return None
 
 
-class Table:
-    """Columns of floats (None for missing), in the conventions' order."""
+TRUNCATED = " is truncated ("  # in every truncation note, for commands that pick them out
 
-    def __init__(self, columns: list[str], rows: list[list[float | None]]):
+
+@dataclasses.dataclass
+class Cut:
+    """A truncated log: why reading stopped, and the ``/samples`` rows read before (their time span)."""
+
+    path: str
+    error: str
+    rows: int
+    t0: float | None
+    t1: float | None
+
+    def note(self) -> str:
+        """One line: how much was read, and that `forcemap log recover` exists."""
+        span = ""
+        if self.t0 is not None and self.t1 is not None:
+            span = f" ({(self.t1 - self.t0) / 60:.1f} min of survey, to {_iso(self.t1)[11:19]} UTC)"
+        why = self.error.rstrip(": ")
+        if not why or why.startswith("EndOfFile"):  # the mcap reader's word for a cut file
+            why = "it ends mid-record, as a killed or cut log does"
+        return (
+            f"{self.path}{TRUNCATED}{why}): read {self.rows:,} "
+            f"samples{span}, up to its last complete chunk; `forcemap log recover {self.path}` "
+            "rewrites it as a complete file"
+        )
+
+
+class Table:
+    """Columns of floats (None for missing), in the conventions' order; ``cuts``: truncated inputs."""
+
+    def __init__(
+        self, columns: list[str], rows: list[list[float | None]], cuts: list[Cut] | None = None
+    ):
         self.columns = columns
         self.rows = rows
+        self.cuts = cuts or []
+
+    def notes(self) -> list[str]:
+        """One line per truncated input (empty when every log was complete)."""
+        return [c.note() for c in self.cuts]
 
     def column(self, name: str) -> list[float | None]:
         i = self.columns.index(name)
@@ -75,16 +112,24 @@ def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
     records: list[dict[str, Any]] = []
     extra: dict[str, None] = {}
     known = set(COLUMNS)
-    for m in read_messages(paths, "/samples"):
-        row = m.message
-        if not isinstance(row, dict):
-            continue
-        if "t" not in row or _number(row.get("t")) is None:
-            row = {**row, "t": m.log_time_ns / 1e9}
-        records.append(row)
-        for k in row:
-            if k not in known and k not in extra:
-                extra[k] = None
+    cuts: list[Cut] = []
+    for path in paths:
+        scan, first = FileScan(Path(path)), len(records)
+        for m in read_messages(path, "/samples", scan=scan):
+            row = m.message
+            if not isinstance(row, dict):
+                continue
+            if "t" not in row or _number(row.get("t")) is None:
+                row = {**row, "t": m.log_time_ns / 1e9}
+            records.append(row)
+            for k in row:
+                if k not in known and k not in extra:
+                    extra[k] = None
+        if scan.truncated:
+            times = [_number(r.get("t")) for r in records[first:]]
+            times = [t for t in times if t is not None]
+            t0, t1 = (min(times), max(times)) if times else (None, None)
+            cuts.append(Cut(os.fspath(path), scan.error, len(records) - first, t0, t1))
     records.sort(key=lambda r: float(r["t"]))
     unique: list[dict[str, Any]] = []
     for r in records:
@@ -94,7 +139,7 @@ def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
     candidates = list(COLUMNS) + list(extra)
     keep = [c for c in candidates if c == "t" or any(_number(r.get(c)) is not None for r in unique)]
     rows = [[_number(r.get(c)) for c in keep] for r in unique]
-    return Table(keep, rows)
+    return Table(keep, rows, cuts)
 
 
 def _cell(value: float | None) -> str:
@@ -215,10 +260,13 @@ def kml(points: list[tuple[float, float, float]], name: str = "forcemap track") 
     return out.getvalue()
 
 
-def export(paths: Iterable[str | os.PathLike[str]], fmt: str, out: str) -> str:
+def export(
+    paths: Iterable[str | os.PathLike[str]], fmt: str, out: str, notes: list[str] | None = None
+) -> str:
     """Write ``fmt`` to ``out`` ("-" is stdout for text formats). Returns a one-line summary.
 
     The file appears whole or not at all; a log with nothing to write writes nothing (CliError).
+    ``notes`` gets one line per truncated log (how much of it was read).
     """
     paths = list(paths)
     if fmt not in FORMATS:
@@ -228,6 +276,8 @@ def export(paths: Iterable[str | os.PathLike[str]], fmt: str, out: str) -> str:
     names = ", ".join(str(p) for p in paths)
     if fmt in ("csv", "parquet"):
         table = samples_table(paths)
+        if notes is not None:
+            notes += table.notes()
         if not len(table):
             raise CliError(
                 f"no samples in {names}: the log has no /samples rows; "
@@ -245,7 +295,10 @@ def export(paths: Iterable[str | os.PathLike[str]], fmt: str, out: str) -> str:
             f"no position in {names}: neither /fix nor /samples has a latitude and longitude"
         )
     if fmt == "geojson":
-        doc = geojson(points, samples_table(paths))
+        table = samples_table(paths)
+        if notes is not None:
+            notes += table.notes()
+        doc = geojson(points, table)
         _write_text(out, lambda f: json.dump(doc, f))
     else:
         text = kml(points, name=os.path.basename(str(paths[0])) if paths else "forcemap track")

@@ -1,5 +1,8 @@
 """The Foxglove WebSocket server (the official foxglove-sdk): one JSON channel per topic, schema from the record.
 
+Clients connect to `host/live/front.py`, which lets those speaking the ws-protocol spec's
+`foxglove.websocket.v1` (Lichtblick, the npm reference client) in beside the sdk's `foxglove.sdk.v1`.
+
 Each client's outbox is the sdk's (``message_backlog_size`` messages; the oldest is dropped when it is
 full, and the sdk logs "outbox for client ... full"). Those warnings are counted per client here, so
 `/health` shows who is too slow. The sdk is imported only when a server is started.
@@ -14,6 +17,8 @@ import threading
 from typing import Any
 
 from forcemap.host.errors import CliError
+from forcemap.host.extras import install_hint
+from forcemap.host.live.front import SubprotocolFront
 from forcemap.host.log.live_messages import LIVE_TOPIC_TYPES, MAP_TARGETS
 from forcemap.host.log.mcap import schema_for
 from forcemap.host.log.messages import TOPIC_TYPES
@@ -33,7 +38,6 @@ PUBLIC_WARNING = (
     "live view on {host}:{port}: anyone on that network can watch the boat, its track and its "
     "maps (no password, no encryption); bind to 127.0.0.1 and use an SSH tunnel to keep it private"
 )
-INSTALL = 'the live view needs foxglove-sdk: pip install "forcemap[live]"'
 
 
 def parse_address(text: str | None) -> tuple[str, int]:
@@ -63,7 +67,7 @@ def require_sdk() -> Any:
     try:
         import foxglove
     except ImportError:
-        raise CliError(INSTALL) from None
+        raise CliError(f"the live view needs foxglove-sdk: {install_hint('live')}") from None
     return foxglove
 
 
@@ -100,17 +104,22 @@ class LiveServer:
         sdk_log.propagate = False
         sdk_log.setLevel(logging.INFO)
         foxglove.set_log_level("INFO")  # forwards the sdk's own log to `logging` (first call only)
-        try:
+        try:  # the sdk on a private port; the front takes the address asked for (both names)
             self.server = foxglove.start_server(
                 name="forcemap",
-                host=host,
-                port=port,
+                host="127.0.0.1",
+                port=0,
                 server_listener=self,
                 message_backlog_size=backlog,
             )
-        except Exception as exc:  # the port is taken, the address is not this machine's
+        except Exception as exc:  # no port left on this machine
+            raise CliError(f"cannot start the live view's server: {exc}") from None
+        try:
+            self.front = SubprotocolFront(host, port, self.server.port)
+        except OSError as exc:  # the port is taken, the address is not this machine's
+            self.server.stop()
             raise CliError(f"cannot start the live view on {host}:{port}: {exc}") from None
-        self.host, self.port = host, self.server.port
+        self.host, self.port = host, self.front.port
         for topic in KNOWN_TOPICS:  # advertised from the start: a client sees their first message
             self.channel(topic)
 
@@ -129,6 +138,7 @@ class LiveServer:
                     del self.clients[client.id]
 
     def note_drop(self, client: str, n: int) -> None:
+        client = self.front.peers.get(client, client)  # the sdk sees the front's address
         with self._lock:
             self.client_drops[client] = self.client_drops.get(client, 0) + n
 
@@ -161,4 +171,5 @@ class LiveServer:
             }
 
     def stop(self) -> None:
+        self.front.close()
         self.server.stop()

@@ -1,9 +1,10 @@
 """Current and wind maps for planning: the survey's latest fits, as vector fields on a grid with their uncertainty.
 
 A vector is mapped through its east and north components, each with the terms of the workspace's latest
-fit of its speed (`forcemap fit` is run first if there is none). Terms in covariates other than position
-and time cannot be evaluated along a future track; they are left out, with a note. Time is held at
-mid-survey: the map is the survey's average state.
+fit of its speed (`forcemap fit` is run first if there is none). Every term the planner can evaluate
+along a future track is kept: position, time (held at mid-survey: the map is the survey's average
+state) and depth (from the survey's depth map at each grid point, as the workbench's own maps do).
+Terms in what a future track does not know (heading, speed, a clock offset) are left out, with a note.
 """
 
 from __future__ import annotations
@@ -14,15 +15,18 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.progress import note
+from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import HYPER_SPACING_S, DesignCache, Model, small_blas
 from forcemap.host.workbench.spec import BASELINE, parse_term
 from forcemap.host.workbench.spikes import target_spikes, without_spikes
+from forcemap.host.workbench.survey_fits import grid_inputs, survey_inputs
 from forcemap.host.workbench.table import Survey, is_circular
 from forcemap.host.workbench.workspace import current_terms, workspace_dir
 
 GRID_STEP_M = 4.0
 MAX_BASIS = 800  # a current or wind field steering a boat needs no detail finer than ~30 m
-PLANNABLE_INPUTS = {"position", "t"}
+# what a future track is known by: where it is (and so the depth there, from the depth map), and when
+PLANNABLE_INPUTS = {"position", "t", "depth"}
 
 
 @dataclass
@@ -81,17 +85,36 @@ class Maps:
     notes: list[str] = field(default_factory=list)
 
 
+def _inputs(term: str) -> set[str] | None:
+    try:
+        return set(parse_term(term, is_circular).inputs)
+    except Exception:  # a clock offset or anything else that is not a map term
+        return None
+
+
 def plannable_terms(terms: list[str]) -> tuple[list[str], list[str]]:
     """(terms evaluable along a future track, terms left out)."""
     keep, drop = [], []
     for t in terms:
-        try:
-            spec = parse_term(t, is_circular)
-        except Exception:  # a clock offset or anything else that is not a map term
-            drop.append(t)
-            continue
-        (keep if set(spec.inputs) <= PLANNABLE_INPUTS else drop).append(t)
+        inputs = _inputs(t)
+        (keep if inputs is not None and inputs <= PLANNABLE_INPUTS else drop).append(t)
     return (keep or list(BASELINE)), drop
+
+
+def _term_inputs(terms: list[str]) -> set[str]:
+    return set().union(*(_inputs(t) or set() for t in terms))
+
+
+def with_depth_known(survey: Survey, terms: list[str]) -> tuple[list[str], list[str]]:
+    """``terms``, less the depth terms when the survey cannot give a depth map (no usable depth)."""
+    if "depth" not in _term_inputs(terms):
+        return terms, []
+    try:
+        survey_inputs(survey, {"depth"})
+    except WorkbenchError as exc:
+        keep = [t for t in terms if "depth" not in (_inputs(t) or set())]
+        return (keep or list(BASELINE)), [f"depth terms left out: no depth map ({exc})"]
+    return terms, []
 
 
 def latest_terms(table: Path, survey: Survey, target: str, progress: bool) -> list[str]:
@@ -127,13 +150,12 @@ def fit_field(
     vt = survey.vector_target(f"{prefix}_speed")
     e, n = survey.components(vt)  # type: ignore[arg-type]
     ok = np.isfinite(e) & np.isfinite(n)
-    X = {"position": survey.xy[ok], "t": survey.trel[ok]}
+    names = _term_inputs(terms) | {"position", "t"}
+    X = {k: v[ok] for k, v in survey_inputs(survey, names).items()}
     gx, gy = _grid(bounds, step)
     GX, GY = np.meshgrid(gx, gy)
-    G = {
-        "position": np.column_stack([GX.ravel(), GY.ravel()]),
-        "t": np.full(GX.size, float(np.median(survey.trel))),
-    }
+    # the grid's inputs: time at mid-survey, depth from the survey's depth map at each node
+    G = grid_inputs(survey, names, np.column_stack([GX.ravel(), GY.ravel()]))
     out = []
     grams = DesignCache()  # the east and north components share their features
     with small_blas():
@@ -164,6 +186,10 @@ def survey_maps(
             notes.append(
                 f"{prefix}: left out {', '.join(dropped)} (not known along a future track)"
             )
+        terms, no_depth = with_depth_known(survey, terms)
+        notes += [f"{prefix}: {line}" for line in no_depth]
+        if "depth" in _term_inputs(terms):
+            notes.append(f"{prefix}: depth terms evaluated on the survey's depth map")
         spikes = target_spikes(survey, f"{prefix}_speed")
         notes += [f"{prefix}: {line}" for line in (spikes.lines() if spikes else [])]
         note(f"mapping {prefix}: {' + '.join(terms)} on east and north components ...", progress)

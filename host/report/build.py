@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.extras import install_hint
 from forcemap.host.gis.grid import MapGrid, evaluate, make_grid, project
 from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
@@ -132,7 +133,7 @@ def report_grid(survey: Survey) -> tuple[MapGrid, tuple[np.ndarray, np.ndarray],
         except WorkbenchError as exc:
             why = str(exc)
     else:
-        why = 'pyproj is not installed (pip install "forcemap[gis]")'
+        why = f"pyproj is not installed ({install_hint('gis')})"
     grid = make_grid(survey, resolution, utm=False)
     return (
         grid,

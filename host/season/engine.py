@@ -16,8 +16,8 @@ from collections.abc import Callable
 from typing import Any
 
 from forcemap.host.errors import CliError
+from forcemap.host.extras import install_hint
 
-INSTALL = 'pip install "forcemap[dask]"'
 QUIET_TIMERS = {
     "distributed.worker.memory.monitor-interval": "1s",
     "distributed.scheduler.work-stealing-interval": "1s",
@@ -79,7 +79,7 @@ class DaskRunner:
         try:
             from distributed import Client, LocalCluster
         except ImportError:
-            raise CliError(f"--dask needs Dask and distributed: {INSTALL}") from None
+            raise CliError(f"--dask needs Dask and distributed: {install_hint('dask')}") from None
         self.cluster = None
         if address == "local" or address.startswith("local:"):
             import dask

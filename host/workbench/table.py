@@ -245,6 +245,7 @@ def load_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
             f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
         )
     columns, non_numeric, notes = _numeric_columns(path, raw)
+    notes = list(getattr(raw, "notes", [])) + notes  # a truncated log's first
     survey = survey_from_columns(path, columns, non_numeric, notes)
     survey.keep_outliers = keep_outliers
     if path.suffix.lower() == ".mcap":

@@ -62,6 +62,14 @@ def _read_parquet(path: Path) -> dict[str, list]:
     return out
 
 
+class RawColumns(dict):
+    """A table's cells by column, with notes on how it was read (a truncated log: how much of it)."""
+
+    def __init__(self, columns: dict[str, list], notes: list[str] | None = None):
+        super().__init__(columns)
+        self.notes = list(notes or [])
+
+
 def _read_mcap(path: Path) -> dict[str, list]:
     """The ``/samples`` rows through `forcemap export`'s reader: truncated logs are read up to their
     last complete chunk, and rows repeated (same ``t``) are kept once."""
@@ -77,7 +85,7 @@ def _read_mcap(path: Path) -> dict[str, list]:
         raise WorkbenchError(
             f"{path}: the MCAP log has no /samples messages; was it written by `forcemap run`?"
         )
-    return {c: table.column(c) for c in table.columns}
+    return RawColumns({c: table.column(c) for c in table.columns}, notes=table.notes())
 
 
 def mcap_provenance(path: Path) -> dict[str, str]:
