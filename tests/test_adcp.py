@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 from forcemap.host.cli import main
+from forcemap.host.extras import install_hint
 from forcemap.host.log.mcap import iter_records, read_messages
 from forcemap.host.log.qa_records import QaFinding, is_finding
 
@@ -204,7 +205,7 @@ def test_without_the_extra_a_pd0_gets_one_line_naming_the_install(tmp_path, monk
     rc = main(["import", str(_dir() / "winriver01.PD0"), "-o", str(tmp_path / "w.mcap")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1
-    assert 'pip install "forcemap[adcp]"' in err[0]
+    assert install_hint("adcp") in err[0] and "[adcp]" in err[0]
     assert not (tmp_path / "w.mcap").exists()
 
 

@@ -25,7 +25,7 @@ examples:
   forcemap import capture.nmea                 # -> capture.mcap beside it
   forcemap import flight.tlog -o logs/         # -> logs/flight.mcap
   forcemap import capture.txt --from nmea -o survey.mcap --boat boat.toml
-  forcemap import transect.PD0 --reference gps # a moving-boat ADCP (pip install "forcemap[adcp]")
+  forcemap import transect.PD0 --reference gps # a moving-boat ADCP (the [adcp] extra)
   forcemap export survey.mcap -o survey.csv    # then the samples table, as for `forcemap run`
 
 An existing output is replaced only with --force; a file that cannot be imported leaves nothing

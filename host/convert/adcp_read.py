@@ -20,11 +20,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.extras import install_hint
 
 PD0_ID = b"\x7f\x7f"
 BAD_VEL = -32.768  # TRDI's no-data velocity, as dolfyn scales it (-32768 mm/s)
-INSTALL = 'pip install "forcemap[adcp]"'
-INSTALL_CLONE = 'pip install ".[adcp]"'
 
 
 class AdcpUnavailable(ImportError):
@@ -133,7 +132,7 @@ def dolfyn() -> Any:
         from mhkit import dolfyn as dol
     except ImportError:
         raise AdcpUnavailable(
-            f"reading an ADCP file needs MHKiT's dolfyn: {INSTALL} (from a clone: {INSTALL_CLONE})"
+            f"reading an ADCP file needs MHKiT's dolfyn: {install_hint('adcp')}"
         ) from None
     return dol
 
