@@ -32,6 +32,7 @@ class Candidate:
     null_gains: list[float] = field(default_factory=list)
     time_proxies: list[str] = field(default_factory=list)  # counters and clocks folded into t
     one_pass: bool = False  # confounded because the survey is one pass (identify.is_single_pass)
+    revisit: bool = False  # judged where the track revisits itself (evaluate.Evaluator.revisit)
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits

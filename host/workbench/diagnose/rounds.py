@@ -149,7 +149,7 @@ def diagnose_round(
     results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
-    fam = ev.sm.vector.family if ev.sm.vector else "field"
+    fam = ev.sm.vector.family if ev.sm.vector else (family(target) or "field")
     inst = Instruments.of(survey)
     for c in results:
         rest = [o for o in others if o != c.covariate]
@@ -186,6 +186,10 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
         c = Candidate(name, term, rmse, gain, p, gain, None, False)
         c.note = clock_offset.scan_offset(ev.sm.survey, ev.sm.vector).edge_note()
         return c
+    if name == "t" and family(ev.target) == "depth":
+        c = _water_level(ev)
+        if c is not None:
+            return c
     if name != "t":
         derived_column(ev.survey, name)
     model = ev.extended(name)
@@ -201,6 +205,26 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
     return c
 
 
+def _water_level(ev: Evaluator) -> Candidate | None:
+    """Time for a depth target, judged where the track revisits itself: a moving water surface shows as
+    differences between passes over the same place, which unseen blocks drown in the error of extrapolating
+    the bed. The term is `water_level`; None when the survey hardly revisits itself."""
+    model = ev.water_level()
+    judged = ev.revisit(model)
+    if judged is None:
+        return None
+    gain, p, rmse = judged
+    cv, gain_b, _ = ev.blocked(model)
+    c = Candidate("t", "water_level", cv.rmse, gain, p, gain_b, None, False)
+    c.hypers, c.revisit = model.theta_, True
+    n = len(ev.revisit_plan()[1])
+    c.note = (
+        f"judged where the track revisits itself ({n} held-out samples another pass crosses): the "
+        f"error there falls by {gain:.0%}, to {rmse:.3g}"
+    )
+    return c
+
+
 def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: dict) -> None:
     """Mark each candidate significant or not: floor, p-value, null, identifiability (the last two only for
     the few that pass the first two, best first)."""
@@ -211,8 +235,9 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
         if c.improvement < FLOOR or c.p_value > threshold or screened >= SCREEN:
             continue
         screened += 1
-        if c.covariate == clock_offset.NAME:
-            # a correction of the target, not a covariate: nothing to shift, nothing position could predict
+        if c.covariate == clock_offset.NAME or c.revisit:
+            # a correction of the target, not a covariate: nothing to shift, nothing position could predict;
+            # or a level judged at revisits, where position is the same and only the time differs
             c.identifiable, c.significant = True, True
             continue
         values = survey_inputs(ev.survey, {c.covariate})[c.covariate]

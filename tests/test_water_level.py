@@ -1,0 +1,128 @@
+"""The water level under every depth (issue 30): gauge records read in their export layouts and the soundings
+reduced to the gauge's datum; the simulator's tide and rating-curve stage with their truth; the level
+estimated from a survey's own crossings; diagnose naming it; a season's level per survey; the datum of every
+depth map.
+
+The simulated surveys are short (a 25-minute survey whose lawnmower runs its lines twice, under a tide of
+50-minute period, so the level moves 0.7 m while the boat passes the same places again); the two-hour
+surveys of the issue's figures are the `slow` tests at the end."""
+
+from __future__ import annotations
+
+import json
+import math
+from datetime import UTC, datetime
+
+import numpy as np
+import pytest
+from forcemap.host.cli import main
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.water_level import (
+    FEET,
+    crossings,
+    level_estimate,
+    read_gauge,
+    reduce_to_gauge,
+)
+from forcemap.sim_devices.offline import make_survey
+
+T0 = datetime(2024, 5, 1, 12, 0, tzinfo=UTC).timestamp()
+
+
+def _write(path, text: str):
+    path.write_text(text)
+    return path
+
+
+# ---------------------------------------------------------------- gauge records
+
+
+def test_usgs_rdb_is_read_in_feet_and_local_time(tmp_path):
+    rdb = _write(
+        tmp_path / "usgs.rdb",
+        "# U.S. Geological Survey\n# Data for the following 1 site(s)\n"
+        "agency_cd\tsite_no\tdatetime\ttz_cd\t123456_00065\t123456_00065_cd\n"
+        "5s\t15s\t20d\t6s\t14n\t10s\n"
+        "USGS\t02169500\t2024-05-01 08:00\tEDT\t10.00\tP\n"
+        "USGS\t02169500\t2024-05-01 08:15\tEDT\t10.50\tP\n",
+    )
+    g = read_gauge(rdb)
+    # 08:00 EDT is 12:00 UTC; gage height in feet
+    assert g.t[0] == pytest.approx(T0)
+    assert g.level == pytest.approx([10.0 * FEET, 10.5 * FEET])
+    assert "USGS 02169500" in g.datum and g.layout == "USGS RDB"
+
+
+def test_noaa_coops_csv_layouts(tmp_path):
+    api = _write(
+        tmp_path / "noaa.csv",
+        "Date Time, Water Level, Sigma, O or I (for verified), F, R, L, Quality \n"
+        "2024-05-01 12:00,1.234,0.003,0,0,0,0,v\n2024-05-01 12:06,1.300,0.003,0,0,0,0,v\n",
+    )
+    g = read_gauge(api)
+    assert g.t[0] == pytest.approx(T0) and g.level == pytest.approx([1.234, 1.300])
+    page = _write(
+        tmp_path / "page.csv",
+        "Date,Time (GMT),Predicted (ft),Preliminary (ft),Verified (ft)\n"
+        "2024/05/01,12:00,3.1,-,3.0\n2024/05/01,12:06,3.2,3.25,-\n",
+    )
+    g = read_gauge(page)
+    # verified where there is one, else preliminary; feet to metres
+    assert g.level == pytest.approx([3.0 * FEET, 3.25 * FEET])
+    lst = _write(tmp_path / "lst.csv", "Date,Time (LST/LDT),Verified (m)\n2024/05/01,12:00,1\n")
+    with pytest.raises(WorkbenchError, match="GMT"):
+        read_gauge(lst)
+
+
+def test_plain_csv_with_and_without_header(tmp_path):
+    g = read_gauge(_write(tmp_path / "a.csv", f"time,level_m\n{T0},0.5\n{T0 + 60},0.6\n"))
+    assert g.level == pytest.approx([0.5, 0.6]) and g.layout == "CSV"
+    g = read_gauge(_write(tmp_path / "b.csv", f"{T0},0.5\n{T0 + 60},0.7\n"))
+    assert g.at(np.array([T0 + 30]))[0] == pytest.approx([0.6])
+    g = read_gauge(_write(tmp_path / "c.csv", "time,stage_ft\n2024-05-01T12:00:00Z,2\n2024-05-01T13:00:00Z,3\n"))
+    assert g.level == pytest.approx([2 * FEET, 3 * FEET])
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["", "time,level\n", "time,level\nabc,def\n", "a,b,c\n1,2,3\n4,5,6\n", "\x00\x01binary"],
+)
+def test_a_bad_gauge_file_is_one_line_and_exit_2(tmp_path, capsys, text):
+    bad = _write(tmp_path / "bad.csv", text)
+    with pytest.raises(WorkbenchError):
+        read_gauge(bad)
+    table = tmp_path / "t.csv"
+    rows = [f"{T0 + i},{33.95 + 1e-5 * i},{-81.05},{2.0}" for i in range(40)]
+    table.write_text("t,lat,lon,depth\n" + "\n".join(rows) + "\n")
+    assert main(["fit", str(table), "--target", "depth", "--water-level", str(bad), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.csv" in err[0]
+
+
+def test_a_gauge_that_misses_the_survey_is_refused(tmp_path):
+    table = tmp_path / "t.csv"
+    rows = [f"{T0 + i},{33.95 + 1e-5 * i},{-81.05},{2.0}" for i in range(40)]
+    table.write_text("t,lat,lon,depth\n" + "\n".join(rows) + "\n")
+    gauge = _write(tmp_path / "g.csv", f"{T0 - 7200},0.5\n{T0 - 3600},0.6\n")
+    with pytest.raises(WorkbenchError, match="covers 0%"):
+        reduce_to_gauge(load_survey(table), read_gauge(gauge))
+
+
+# ---------------------------------------------------------------- the simulator
+
+
+def test_the_simulated_tide_and_stage_have_their_truth(tmp_path):
+    from forcemap.host.vessel.scenario import load
+    from forcemap.sim_devices.effects import parse_list
+    from forcemap.sim_devices.fields import World
+
+    w = World(load("river"), parse_list("tide:amplitude_m=0.7:period_s=44712"), 7200.0)
+    level = w.water_level(np.linspace(0, 7200, 100))
+    # mid-tide at mid-survey: a 2 h survey sees 2 A sin(pi 7200 / 44712) = 0.68 m of rise
+    assert np.ptp(level) == pytest.approx(2 * 0.7 * math.sin(math.pi * 7200 / 44712), rel=1e-3)
+    assert w.water_level(3600.0) == pytest.approx(0.0, abs=1e-12)
+    flood = World(load("river"), parse_list("dam_release,stage:scale_m=1.0:b=1.6"), 1000.0)
+    q = flood.discharge_factor(np.array([0.0, 1000.0]))
+    assert flood.water_level(np.array([0.0, 1000.0])) == pytest.approx(q ** (1 / 1.6) - 1.0)
+    assert World(load("river"), [], 100.0).water_level(50.0) == 0.0
