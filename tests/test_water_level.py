@@ -126,3 +126,51 @@ def test_the_simulated_tide_and_stage_have_their_truth(tmp_path):
     q = flood.discharge_factor(np.array([0.0, 1000.0]))
     assert flood.water_level(np.array([0.0, 1000.0])) == pytest.approx(q ** (1 / 1.6) - 1.0)
     assert World(load("river"), [], 100.0).water_level(50.0) == 0.0
+
+
+# ---------------------------------------------------------------- a season
+
+
+def _season(tmp_path, stage: float):
+    from forcemap.host.season.output import write
+    from forcemap.host.season.run import run_season
+    from forcemap.sim_devices.season import make_season
+
+    paths = make_season(5, 30.0, tmp_path / "logs", samples=4000, seed=3, stage_scale_m=stage)
+    season = run_season(paths, n_basis=200)
+    write(season, tmp_path)
+    truth = json.loads((tmp_path / "logs" / "season_truth.json").read_text())
+    data = json.loads((tmp_path / "season.json").read_text())
+    return season, data, np.array([s["stage_m"] for s in truth["surveys"]])
+
+
+def test_a_season_fits_one_level_per_survey_under_a_static_bed(tmp_path):
+    _, data, stage = _season(tmp_path / "stage", 0.98)
+    _, fixed, still = _season(tmp_path / "fixed", 0.0)
+    assert np.ptp(stage) > 0.4 and np.ptp(still) == 0.0
+    assert data["depth"]["with_levels"] and not fixed["depth"]["with_levels"]
+    level = np.array([s["water_level_m"] for s in data["surveys"]])
+    sd = np.array([s["water_level_sd_m"] for s in data["surveys"]])
+    # both centred: within 0.05 m of the truth, and inside the level's own 4-sd interval
+    err = (level - level.mean()) - (stage - stage.mean())
+    assert np.abs(err).max() < 0.05 and np.all(np.abs(err) < 4 * sd + 0.005), (err, sd)
+    # the per-survey depth CV with the levels is as good as a season whose stage never moved
+    with_stage = np.array([c["rmse_static"] for c in data["depth_cv"]])
+    without = np.array([c["rmse_static"] for c in fixed["depth_cv"]])
+    assert np.all(with_stage <= 1.25 * without), (with_stage, without)
+    # the stage rises with the current's scale: the rating check agrees, and it is on the page
+    assert data["rating"]["agree"] and data["rating"]["rank_correlation"] > 0.9
+    page = (tmp_path / "stage" / "season.html").read_text()
+    assert "Rating curve" in page and "one level per survey" in page
+    assert "rating" not in fixed and all(s["water_level_m"] is None for s in fixed["surveys"])
+
+
+def test_a_rating_check_names_a_survey_off_the_curve(tmp_path):
+    from forcemap.host.season.levels import rating_check
+
+    season, _, _ = _season(tmp_path, 0.98)
+    # a gauge-datum slip on one day: its level 0.3 m off what its discharge says
+    season.depth.levels[2] += 0.3
+    check = rating_check(season)
+    assert not check["agree"] and season.depth.paths[2] in check["off_curve"]
+    assert "disagree" in check["verdict"]

@@ -17,6 +17,7 @@ RANK_MIN = 0.6
 MIN_SURVEYS = 4
 # a survey is off the rating when its level is this many of its combined sds from the fitted curve
 OFF_SD = 4.0
+MIN_SPREAD_M = 0.03
 
 
 def survey_levels(season) -> dict[str, tuple[float, float]]:
@@ -47,12 +48,7 @@ def rating_check(season) -> dict | None:
     resid = h - A @ coef
     spread = float(np.sqrt(np.sum(resid**2) / max(len(h) - 2, 1)))
     rho = float(stats.spearmanr(q, h).statistic) if np.ptp(q) > 0 and np.ptp(h) > 0 else 0.0
-    mad = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
-    off = [
-        p
-        for p, r, s in zip(both, resid, sd, strict=True)
-        if abs(r) > OFF_SD * np.hypot(s, max(mad, 1e-3))
-    ]
+    off = [both[k] for k in _off_curve(A, h, sd)]
     agree = (len(both) < MIN_SURVEYS or rho >= RANK_MIN) and not off
     if agree:
         verdict = (
@@ -76,6 +72,22 @@ def rating_check(season) -> dict | None:
         "points": [[scale[p], lv[p][0], lv[p][1]] for p in both],
         "curve": coef.tolist(),
     }
+
+
+def _off_curve(A: np.ndarray, h: np.ndarray, sd: np.ndarray) -> list[int]:
+    """The surveys whose level is off the curve fitted to the others by more than OFF_SD of its sd and the
+    others' spread about their curve (at least MIN_SPREAD_M: a power law is not quite a line in log Q)."""
+    if len(h) < MIN_SURVEYS:
+        return []
+    out = []
+    for k in range(len(h)):
+        rest = np.arange(len(h)) != k
+        coef, *_ = np.linalg.lstsq(A[rest], h[rest], rcond=None)
+        r = h[rest] - A[rest] @ coef
+        spread = max(float(np.sqrt(np.sum(r**2) / max(rest.sum() - 2, 1))), MIN_SPREAD_M)
+        if abs(h[k] - A[k] @ coef) > OFF_SD * float(np.hypot(sd[k], spread)):
+            out.append(k)
+    return out
 
 
 def rating_figure(check: dict):
