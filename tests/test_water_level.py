@@ -80,7 +80,11 @@ def test_plain_csv_with_and_without_header(tmp_path):
     assert g.level == pytest.approx([0.5, 0.6]) and g.layout == "CSV"
     g = read_gauge(_write(tmp_path / "b.csv", f"{T0},0.5\n{T0 + 60},0.7\n"))
     assert g.at(np.array([T0 + 30]))[0] == pytest.approx([0.6])
-    g = read_gauge(_write(tmp_path / "c.csv", "time,stage_ft\n2024-05-01T12:00:00Z,2\n2024-05-01T13:00:00Z,3\n"))
+    g = read_gauge(
+        _write(
+            tmp_path / "c.csv", "time,stage_ft\n2024-05-01T12:00:00Z,2\n2024-05-01T13:00:00Z,3\n"
+        )
+    )
     assert g.level == pytest.approx([2 * FEET, 3 * FEET])
 
 
@@ -174,3 +178,111 @@ def test_a_rating_check_names_a_survey_off_the_curve(tmp_path):
     check = rating_check(season)
     assert not check["agree"] and season.depth.paths[2] in check["off_curve"]
     assert "disagree" in check["verdict"]
+
+
+# ---------------------------------------------------------------- one survey under a tide
+
+# a 25-minute survey runs its lawnmower twice; a tide of 50-minute period moves the surface 0.7 m in it
+TIDE = "tide:amplitude_m=0.35:period_s=3000"
+SHORT_S = 1500.0
+
+
+@pytest.fixture(scope="module")
+def surveys(tmp_path_factory):
+    made = {}
+
+    def get(effects: str, seed: int):
+        key = (effects, seed)
+        if key not in made:
+            out = tmp_path_factory.mktemp(f"s{seed}")
+            made[key] = make_survey("river", [effects] if effects else [], seed, SHORT_S, out)
+        return made[key]
+
+    return get
+
+
+def _true_level(table, t: np.ndarray) -> np.ndarray:
+    truth = np.genfromtxt(table.parent / "truth" / "samples.csv", delimiter=",", names=True)
+    return np.interp(t, truth["t"], truth["water_level"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_tide_is_named_and_its_level_estimated_from_the_crossings(surveys, seed):
+    from forcemap.host.workbench.diagnose.rounds import diagnose
+    from forcemap.host.workbench.fitting import fit_target
+
+    table = surveys(TIDE, seed)
+    s = load_survey(table)
+    assert np.ptp(_true_level(table, s.columns["t"])) > 0.6
+    d = diagnose(s, "depth", rounds=1, progress=False)
+    best = d.candidates[0]
+    assert best.covariate == "t" and best.term == "water_level" and best.significant, d.summary()
+    assert "the water level changes during the survey" in best.explanation
+    fit = fit_target(s, "depth", ["const", "gp(position, matern32)", "water_level"], progress=False)
+    level, sd = level_estimate(fit.model.primary, fit.model.survey.trel)
+    truth = _true_level(table, fit.model.survey.columns["t"])
+    err = level - (truth - truth.mean())
+    assert np.sqrt(np.mean(err**2)) < 0.05, np.sqrt(np.mean(err**2))
+    # the sounder's own noise is left, not the tide's swing
+    assert fit.model.primary.noise_std_ < 0.15
+
+
+@pytest.mark.slow
+def test_with_the_gauge_the_depth_is_as_good_as_without_a_tide(surveys):
+    from forcemap.host.workbench.fitting import fit_target
+
+    still = fit_target(load_survey(surveys("", 1)), "depth", ["const", "gp(position, matern32)"])
+    table = surveys(TIDE, 1)
+    gauge = read_gauge(table.parent / "truth" / "water_level.csv")
+    reduced = reduce_to_gauge(load_survey(table), gauge)
+    tide = fit_target(reduced, "depth", ["const", "gp(position, matern32)"], progress=False)
+    assert tide.cv.rmse <= 1.2 * still.cv.rmse and still.cv.rmse <= 1.2 * tide.cv.rmse
+    assert "water_level.csv" in reduced.datum
+
+
+@pytest.mark.slow
+def test_no_tide_no_water_level_finding(surveys):
+    from forcemap.host.workbench.diagnose.rounds import diagnose
+
+    s = load_survey(surveys("", 1))
+    assert crossings(s.xy, s.trel) > 20
+    d = diagnose(s, "depth", rounds=1, progress=False)
+    t = next(c for c in d.candidates if c.covariate == "t")
+    assert t.term == "water_level" and not t.significant and t.improvement < 0.10, d.summary()
+    assert not (d.missing_effect_found and d.candidates[0].covariate == "t")
+
+
+@pytest.mark.slow
+def test_the_cli_fits_the_level_and_every_depth_map_says_its_datum(surveys, tmp_path, capsys):
+    import shutil
+
+    src = surveys(TIDE, 2)
+    table = tmp_path / "tide.csv"
+    shutil.copy(src, table)
+    assert main(["fit", str(table), "--target", "depth", "--quiet", "--no-plots"]) == 0
+    fit = ["fit", str(table), "--target", "depth", "--effects", "water_level", "--quiet"]
+    assert main([*fit, "--no-plots"]) == 0
+    capsys.readouterr()
+    assert main(["history", str(table)]) == 0
+    hist = capsys.readouterr().out
+    assert "water_level" in hist
+    assert (
+        main(["grid", str(table), "-o", str(tmp_path / "d.nc"), "--target", "depth", "--quiet"])
+        == 0
+    )
+    log = capsys.readouterr().out
+    assert "depth below the surface at the survey's mid-time level, estimated from" in log
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "d.nc") as ds:
+        assert "crossings" in ds.attrs["vertical_datum"]
+    gauge = str(src.parent / "truth" / "water_level.csv")
+    out = tmp_path / "g.tif"
+    grid = ["grid", str(table), "-o", str(out), "--target", "depth", "--quiet"]
+    assert main([*grid, "--water-level", gauge]) == 0
+    assert "depth below the datum of the gauge record water_level.csv" in capsys.readouterr().out
+    import rasterio
+
+    with rasterio.open(out) as f:
+        assert "water_level.csv" in f.tags()["vertical_datum"]
