@@ -31,6 +31,9 @@ MIN_COVERED = 0.5
 # two samples are a revisit when they are this close (m) and this far apart in time (s)
 REVISIT_RADIUS_M = 3.0
 REVISIT_MIN_DT_S = 120.0
+# revisit CV: the survey's time in this many stretches; at least REVISIT_MIN_ROWS revisited samples
+REVISIT_STRETCHES = 20
+REVISIT_MIN_ROWS = 50
 
 _TIME_NAMES = ("datetime", "date time", "time", "timestamp", "t", "date", "time_s", "unix_time")
 _LEVEL_HINTS = ("water level", "water_level", "verified", "preliminary", "predicted", "level",
@@ -223,6 +226,37 @@ def revisits(xy: np.ndarray, t: np.ndarray) -> np.ndarray:
 
     pairs = cKDTree(xy).query_pairs(REVISIT_RADIUS_M, output_type="ndarray")
     return pairs[np.abs(t[pairs[:, 0]] - t[pairs[:, 1]]) >= REVISIT_MIN_DT_S]
+
+
+def revisit_folds(
+    xy: np.ndarray, t: np.ndarray, k: int = 5, min_rows: int = REVISIT_MIN_ROWS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Folds for judging what changes in time where the track revisits itself: the survey's time cut into
+    REVISIT_STRETCHES stretches dealt to `k` folds in turn; the samples another fold's pass revisits (the
+    rows to score) and their stretch (the paired unit). None when fewer than `min_rows` are revisited."""
+    span = max(float(np.ptp(t)), 1e-9)
+    stretch = np.minimum(
+        (REVISIT_STRETCHES * (t - t.min()) / span).astype(int), REVISIT_STRETCHES - 1
+    )
+    folds = stretch % max(2, min(k, REVISIT_STRETCHES // 2))
+    pairs = revisits(xy, t)
+    pairs = pairs[folds[pairs[:, 0]] != folds[pairs[:, 1]]]
+    rows = np.unique(pairs.ravel())
+    if len(rows) < min_rows:
+        return None
+    return folds, rows, stretch[rows]
+
+
+def crossline_rmse(sm) -> dict | None:
+    """A fitted `SurveyModel`'s held-out error where the track revisits itself (each time stretch predicted
+    from the others, scored where another pass crosses it): the error a moving surface leaves, which
+    blocked CV cannot see. None when the survey hardly revisits itself."""
+    plan = revisit_folds(sm.survey.xy, sm.survey.trel)
+    if plan is None:
+        return None
+    folds, rows, _ = plan
+    err = sm.cv(folds, interval=False).error[rows]
+    return {"crossline_rmse": float(np.sqrt(np.mean(err**2))), "crossline_samples": len(rows)}
 
 
 def crossings(xy: np.ndarray, t: np.ndarray) -> int:

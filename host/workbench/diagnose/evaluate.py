@@ -17,14 +17,10 @@ from forcemap.host.workbench.spec import build_term, parse_term
 from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, survey_inputs
-from forcemap.host.workbench.water_level import revisits
+from forcemap.host.workbench.water_level import revisit_folds
 
 # the comparison between candidates needs no finer spatial basis than this; `fit` goes further
 DIAGNOSE_MAX_BASIS = 600
-# revisit CV: the survey's time cut into this many stretches, every k-th to one fold, and a held-out sample
-# scored only where the track passes it again in another fold (at least REVISIT_MIN_ROWS such samples)
-REVISIT_STRETCHES = 20
-REVISIT_MIN_ROWS = 50
 # blocked CV is repeated over this many assignments of the blocks to folds (cv.repeated_blocked_folds): with
 # one, a weak effect's gain swung between 6 % and 23 % with the assignment, on the same survey
 REPEATS = 3
@@ -124,22 +120,15 @@ class Evaluator:
 
     def revisit_plan(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, CVResult] | None:
         """Folds of time stretches, the held-out rows that another fold's pass revisits, their stretch, and
-        the current model's held-out errors there; None when the track hardly revisits itself (or the
-        target is a vector's: the revisit test is for a scalar field such as depth)."""
+        the current model's held-out errors there (`water_level.revisit_folds`); None when the track hardly
+        revisits itself (or the target is a vector's: the revisit test is for a scalar field such as
+        depth)."""
         if self._revisit is None:
             self._revisit = (None,)
-            t = self.survey.trel
-            stretch = np.minimum(
-                (REVISIT_STRETCHES * (t - t.min()) / max(np.ptp(t), 1e-9)).astype(int),
-                REVISIT_STRETCHES - 1,
-            )
-            folds = stretch % max(2, min(self.rfold.max() + 1, REVISIT_STRETCHES // 2))
-            pairs = revisits(self.survey.xy, t)
-            pairs = pairs[folds[pairs[:, 0]] != folds[pairs[:, 1]]]
-            rows = np.unique(pairs.ravel())
-            if self.sm.vector is None and len(rows) >= REVISIT_MIN_ROWS:
-                base = self.sm.cv(folds, interval=False)
-                self._revisit = (folds, rows, stretch[rows], base)
+            k = int(self.rfold.max()) + 1
+            plan = revisit_folds(self.survey.xy, self.survey.trel, k)
+            if self.sm.vector is None and plan is not None:
+                self._revisit = (*plan, self.sm.cv(plan[0], interval=False))
         return None if self._revisit[0] is None else self._revisit  # type: ignore[return-value]
 
     def revisit(self, model: Model) -> tuple[float, float, float] | None:

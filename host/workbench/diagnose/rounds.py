@@ -291,6 +291,8 @@ def _prefer_direct_cause(results: list[Candidate], pair_gain) -> list[Candidate]
     model, the direct covariate is the explanation and goes first."""
     if not results or not is_proxy(results[0].covariate) or results[0].improvement <= 0:
         return results
+    if results[0].revisit:
+        return results  # judged at revisits, where no covariate of place can stand in for it
     lead = results[0]
     for i, c in enumerate(results[1:PROXY_WINDOW], start=1):
         if is_proxy(c.covariate) or c.consequence:
