@@ -103,6 +103,10 @@ def test_a_bad_gauge_file_is_one_line_and_exit_2(tmp_path, capsys, text):
     assert main(["fit", str(table), "--target", "depth", "--water-level", str(bad), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bad.csv" in err[0]
+    season = ["season", str(table), "-o", str(tmp_path / "season"), "--water-level", str(bad)]
+    assert main([*season, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.csv" in err[0]
 
 
 def test_a_gauge_that_misses_the_survey_is_refused(tmp_path):
