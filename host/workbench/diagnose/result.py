@@ -204,6 +204,12 @@ def explain_candidate(
         if c.blocked_gain >= 0
         else f"adding {c.term} does not help (blocked-CV RMSE {-c.blocked_gain:.0%} worse)"
     )
+    if c.revisit:
+        head = (
+            f"adding {c.term} cuts the error where the track revisits itself by {c.improvement:.0%} "
+            f"(in unseen blocks, where the bed is extrapolated and a level cannot show: "
+            f"{c.blocked_gain:+.0%})"
+        )
     if c.time_proxies:
         head += f" ({', '.join(c.time_proxies)} only count time and are folded into t)"
     if c.consequence:

@@ -41,6 +41,7 @@ from forcemap.host.workbench.spec import parse_term
 from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.table import Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
+from forcemap.host.workbench.water_level import REVISIT_MIN_DT_S, REVISIT_RADIUS_M
 
 __all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
 
@@ -219,8 +220,8 @@ def _water_level(ev: Evaluator) -> Candidate | None:
     c.hypers, c.revisit = model.theta_, True
     n = len(ev.revisit_plan()[1])
     c.note = (
-        f"judged where the track revisits itself ({n} held-out samples another pass crosses): the "
-        f"error there falls by {gain:.0%}, to {rmse:.3g}"
+        f"judged on {n} held-out samples that another pass comes within {REVISIT_RADIUS_M:g} m of, "
+        f"{REVISIT_MIN_DT_S / 60:g} min or more apart: RMSE there {rmse:.3g}"
     )
     return c
 
