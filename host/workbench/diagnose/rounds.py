@@ -210,11 +210,10 @@ def _water_level(ev: Evaluator) -> Candidate | None:
     """Time for a depth target, judged where the track revisits itself: a moving water surface shows as
     differences between passes over the same place, which unseen blocks drown in the error of extrapolating
     the bed. The term is `water_level`; None when the survey hardly revisits itself."""
-    model = ev.water_level()
-    judged = ev.revisit(model)
-    if judged is None:
+    if ev.revisit_plan() is None:
         return None
-    gain, p, rmse = judged
+    model = ev.water_level()
+    gain, p, rmse = ev.revisit(model)  # type: ignore[misc]
     cv, gain_b, _ = ev.blocked(model)
     c = Candidate("t", "water_level", cv.rmse, gain, p, gain_b, None, False)
     c.hypers, c.revisit = model.theta_, True
