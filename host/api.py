@@ -22,10 +22,18 @@ from forcemap.host.workbench.table import load_survey
 DEFAULT_RESOLUTION_M = 5.0
 
 
-def read_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
+def read_survey(
+    path: str | Path, keep_outliers: bool = False, water_level: str | Path | None = None
+) -> Survey:
     """A samples table (CSV, Parquet, or an MCAP log from `forcemap run`), validated, as a `Survey`;
-    with `keep_outliers`, the spikes flagged along the track stay in the fits (`--keep-outliers`)."""
-    return Survey(load_survey(path, keep_outliers=keep_outliers))
+    with `keep_outliers`, the spikes flagged along the track stay in the fits (`--keep-outliers`); with
+    `water_level` (a gauge's CSV), the depth is reduced to the gauge's datum (`--water-level`)."""
+    table = load_survey(path, keep_outliers=keep_outliers)
+    if water_level is not None:
+        from forcemap.host.workbench.water_level import read_gauge, reduce_to_gauge
+
+        table = reduce_to_gauge(table, read_gauge(water_level))
+    return Survey(table)
 
 
 class Survey:

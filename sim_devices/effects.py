@@ -90,6 +90,22 @@ CATALOGUE: dict[str, EffectSpec] = {
             "the autopilot's data and time stamps run `offset_s` late relative to the bridge",
             {"offset_s": 1.5},
         ),
+        EffectSpec(
+            "tide",
+            "world",
+            "a tide under the survey",
+            "the water surface moves by amplitude_m sin(2 pi (t - mid) / period_s + phase): every sounding is "
+            "deeper by the level; phase_deg 0 is mid-tide, rising, at the survey's middle",
+            {"amplitude_m": 0.7, "period_s": 44712.0, "phase_deg": 0.0},
+        ),
+        EffectSpec(
+            "stage",
+            "world",
+            "the river's stage follows its discharge",
+            "a rating curve Q = C (h - e)^b: the stage is scale_m ((Q / Q0)^(1 / b) - 1) above the start's, "
+            "so it rises with dam_release's discharge; every sounding is deeper by it",
+            {"scale_m": 1.0, "b": 1.6},
+        ),
     )
 }
 

@@ -382,6 +382,10 @@ class Simulation(MissionLink):
     def truth_table(self) -> np.ndarray:
         """The samples.csv table: one row per 0.1 s, columns as ``truth.COLUMNS``."""
         track = self.track or truth_files.track_arrays(self.rows, self.extra)
+        if track and self.world is not None:
+            track["water_level"] = (
+                np.asarray(self.world.water_level(track["t"]), float) + 0.0 * track["t"]
+            )
         return truth_files.samples_table(track, self.geo, self.scenario.t0)
 
     def meta(self) -> dict[str, Any]:

@@ -19,6 +19,12 @@ def smoothstep(u: ArrayLike) -> ArrayLike:
     return u * u * (3.0 - 2.0 * u)
 
 
+def rating_stage(q: ArrayLike, scale_m: float, b: float = 1.6) -> ArrayLike:
+    """Stage (m) above the stage at relative discharge 1 on a rating curve Q = C (h - e)^b (USGS): with
+    h - e = scale_m at Q0, the stage at Q is scale_m ((Q / Q0)^(1 / b) - 1)."""
+    return scale_m * (np.power(np.asarray(q, dtype=float), 1.0 / b) - 1.0)
+
+
 @dataclass
 class Point:
     """Every true field at one place and time (SI, vectors as velocities of the medium)."""
@@ -97,7 +103,7 @@ class World:
         )
 
     def depth(self, x: ArrayLike, y: ArrayLike) -> ArrayLike:
-        """Water depth below the surface (m)."""
+        """Water depth below the surface at rest (m): the bed; a sounding adds `water_level(t)`."""
         return self._depth(x, y, self._smooth_depth(x, y))
 
     def _depth(self, x: ArrayLike, y: ArrayLike, ds: ArrayLike) -> ArrayLike:
@@ -105,6 +111,21 @@ class World:
         for xb, yb, rb, hb in self.bars:
             d = d - hb * np.exp(-((x - xb) ** 2 + (y - yb) ** 2) / (rb * rb))
         return np.clip(d, self.d_min, self.d_max)
+
+    # ---- the water surface --------------------------------------------------------------
+    def water_level(self, t: ArrayLike) -> ArrayLike:
+        """The water surface's height (m) above its level at rest (no tide, the starting discharge): a tide,
+        and a stage following the discharge through a rating curve. Soundings are deeper by it."""
+        t = np.asarray(t, dtype=float)
+        level = np.zeros_like(t)
+        tide = self.on.get("tide")
+        if tide is not None:
+            arg = 2 * math.pi * (t - 0.5 * self.duration_s) / tide["period_s"]
+            level = level + tide["amplitude_m"] * np.sin(arg + math.radians(tide["phase_deg"]))
+        stage = self.on.get("stage")
+        if stage is not None:
+            level = level + rating_stage(self.discharge_factor(t), stage["scale_m"], stage["b"])
+        return level if level.ndim else float(level)
 
     # ---- current ------------------------------------------------------------------------
     def discharge_factor(self, t: ArrayLike) -> ArrayLike:
@@ -236,8 +257,14 @@ class World:
         d = self._depth(x, y, ds)
         ce, cn = self._current(x, y, t, ds, d)
         we, wn = self.wind(x, y, t)
+        level = self.water_level(t) if ("tide" in self.on or "stage" in self.on) else 0.0
         return Point(
-            float(d), float(ce), float(cn), float(we), float(wn), float(self.water_temp(x, y))
+            float(d + level),
+            float(ce),
+            float(cn),
+            float(we),
+            float(wn),
+            float(self.water_temp(x, y)),
         )
 
     def grid(self, nx: int = 121, ny: int = 41) -> tuple[np.ndarray, np.ndarray]:

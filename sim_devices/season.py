@@ -5,7 +5,9 @@ world (`fields.World`): the depth is fixed (with an optional slow shift of the s
 current is the scenario's pattern times the day's discharge, which follows a hydrograph (a rise to a peak at
 a quarter of the season and a recession), and the wind's speed and direction change by day. The measured
 values are the truth plus instrument noise; the tables go straight to Parquet (no instruments or daemon in
-the loop: a season of 5 million samples takes seconds, not hours). Each survey's truth is written beside it.
+the loop: a season of 5 million samples takes seconds, not hours). With a stage (`stage_scale_m`), the water
+surface follows the day's discharge through a rating curve and every sounding is deeper by it (`stage_m` in
+each survey's truth). Each survey's truth is written beside it.
 
     DIR/survey-000/samples.parquet   DIR/survey-000/truth.json   ...   DIR/season_truth.json
 """
@@ -20,7 +22,7 @@ import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.vessel.scenario import load
 
-from .fields import World
+from .fields import World, rating_stage
 
 RATE_HZ = 5.0
 SPEED_MPS = 3.5
@@ -41,6 +43,9 @@ class SurveyTruth:
     wind_from_deg: float
     bar_shift_m: float  # how far the sand bars have moved downstream (+x)
     samples: int
+    stage_m: float = (
+        0.0  # the water surface above its level at discharge scale 1 (the rating curve)
+    )
 
 
 def hydrograph(day: np.ndarray | float, days: float) -> np.ndarray:
@@ -71,8 +76,11 @@ def lawnmower(n: int, box: tuple[float, float, float, float], rng: np.random.Gen
     return x, y, heading
 
 
-def season_plan(n: int, days: float, seed: int, bar_shift_per_day: float) -> list[SurveyTruth]:
-    """When each survey is flown and the river's state that day."""
+def season_plan(
+    n: int, days: float, seed: int, bar_shift_per_day: float, stage_scale_m: float = 0.0
+) -> list[SurveyTruth]:
+    """When each survey is flown and the river's state that day (with `stage_scale_m`, the stage follows
+    the day's discharge through the rating curve `fields.rating_stage`)."""
     rng = np.random.default_rng([seed, 24])
     start = load("river").t0
     day = np.linspace(0.0, days, n) + rng.uniform(0, 0.1, n) if n > 1 else np.zeros(1)
@@ -92,6 +100,7 @@ def season_plan(n: int, days: float, seed: int, bar_shift_per_day: float) -> lis
                 float(wind_from[k]),
                 float(bar_shift_per_day * d),
                 0,
+                float(rating_stage(hydrograph(d, days), stage_scale_m)),
             )
         )
     return out
@@ -111,7 +120,7 @@ def simulate_survey(truth: SurveyTruth, samples: int, seed: int) -> dict[str, np
     we, wn = world.wind(x, y, t)
     cols = {
         "t": truth.t_start + t,
-        "depth": world.depth(x, y) + rng.normal(0, NOISE["depth"], samples),
+        "depth": world.depth(x, y) + truth.stage_m + rng.normal(0, NOISE["depth"], samples),
         "current_east": truth.discharge_scale * ce + rng.normal(0, NOISE["current"], samples),
         "current_north": truth.discharge_scale * cn + rng.normal(0, NOISE["current"], samples),
         "wind_east": we + rng.normal(0, NOISE["wind"], samples),
@@ -143,12 +152,15 @@ def make_season(
     samples: int = 54_000,
     seed: int = 0,
     bar_shift_per_day: float = 0.0,
+    stage_scale_m: float = 0.0,
     progress=None,
 ) -> list[Path]:
-    """Write `n` surveys over `days` days into `out_dir`; returns the tables' paths."""
+    """Write `n` surveys over `days` days into `out_dir`; returns the tables' paths. `stage_scale_m` above
+    0 moves the water surface with the discharge (a rating curve, `fields.rating_stage`): 0.98 m gives the
+    hydrograph's 0.6-1.6 discharge a 0.6 m stage range."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    plan = season_plan(n, days, seed, bar_shift_per_day)
+    plan = season_plan(n, days, seed, bar_shift_per_day, stage_scale_m)
     paths = []
     for truth in plan:
         folder = out / f"survey-{truth.index:03d}"
@@ -167,6 +179,7 @@ def make_season(
         "bar_shift_m_per_day": bar_shift_per_day,
         "noise_std": NOISE,
         "hydrograph": "0.6 + u exp(1 - u), u = day / (days / 4)",
+        "rating": f"stage_m = {stage_scale_m} (discharge_scale^(1/1.6) - 1)",
         "surveys": [asdict(t) for t in plan],
     }
     (out / "season_truth.json").write_text(json.dumps(meta, indent=1) + "\n")

@@ -17,7 +17,7 @@ COLUMNS = (
     "t", "x", "y", "lat", "lon", "heading", "yaw_rate", "sog", "cog", "boat_east", "boat_north",
     "depth", "water_temp", "wind_east", "wind_north", "wind_speed", "wind_dir", "current_east",
     "current_north", "current_speed", "current_dir", "wheel1_speed", "wheel2_speed", "wheel3_speed",
-    "wheel4_speed", "app_wind_speed", "app_wind_angle",
+    "wheel4_speed", "app_wind_speed", "app_wind_angle", "water_level",
 )  # fmt: skip
 FORMATS = {"t": "%.3f", "lat": "%.8f", "lon": "%.8f"}
 # the simulation's per-step rows and extras, in order
@@ -57,6 +57,7 @@ def samples_table(track: dict[str, np.ndarray], geo: LocalFrame, t0: float) -> n
         "wind_dir": compass(-track["wind_east"], -track["wind_north"]),
         "current_speed": np.hypot(track["current_east"], track["current_north"]),
         "current_dir": compass(track["current_east"], track["current_north"]),
+        "water_level": track.get("water_level", np.zeros(len(track["t"]))),
     }
     return np.column_stack([cols[c] for c in COLUMNS])
 
@@ -93,6 +94,7 @@ def write_fields(
         we[i], wn[i] = world.wind(xx, yy, tt)
     np.savez_compressed(
         path, x=x, y=y, t=t0 + ts, depth=world.depth(xx, yy).astype(np.float32),
+        water_level=np.asarray(world.water_level(ts), float) + np.zeros(nt),
         current_east=ce, current_north=cn, wind_east=we, wind_north=wn,
     )  # fmt: skip
 
@@ -104,7 +106,20 @@ def write_all(truth_dir: str | Path, meta: dict[str, Any], world: World, table: 
     (d / "effects.json").write_text(json.dumps(meta, indent=2, default=float) + "\n")
     write_fields(d / "fields.npz", world, float(meta["t0"]), float(meta["duration"]))
     write_samples(d / "samples.csv", table)
+    if len(table):
+        write_gauge(d / "water_level.csv", world, float(meta["t0"]), float(meta["duration"]))
     return d
+
+
+def write_gauge(
+    path: Path, world: World, t0: float, duration_s: float, every_s: float = 60.0
+) -> None:
+    """The true water level as a gauge would log it: `time,level_m` (UNIX s, m above the surface at rest)
+    every `every_s`, over the survey and a step either side (a file for `--water-level`)."""
+    ts = np.arange(-every_s, duration_s + 2 * every_s, every_s)
+    level = np.asarray(world.water_level(ts), float) + np.zeros(len(ts))
+    rows = np.column_stack([t0 + ts, level])
+    np.savetxt(path, rows, delimiter=",", fmt=["%.3f", "%.4f"], header="time,level_m", comments="")
 
 
 def effects_meta(sim: Any) -> dict[str, Any]:

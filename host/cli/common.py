@@ -274,6 +274,31 @@ def add_keep_outliers(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_water_level(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--water-level",
+        type=Path,
+        metavar="GAUGE.csv",
+        help="a water-level gauge's record (USGS RDB/CSV, NOAA CO-OPS CSV, or time,level CSV): the "
+        "depth is reduced to the gauge's datum (without it, the term water_level estimates the level "
+        "from the survey's crossings)",
+    )
+
+
+def load_table(args: argparse.Namespace):
+    """The samples table of `args.table` as the workbench's Survey, with --keep-outliers and, when given,
+    the depth reduced to --water-level's gauge datum (a bad gauge file is one line and exit 2)."""
+    from forcemap.host.workbench.table import load_survey
+
+    survey = load_survey(args.table, keep_outliers=args.keep_outliers)
+    gauge = getattr(args, "water_level", None)
+    if gauge is None:
+        return survey
+    from forcemap.host.workbench.water_level import read_gauge, reduce_to_gauge
+
+    return reduce_to_gauge(survey, read_gauge(gauge))
+
+
 def teach(parser: argparse.ArgumentParser, epilog: str) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = epilog

@@ -11,9 +11,11 @@ from forcemap.host.cli.common import (
     add_quiet,
     add_table,
     add_target,
+    add_water_level,
     add_workspace_options,
     check_json_output,
     human,
+    load_table,
     prepare_workspace,
     print_notes,
     require_target,
@@ -68,6 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_quiet(parser)
     add_keep_outliers(parser)
+    add_water_level(parser)
     add_workspace_options(parser)
 
 
@@ -76,7 +79,6 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.workbench.fitting import resolve_terms
     from forcemap.host.workbench.model import small_blas
     from forcemap.host.workbench.spec import BASELINE, check_terms
-    from forcemap.host.workbench.table import load_survey
     from forcemap.host.workbench.workspace import current_terms, save_diagnosis
 
     if args.rounds < 1:
@@ -93,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         terms = current_terms(ws, target) or list(BASELINE)
     check_terms(terms)
-    survey = load_survey(args.table, keep_outliers=args.keep_outliers)
+    survey = load_table(args)
     with small_blas():
         result = diagnose(survey, target, terms, rounds=args.rounds, progress=not args.quiet)
     print_notes(survey)

@@ -11,9 +11,11 @@ from forcemap.host.cli.common import (
     add_quiet,
     add_table,
     add_target,
+    add_water_level,
     add_workspace_options,
     check_json_output,
     human,
+    load_table,
     prepare_workspace,
     print_notes,
     require_target,
@@ -66,11 +68,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="do not write residual plots")
     add_quiet(parser)
     add_keep_outliers(parser)
+    add_water_level(parser)
     add_workspace_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host.api import Fit, read_survey
+    from forcemap.host.api import Fit, Survey
     from forcemap.host.workbench.fitting import resolve_terms, save_residual_plots
     from forcemap.host.workbench.spec import check_terms
 
@@ -80,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     check_terms(terms)
     check_json_output(args)
     ws = prepare_workspace(args)
-    survey = read_survey(args.table, keep_outliers=args.keep_outliers)
+    survey = Survey(load_table(args))
     fit = Fit(target, terms=terms, folds=args.folds).fit(
         survey, record=True, progress=not args.quiet
     )

@@ -12,9 +12,11 @@ from forcemap.host.cli.common import (
     add_output,
     add_quiet,
     add_table,
+    add_water_level,
     add_workspace_options,
     check_json_output,
     human,
+    load_table,
     prepare_workspace,
     print_notes,
     teach,
@@ -74,6 +76,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_json(parser, "the grid and the files")
     add_quiet(parser)
     add_keep_outliers(parser)
+    add_water_level(parser)
     add_workspace_options(parser, output=False)
 
 
@@ -131,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, out: Path) -> int:
-    from forcemap.host.api import read_survey
+    from forcemap.host.api import Survey
     from forcemap.host.gis.contours import write_contours
     from forcemap.host.gis.geotiff import write_geotiff
     from forcemap.host.gis.grid import utm_epsg
@@ -141,7 +144,7 @@ def _run(args: argparse.Namespace, out: Path) -> int:
     from forcemap.host.workbench.model import small_blas
 
     progress = not args.quiet
-    survey = read_survey(args.table, keep_outliers=args.keep_outliers)
+    survey = Survey(load_table(args))
     utm_epsg(survey.table.columns["lat"], survey.table.columns["lon"])  # refused before the fits
     targets = _targets(args, survey.columns)
     scalars = [t for t in targets if survey.table.vector_target(t) is None]
@@ -188,6 +191,9 @@ def _run(args: argparse.Namespace, out: Path) -> int:
         f"{int(grid.mask.sum())} mapped",
         file=out,
     )
+    for layer in grid.layers.values():
+        if layer.datum:
+            print(f"{layer.target}: {layer.datum}", file=out)
     for p in written:
         print(f"wrote {p}", file=out)
     return 0

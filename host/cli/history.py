@@ -61,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "
             f"{h['cv_mae']:>9.4g} {h['coverage95']:>6.1%}  {' + '.join(h['terms'])}"
+            + (f"  (crossline RMSE {h['crossline_rmse']:.4g})" if "crossline_rmse" in h else "")
         )
     for target, d in diagnoses.items():
         print(f"diagnose {target}:")

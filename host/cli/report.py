@@ -10,7 +10,9 @@ from forcemap.host.cli.common import (
     add_output,
     add_quiet,
     add_table,
+    add_water_level,
     add_workspace_options,
+    load_table,
     prepare_workspace,
     print_notes,
     teach,
@@ -36,6 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_quiet(parser)
     add_keep_outliers(parser)
+    add_water_level(parser)
     add_workspace_options(parser)
 
 
@@ -43,7 +46,6 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.outputs import atomic_write, check_output
     from forcemap.host.report.build import build_report
     from forcemap.host.workbench.model import small_blas
-    from forcemap.host.workbench.table import load_survey
     from forcemap.host.workbench.workspace import load_diagnoses
 
     ws = prepare_workspace(args, create=args.output is None)  # the default report goes there
@@ -52,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         out = check_output(args.output, [args.table], force=args.force)
     else:
         out = check_output(ws / "report.html", [args.table], force=True)  # the workspace's own
-    survey = load_survey(args.table, keep_outliers=args.keep_outliers)
+    survey = load_table(args)
     with small_blas():
         text = build_report(args.table, survey, progress=not args.quiet)
     print_notes(survey)

@@ -8,7 +8,7 @@ import glob
 import sys
 from pathlib import Path
 
-from forcemap.host.cli.common import add_json, add_output, add_quiet, human, teach
+from forcemap.host.cli.common import add_json, add_output, add_quiet, add_water_level, human, teach
 from forcemap.host.extras import install_hint
 
 EPILOG = """\
@@ -47,6 +47,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="auto",
         help="a per-survey current offset: auto (the evidence decides), yes, no",
     )
+    parser.add_argument(
+        "--levels",
+        choices=("auto", "yes", "no"),
+        default="auto",
+        help="one water level per survey under the static depth: auto (the evidence decides), yes, no",
+    )
+    add_water_level(parser)
     parser.add_argument("--no-cv", action="store_true", help="skip the depth map's blocked CV")
     add_json(parser, "the season's summary (season.json)")
     add_quiet(parser)
@@ -106,10 +113,18 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(text, file=sys.stderr, flush=True)
 
+    gauge = None
+    if args.water_level is not None:
+        from forcemap.host.workbench.water_level import read_gauge
+
+        gauge = read_gauge(args.water_level)
     work = runner(args.dask)
     try:
-        offsets = {"auto": None, "yes": True, "no": False}[args.offsets]
-        season = run_season(paths, work, args.basis, offsets, not args.no_cv, progress)
+        choice = {"auto": None, "yes": True, "no": False}
+        season = run_season(
+            paths, work, args.basis, choice[args.offsets], not args.no_cv, progress,
+            levels=choice[args.levels], gauge=gauge,
+        )  # fmt: skip
     except WorkbenchError as e:
         raise CliError(str(e)) from None
     finally:

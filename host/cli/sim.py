@@ -117,6 +117,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="M_PER_DAY",
         help="the sand bars move this far downstream per day (default 0: fixed depth)",
     )
+    season.add_argument(
+        "--stage",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="the stage follows the discharge through a rating curve of this scale (m; 0.98 gives a 0.6 m "
+        "range; default 0: fixed stage)",
+    )
 
 
 def print_list() -> None:
@@ -230,6 +238,8 @@ def run_season(args: argparse.Namespace) -> int:
     """N surveys over D days: a hydrograph, the wind by day, fixed depth (or slowly moving bars)."""
     from forcemap.sim_devices.season import make_season
 
+    if not (math.isfinite(args.stage) and args.stage >= 0):
+        raise CliError(f"--stage needs a scale of at least 0 m, not {args.stage}")
     if args.season < 1 or args.samples < 100 or not (math.isfinite(args.days) and args.days > 0):
         raise CliError(
             "--season needs N >= 1 surveys, --days above 0 and --samples of at least 100"
@@ -249,7 +259,8 @@ def run_season(args: argparse.Namespace) -> int:
 
     paths = make_season(
         args.season, args.days, out, samples=args.samples, seed=args.seed,
-        bar_shift_per_day=args.bar_shift, progress=progress,
+        bar_shift_per_day=args.bar_shift, stage_scale_m=args.stage,
+        progress=progress,
     )  # fmt: skip
     print(f"{len(paths)} surveys of {args.samples} samples over {args.days:g} days in {out}")
     print(f"truth: {out / 'season_truth.json'} and survey-*/truth.json")

@@ -44,6 +44,8 @@ def write_geotiff(grid: MapGrid, layer: Layer, path: str | Path) -> Path:
             mask_distance_m=f"{grid.max_distance:g}",
             time_coverage="/".join(grid.time_coverage()),
         )
+        if layer.datum:
+            dst.update_tags(vertical_datum=layer.datum)
         for i, name in enumerate(names, 1):
             dst.set_band_description(i, name)
             attrs = band_attrs(layer, name)

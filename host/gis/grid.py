@@ -41,6 +41,7 @@ class Layer:
         None  # "current" or "wind" for a vector target, with east/north/speed/dir bands
     )
     prefix: str | None = None  # the vector's column prefix: "current", "wind", "current_paper"
+    datum: str | None = None  # what a depth map is measured from (workbench.water_level.map_datum)
 
 
 @dataclass
@@ -238,4 +239,9 @@ def evaluate(grid: MapGrid, model) -> Layer:
         full[keep] = values
         out[name] = full.reshape(grid.ny, grid.nx)
     vt = model.vector if "east" in pred else None
-    return Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
+    layer = Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
+    if model.target == "depth":
+        from forcemap.host.workbench.water_level import map_datum
+
+        layer.datum = map_datum(model.survey, list(model.terms))
+    return layer

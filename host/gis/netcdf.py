@@ -37,12 +37,15 @@ def to_dataset(grid: MapGrid):
             attrs = band_attrs(layer, band)
             attrs["grid_mapping"] = GRID_MAPPING
             attrs["forcemap_model_terms"] = " + ".join(layer.terms)
+            if layer.datum:
+                attrs["vertical_datum"] = layer.datum
             if not (band == "sd" or band.endswith("_sd")):
                 sd = "sd" if band == "mean" else f"{band}_sd"
                 if sd in layer.bands:
                     attrs["ancillary_variables"] = variable_name(layer, sd)
             data[variable_name(layer, band)] = (("y", "x"), values, attrs)
     start, end = grid.time_coverage()
+    datums = [f"{lay.target}: {lay.datum}" for lay in grid.layers.values() if lay.datum]
     ds = xr.Dataset(data, coords=coords)
     ds.attrs = {
         "Conventions": "CF-1.8",
@@ -58,6 +61,8 @@ def to_dataset(grid: MapGrid):
         "geospatial_crs": f"EPSG:{grid.epsg} ({grid.zone_name})",
         "resolution_m": float(grid.resolution),
     }
+    if datums:
+        ds.attrs["vertical_datum"] = "; ".join(datums)
     return ds
 
 

@@ -168,6 +168,8 @@ def maps_section(ctx: ReportContext) -> list[str]:
         name = target.split("_")[0]
         parts.append(f"<h3>{html.escape(name)}: {html.escape(' + '.join(terms))}</h3>")
         parts.append(img(grid_figure(grid, layer, track, label), target))
+        if layer.datum:
+            parts.append(f"<p class=small>{html.escape(layer.datum)}.</p>")
     return parts
 
 

@@ -62,6 +62,27 @@ def _cv(cv: list[dict]) -> list[str]:
     return rows + ["</table>"]
 
 
+def _levels(data: dict) -> list[str]:
+    """The depth's datum, each survey's water level and the rating-curve check."""
+    d = data.get("depth")
+    if d is None:
+        return []
+    out = [f"<p>Depth map: {html.escape(d.get('datum', ''))}.</p>"]
+    rows = [s for s in data["surveys"] if s.get("water_level_m") is not None]
+    if rows:
+        out.append(
+            "<p>Water level per survey (m, season mean 0; the evidence gain of a level per survey "
+            f"{d.get('levels_evidence_gain', 0.0):.1f} nats): "
+            + ", ".join(
+                f"{s['water_level_m']:+.3f} &plusmn; {s['water_level_sd_m']:.3f}" for s in rows
+            )
+            + ".</p>"
+        )
+    if "rating" in data:
+        out.append(f"<p>Rating curve: {html.escape(data['rating']['verdict'])}.</p>")
+    return out
+
+
 def season_section(data: dict, figs: dict[str, bytes]) -> list[str]:
     parts = [
         "<h2>Season</h2>",
@@ -77,7 +98,9 @@ def season_section(data: dict, figs: dict[str, bytes]) -> list[str]:
                f"no per-survey offset (the evidence gain, {c['offsets_evidence_gain']:.1f} nats, did not pay for it).")
             + "</p>"
         )  # fmt: skip
-    for name, alt in (("scales.png", "scales"), ("depth.png", "depth"), ("current.png", "current")):
+    parts += _levels(data)
+    for name, alt in (("scales.png", "scales"), ("rating.png", "rating curve"), ("depth.png", "depth"),
+                      ("current.png", "current")):  # fmt: skip
         if name in figs:
             parts.append(_img(figs[name], alt))
     parts += _surveys(data)

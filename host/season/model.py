@@ -27,6 +27,7 @@ from forcemap.host.season.stats import (
     target_scale,
     tree_sum,
     weighted_sum,
+    without_offset,
 )
 from forcemap.host.season.tasks import Frame, SurveyResult
 
@@ -39,25 +40,11 @@ def columns(st: Stats, idx: list[int]) -> Stats:
     return Stats(st.G, st.B[:, idx], st.R[np.ix_(idx, idx)], st.n)
 
 
-def without_offset(st: Stats) -> Stats:
-    """The statistics with a free per-survey constant projected out of every target column (column 0 of
-    the basis is the constant): the offset's flat-prior profile."""
-    g, ysum, n = st.G[:, 0], st.B[0], max(st.n, 1)
-    # G - g g' / n with one temporary, not three (the same roundings: the product, its quotient, the sum)
-    G = np.multiply.outer(g, g)
-    G /= -n
-    G += st.G
-    return Stats(
-        G,
-        st.B - np.outer(g, ysum) / n,
-        st.R - np.outer(ysum, ysum) / n,
-        st.n,
-    )
-
-
 @dataclass
 class StaticFit:
-    """The depth map: hyperparameters, the summed statistics and the posterior."""
+    """The depth map: hyperparameters, the summed statistics and the posterior; with `levels`, the depth of
+    survey k is the static bed plus its water level levels[k] (centred on the season's mean, sd level_sd[k]),
+    and `total` holds the statistics with each survey's level profiled out (`without_offset`)."""
 
     prior: Prior
     theta: np.ndarray
@@ -65,6 +52,10 @@ class StaticFit:
     y_scale: float
     post: Posterior
     log_evidence: float
+    levels: np.ndarray | None = None
+    level_sd: np.ndarray | None = None
+    levels_evidence_gain: float = 0.0  # log evidence with a level per survey minus without
+    paths: list[str] = field(default_factory=list)  # the surveys with depth, in the order of levels
 
 
 @dataclass
@@ -86,17 +77,55 @@ class CurrentFit:
     )  # each survey's own map's weights (season hyperparameters)
 
 
-def fit_depth(frame: Frame, total: dict, results: list[SurveyResult]) -> StaticFit | None:
-    if not any(r.has["depth"] for r in results):
+def fit_depth(
+    frame: Frame, total: dict, results: list[SurveyResult], levels: bool | None = None
+) -> StaticFit | None:
+    """The static bed, and with `levels` (True / False, or None to let the evidence decide, BIC as for the
+    current's offsets) one water level per survey fitted with it: a sounder measures from the moving surface,
+    so a season whose stage follows the discharge sees the same bed deeper in a flood."""
+    use = [r for r in results if r.has["depth"]]
+    if not use:
         return None
     prior = Prior(frame.space)
     full, hyper = columns(total["space"], [0]), columns(total["space_hyper"], [0])
-    if not all(r.has["depth"] for r in results):
-        full = tree_sum([columns(r.stats["space"], [0]) for r in results if r.has["depth"]])
-        hyper = tree_sum([columns(r.stats["space_hyper"], [0]) for r in results if r.has["depth"]])
+    if len(use) < len(results):
+        full = tree_sum([columns(r.stats["space"], [0]) for r in use])
+        hyper = tree_sum([columns(r.stats["space_hyper"], [0]) for r in use])
     y_scale = float(target_scale(full)[0])
     theta, logp = fit_hypers(prior, hyper, y_scale)
-    return StaticFit(prior, theta, full, y_scale, posterior(prior, theta, full, y_scale), logp)
+    fit = StaticFit(prior, theta, full, y_scale, posterior(prior, theta, full, y_scale), logp)
+    fit.paths = [r.path for r in use]
+    if len(use) < 2 or levels is False:
+        return fit
+    each = [columns(r.stats["space"], [0]) for r in use]
+    lfull = tree_sum([without_offset(st) for st in each])
+    lhyper = tree_sum([without_offset(columns(r.stats["space_hyper"], [0])) for r in use])
+    ltheta, llogp = fit_hypers(prior, lhyper, y_scale, theta)
+    gain = llogp - logp
+    fit.levels_evidence_gain = float(gain)
+    if levels is None and not gain > len(use) * math.log(max(hyper.n, 2)):
+        return fit
+    post = posterior(prior, ltheta, lfull, y_scale)
+    lv, sd = survey_levels(post, each)
+    # the bed at the season's mean level: the profiled constant goes to the map, the levels are centred
+    post.mean[0, 0] += float(lv.mean())
+    return StaticFit(
+        prior, ltheta, lfull, y_scale, post, llogp, lv - lv.mean(), sd, float(gain), fit.paths
+    )
+
+
+def survey_levels(post: Posterior, each: list[Stats]) -> tuple[np.ndarray, np.ndarray]:
+    """Each survey's level given the bed `post` (its mean residual depth) and its sd: the sounder's noise
+    over the survey's samples and the bed's own uncertainty averaged over its track (the sd of the level
+    against the season's mean: the bed's constant cancels)."""
+    W = post.mean
+    lv = np.array([(st.B[0, 0] - st.G[0] @ W[:, 0]) / max(st.n, 1) for st in each])
+    g = np.array([st.G[0] / max(st.n, 1) for st in each])
+    # a centred level's bed term is the survey's track mean less the season's: what is common cancels
+    g = g - g.mean(axis=0)
+    _, bed_sd = post.predict(g)
+    noise2 = post.sn2 * post.y_scale**2
+    return lv, np.sqrt(bed_sd**2 + noise2 / np.array([max(st.n, 1) for st in each]))
 
 
 def _scaled_sum(stats: list[Stats], s: np.ndarray) -> Stats:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.outputs import atomic_path, atomic_write
+from forcemap.host.season.levels import rating_check, rating_figure, survey_levels
 from forcemap.host.season.run import Season
 from forcemap.host.season.staleness import binned
 from forcemap.host.workbench.plots import new_figure, png_bytes
@@ -56,6 +57,7 @@ def summary(season: Season, m: dict[str, np.ndarray]) -> dict:
     cur_paths = [s.path for s in season.surveys if s.has["current_east"] and s.has["current_north"]]
     scale = dict(zip(cur_paths, cur.scales.tolist(), strict=True)) if cur else {}
     offset = dict(zip(cur_paths, cur.offsets.tolist(), strict=True)) if cur else {}
+    levels = survey_levels(season)
     surveys = []
     for k, s in enumerate(season.surveys):
         we, wn = np.nanmean(m["wind_east"][k]), np.nanmean(m["wind_north"][k])
@@ -68,6 +70,8 @@ def summary(season: Season, m: dict[str, np.ndarray]) -> dict:
                 "samples": s.n,
                 "current_scale": scale.get(s.path),
                 "current_offset_mps": offset.get(s.path),
+                "water_level_m": levels[s.path][0] if s.path in levels else None,
+                "water_level_sd_m": levels[s.path][1] if s.path in levels else None,
                 "wind_mean_speed_mps": None if math.isnan(we) else float(math.hypot(we, wn)),
                 "wind_mean_from_deg": None
                 if math.isnan(we)
@@ -95,7 +99,13 @@ def summary(season: Season, m: dict[str, np.ndarray]) -> dict:
             "theta": d.theta.tolist(),
             "y_scale": d.y_scale,
             "log_evidence": d.log_evidence,
+            "with_levels": d.levels is not None,
+            "levels_evidence_gain": d.levels_evidence_gain,
+            "datum": depth_datum(season),
         }
+        check = rating_check(season)
+        if check is not None:
+            out["rating"] = check
     if cur is not None:
         out["current"] = {
             "theta": cur.theta.tolist(),
@@ -111,8 +121,20 @@ def summary(season: Season, m: dict[str, np.ndarray]) -> dict:
     return out
 
 
+def depth_datum(season: Season) -> str:
+    """What the season's depth map is measured from."""
+    if season.frame.gauge is not None:
+        return f"depth below {season.frame.gauge.datum} ({season.frame.gauge.layout})"
+    if season.depth is not None and season.depth.levels is not None:
+        return "depth below the surface at the season's mean level (one level per survey, fitted)"
+    return "depth below the water surface at the time of each sounding (not reduced to a datum)"
+
+
 def figures(season: Season, m: dict[str, np.ndarray]) -> dict[str, bytes]:
     figs: dict[str, bytes] = {}
+    check = rating_check(season)
+    if check is not None:
+        figs["rating.png"] = png_bytes(rating_figure(check))
     cur = season.current
     if cur is not None:
         fig = new_figure((8, 3.2))

@@ -55,7 +55,11 @@ def run_season(
     offsets: bool | None = None,
     cv: bool = True,
     progress=None,
+    levels: bool | None = None,
+    gauge=None,
 ) -> Season:
+    """`levels`: one water level per survey in the depth model (True / False, None: the evidence decides);
+    `gauge` (a `workbench.water_level.Gauge`): every log's depth reduced to its datum first."""
     runner = runner or LocalRunner()
     paths = [str(p) for p in paths]
     tm: dict[str, float] = {}
@@ -68,6 +72,7 @@ def run_season(
             "no usable log in the season: " + "; ".join(r.reason for r in rejected)
         )
     frame, acc, far = choose_frame(good, n_basis, WIND_BASIS)
+    frame.gauge = gauge
     rejected += far
     tm["footprints_s"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -84,7 +89,7 @@ def run_season(
     order = np.argsort([s.t0 for s in surveys], kind="stable")
     surveys = [surveys[i] for i in order]
     t = time.perf_counter()
-    depth = fit_depth(frame, total, surveys)
+    depth = fit_depth(frame, total, surveys, levels)
     tm["depth_s"] = time.perf_counter() - t
     current = fit_current(frame, surveys, offsets)
     tm["current_s"] = time.perf_counter() - t - tm["depth_s"]

@@ -223,3 +223,19 @@ def sq_error(st: Stats, W: np.ndarray) -> float:
     """Sum over rows and target columns of (y - Phi w)^2, from the statistics: a map scored on data it never
     saw without touching the data again."""
     return float(np.trace(st.R) - 2.0 * np.sum(W * st.B) + np.sum(W * (st.G @ W)))
+
+
+def without_offset(st: Stats) -> Stats:
+    """The statistics with a free per-survey constant projected out of every target column (column 0 of
+    the basis is the constant): the offset's flat-prior profile."""
+    g, ysum, n = st.G[:, 0], st.B[0], max(st.n, 1)
+    # G - g g' / n with one temporary, not three (the same roundings: the product, its quotient, the sum)
+    G = np.multiply.outer(g, g)
+    G /= -n
+    G += st.G
+    return Stats(
+        G,
+        st.B - np.outer(g, ysum) / n,
+        st.R - np.outer(ysum, ysum) / n,
+        st.n,
+    )

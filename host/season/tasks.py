@@ -17,12 +17,14 @@ from forcemap.host.season.stats import (
     fit_hypers,
     posterior,
     target_scale,
+    without_offset,
 )
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey_fits import HYPER_SPACING_S, MIN_HYPER_ROWS
 from forcemap.host.workbench.table import Survey, VectorTarget, load_survey
+from forcemap.host.workbench.water_level import reduce_to_gauge
 
 # the statistics' target columns: depth and the current's components share the spatial basis
 SPACE_TARGETS = ("depth", "current_east", "current_north")
@@ -59,6 +61,8 @@ class Frame:
     space: object
     wind: object
     extent: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x0, x1, y0, y1 of the tracks
+    # a water-level gauge's record (`workbench.water_level.Gauge`): every log's depth reduced to its datum
+    gauge: object = None
 
     def xy(self, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
         return np.column_stack(LocalFrame(self.lat0, self.lon0).to_local(lat, lon))
@@ -177,6 +181,8 @@ def _targets(s: Survey, names: tuple[str, ...], vector: str) -> tuple[np.ndarray
 
 def read_placed(path: str, frame: Frame) -> tuple[Survey, np.ndarray]:
     s = _load(path)
+    if frame.gauge is not None:
+        s = reduce_to_gauge(s, frame.gauge)
     return s, frame.xy(s.columns["lat"], s.columns["lon"])
 
 
@@ -259,6 +265,7 @@ def depth_cv(path: str, frame: Frame, season, k: int = 5) -> dict | Rejected:
         return Rejected(path, f"{path}: no complete depth column for the blocked CV")
     folds, _ = blocked_folds(s.xy, k)
     feats = frame.space_features
+    with_level = season.levels is not None and path in season.paths
     own_all = chunk_stats(feats, Z, y[:, None])
     own_hyper = chunk_stats(
         feats, Z[hyper_mask(s.columns["t"])], y[hyper_mask(s.columns["t"])][:, None]
@@ -271,9 +278,21 @@ def depth_cv(path: str, frame: Frame, season, k: int = 5) -> dict | Rejected:
         held = chunk_stats(feats, Z[test], y[test][:, None])
         Phi = feats(Z[test])
         own = posterior(season.prior, theta_own, _minus(own_all, held), scale)
-        static = posterior(season.prior, season.theta, _minus(season.total, held), season.y_scale)
+        train = _minus(own_all, held)
+        if with_level:
+            # the survey's level profiled out of its training rows, as in the season's fit
+            rest = _minus(season.total, without_offset(own_all)) + without_offset(train)
+            static = posterior(season.prior, season.theta, rest, season.y_scale)
+            W = static.mean[:, 0]
+            level = (train.B[0, 0] - train.G[0] @ W) / max(train.n, 1)
+        else:
+            static = posterior(
+                season.prior, season.theta, _minus(season.total, held), season.y_scale
+            )
+            level = 0.0
         sq_own += float(((y[test] - own.predict(Phi, False)[0][:, 0]) ** 2).sum())
-        sq_static += float(((y[test] - static.predict(Phi, False)[0][:, 0]) ** 2).sum())
+        pred = static.predict(Phi, False)[0][:, 0] + level
+        sq_static += float(((y[test] - pred) ** 2).sum())
     return {
         "path": path,
         "rmse_own": (sq_own / len(y)) ** 0.5,

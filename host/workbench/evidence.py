@@ -393,7 +393,8 @@ def evidence(G, b, rr, n, loglam, logsn2, grad=True):
     if info != 0:
         raise np.linalg.LinAlgError("dtrtri failed")
     dBinv = np.einsum("ij,ij->j", Linv, Linv)
-    g_lam = 0.5 * (mu**2 / lam + dBinv - 1.0)
+    # mu^2 / lam, written so that a prior variance that underflows to 0 (an RBF's far frequencies) is no 0 / 0
+    g_lam = 0.5 * ((alpha / sn2) ** 2 + dBinv - 1.0)
     resid2 = rr - 2.0 * mu @ b + mu @ G @ mu
     g_sn2 = 0.5 * (-n + resid2 / sn2 + len(mu) - dBinv.sum())
     return logp, g_lam, g_sn2, post

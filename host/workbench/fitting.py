@@ -17,6 +17,7 @@ from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import Survey
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
+from forcemap.host.workbench.water_level import crossline_rmse
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
 
 
@@ -43,10 +44,12 @@ class FitResult:
     cv: CVResult
     folds: str
     failures: list[str]
+    # depth: the held-out error where the track revisits itself (water_level.crossline_rmse), or None
+    crossline: dict | None = None
 
     def to_json(self) -> dict:
         """The stable machine-readable contract."""
-        return {
+        out = {
             "target": self.model.target,
             "terms": self.model.terms,
             "cv_rmse": self.cv.rmse,
@@ -54,6 +57,7 @@ class FitResult:
             "coverage95": self.cv.coverage95,
             "spikes": self.model.spikes.to_json() if self.model.spikes else None,
         }
+        return out | (self.crossline or {})
 
     def summary(self) -> str:
         m = self.model
@@ -64,6 +68,11 @@ class FitResult:
             f"{self.folds} {DEFAULT_FOLDS}-fold CV: RMSE {self.cv.rmse:.4g}{unit}, MAE {self.cv.mae:.4g}{unit}, "
             f"95 % interval coverage {self.cv.coverage95:.1%}",
         ]
+        if self.crossline is not None:
+            lines.append(
+                f"where the track revisits itself ({self.crossline['crossline_samples']} samples, each "
+                f"time stretch held out): RMSE {self.crossline['crossline_rmse']:.4g}"
+            )
         if self.model.spikes is not None:
             lines += [f"spikes: {t}" for t in self.model.spikes.lines()] or [
                 "spikes: none flagged along the track"
@@ -102,7 +111,9 @@ def fit_target(
     note(f"cross-validating ({folds} folds) ...", progress)
     cv = sm.cv(fold_ids)
     unit = " deg" if sm.circular else ""
-    return FitResult(sm, cv, folds, failure_summary(sm.survey, cv.error, unit))
+    # depth is read from the moving surface: what blocked CV cannot see shows where the track crosses itself
+    crossline = crossline_rmse(sm) if target == "depth" else None
+    return FitResult(sm, cv, folds, failure_summary(sm.survey, cv.error, unit), crossline)
 
 
 def record(table: Path, result: FitResult) -> dict:

@@ -19,6 +19,7 @@ from forcemap.host.workbench.terms import (
     PowerTerm,
     Term,
     TermSpec,
+    WaterLevelTerm,
 )
 from forcemap.host.workbench.user_terms import UserTerm, load_function
 
@@ -38,6 +39,8 @@ def parse_term(text: str, is_circular: Callable[[str], bool]) -> TermSpec:
     text = text.strip()
     if text == "const":
         return TermSpec("const", ())
+    if text == "water_level":
+        return TermSpec("water_level", ("t",))
     m = _CALL.match(text)
     if not m:
         if not re.fullmatch(r"[A-Za-z_][\w]*", text):
@@ -82,6 +85,8 @@ def build_term(spec: TermSpec, is_circular: Callable[[str], bool]) -> Term:
     """The estimator term for a spec (data-dependent setup happens at fit time)."""
     if spec.kind == "const":
         return ConstTerm()
+    if spec.kind == "water_level":
+        return WaterLevelTerm()
     if spec.kind == "linear":
         return LinearTerm(spec.inputs)
     if spec.kind == "cos":

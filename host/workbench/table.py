@@ -99,6 +99,8 @@ class Survey:
     spikes_removed: set[str] = field(default_factory=set)
     # who fed each column (the MCAP's `columns` metadata; empty for a CSV): host/workbench/sources.py
     provenance: dict[str, str] = field(default_factory=dict)
+    # what the depth column is measured from once reduced to a gauge (host/workbench/water_level.py)
+    datum: str | None = None
 
     @property
     def n(self) -> int:
@@ -130,6 +132,7 @@ class Survey:
             keep_outliers=self.keep_outliers,
             spikes_removed=set(self.spikes_removed),
             provenance=dict(self.provenance),
+            datum=self.datum,
         )
 
     def column(self, name: str) -> np.ndarray:

@@ -275,6 +275,27 @@ class HilbertGPTerm(Term):
         return logS, np.column_stack([np.ones_like(logS), dl])
 
 
+# the water level changes over tens of minutes at the fastest (a tide, a flood wave): a shorter lengthscale
+# would let it take the bed's detail along the track
+WATER_LEVEL_MIN_LENGTHSCALE_S = 600.0
+
+
+class WaterLevelTerm(HilbertGPTerm):
+    """The water surface's level as a smooth function of time (`water_level`): an RBF GP in `t` whose
+    lengthscale is at least WATER_LEVEL_MIN_LENGTHSCALE_S. Every sounding is deeper by the level at its time;
+    the survey tells the level from the bed where the track crosses or revisits itself."""
+
+    def __init__(self, n_basis: int | None = None) -> None:
+        super().__init__(("t",), "rbf", n_basis, dims=1)
+
+    def describe(self) -> str:
+        return "water_level"
+
+    def setup(self, Z):
+        super().setup(Z)
+        self.l_min = max(self.l_min, min(WATER_LEVEL_MIN_LENGTHSCALE_S, 0.25 * self.l_max))
+
+
 class PowerTerm(Term):
     """Mean function a * (z / z_ref)^b for a positive covariate (a power law, e.g. Manning's depth^(2/3))."""
 
@@ -322,6 +343,6 @@ class TermSpec:
             return f"gp({args}, {self.kernel})"
         if self.kind == "user":
             return f"user({args}, {self.function})"
-        if self.kind == "const":
-            return "const"
+        if self.kind in ("const", "water_level"):
+            return self.kind
         return f"{self.kind}({args})"

@@ -65,6 +65,18 @@ def _app_angle(i: Instruments, family: str) -> str:
     )
 
 
+def _time(i: Instruments, family: str) -> str:
+    if family == "depth":
+        return (
+            "the water level changes during the survey (tide, river stage): give a gauge with "
+            "--water-level, or let forcemap estimate the level from the crossings (the term water_level)"
+        )
+    return (
+        "something changes in time: unsteady discharge (a dam release, rain, tide) for current, "
+        "gusts or a passing front for wind"
+    )
+
+
 def _bare(name: str | None) -> str:
     """'the speed log (VHW)' -> 'speed log (VHW)', for 'a misaligned ...'."""
     return (name or "").removeprefix("the ")
@@ -78,12 +90,7 @@ CATALOGUE: list[tuple[str, str | Cause, str]] = [
         "(Manning: speed ~ depth^(2/3))",
         "gp(depth, matern32), or power(depth) for a Manning-type law",
     ),
-    (
-        "^t$",
-        "something changes in time: unsteady discharge (a dam release, rain, tide) for current, "
-        "gusts or a passing front for wind",
-        "gp(t, matern32)",
-    ),
+    ("^t$", _time, "gp(t, matern32)"),
     (
         "^clock_offset$",
         _clock,
@@ -144,6 +151,8 @@ def explain(
     for pattern, cause, term in CATALOGUE:
         if re.search(pattern, covariate):
             text = cause(inst, family) if callable(cause) else cause
+            if covariate == "t" and family == "depth":
+                term = "water_level, or --water-level GAUGE.csv"
             return text, term.replace("COV", covariate).replace("HEADING_REL", covariate)
     return (
         f"an effect tied to '{covariate}' that the map model does not carry (check the sensor and its processing)",

@@ -32,6 +32,7 @@ class Candidate:
     null_gains: list[float] = field(default_factory=list)
     time_proxies: list[str] = field(default_factory=list)  # counters and clocks folded into t
     one_pass: bool = False  # confounded because the survey is one pass (identify.is_single_pass)
+    revisit: bool = False  # judged where the track revisits itself (evaluate.Evaluator.revisit)
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
@@ -203,6 +204,12 @@ def explain_candidate(
         if c.blocked_gain >= 0
         else f"adding {c.term} does not help (blocked-CV RMSE {-c.blocked_gain:.0%} worse)"
     )
+    if c.revisit:
+        head = (
+            f"adding {c.term} cuts the error where the track revisits itself by {c.improvement:.0%} "
+            f"(in unseen blocks, where the bed is extrapolated and a level cannot show: "
+            f"{c.blocked_gain:+.0%})"
+        )
     if c.time_proxies:
         head += f" ({', '.join(c.time_proxies)} only count time and are folded into t)"
     if c.consequence:

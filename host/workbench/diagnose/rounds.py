@@ -41,6 +41,7 @@ from forcemap.host.workbench.spec import parse_term
 from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.table import Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
+from forcemap.host.workbench.water_level import REVISIT_MIN_DT_S, REVISIT_RADIUS_M
 
 __all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
 
@@ -149,7 +150,7 @@ def diagnose_round(
     results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
-    fam = ev.sm.vector.family if ev.sm.vector else "field"
+    fam = ev.sm.vector.family if ev.sm.vector else (family(target) or "field")
     inst = Instruments.of(survey)
     for c in results:
         rest = [o for o in others if o != c.covariate]
@@ -186,6 +187,10 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
         c = Candidate(name, term, rmse, gain, p, gain, None, False)
         c.note = clock_offset.scan_offset(ev.sm.survey, ev.sm.vector).edge_note()
         return c
+    if name == "t" and family(ev.target) == "depth":
+        c = _water_level(ev)
+        if c is not None:
+            return c
     if name != "t":
         derived_column(ev.survey, name)
     model = ev.extended(name)
@@ -201,6 +206,25 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
     return c
 
 
+def _water_level(ev: Evaluator) -> Candidate | None:
+    """Time for a depth target, judged where the track revisits itself: a moving water surface shows as
+    differences between passes over the same place, which unseen blocks drown in the error of extrapolating
+    the bed. The term is `water_level`; None when the survey hardly revisits itself."""
+    if ev.revisit_plan() is None:
+        return None
+    model = ev.water_level()
+    gain, p, rmse = ev.revisit(model)  # type: ignore[misc]
+    cv, gain_b, _ = ev.blocked(model)
+    c = Candidate("t", "water_level", cv.rmse, gain, p, gain_b, None, False)
+    c.hypers, c.revisit = model.theta_, True
+    n = len(ev.revisit_plan()[1])
+    c.note = (
+        f"judged on {n} held-out samples that another pass comes within {REVISIT_RADIUS_M:g} m of, "
+        f"{REVISIT_MIN_DT_S / 60:g} min or more apart: RMSE there {rmse:.3g}"
+    )
+    return c
+
+
 def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: dict) -> None:
     """Mark each candidate significant or not: floor, p-value, null, identifiability (the last two only for
     the few that pass the first two, best first)."""
@@ -211,8 +235,9 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
         if c.improvement < FLOOR or c.p_value > threshold or screened >= SCREEN:
             continue
         screened += 1
-        if c.covariate == clock_offset.NAME:
-            # a correction of the target, not a covariate: nothing to shift, nothing position could predict
+        if c.covariate == clock_offset.NAME or c.revisit:
+            # a correction of the target, not a covariate: nothing to shift, nothing position could predict;
+            # or a level judged at revisits, where position is the same and only the time differs
             c.identifiable, c.significant = True, True
             continue
         values = survey_inputs(ev.survey, {c.covariate})[c.covariate]
@@ -266,6 +291,8 @@ def _prefer_direct_cause(results: list[Candidate], pair_gain) -> list[Candidate]
     model, the direct covariate is the explanation and goes first."""
     if not results or not is_proxy(results[0].covariate) or results[0].improvement <= 0:
         return results
+    if results[0].revisit:
+        return results  # judged at revisits, where no covariate of place can stand in for it
     lead = results[0]
     for i, c in enumerate(results[1:PROXY_WINDOW], start=1):
         if is_proxy(c.covariate) or c.consequence:
