@@ -10,6 +10,7 @@ from typing import Any
 from forcemap.host.cli.common import (
     add_boat,
     add_deprecated,
+    add_nmea_checksum,
     add_output,
     add_sample_rate,
     add_sync,
@@ -62,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_boat(parser, "calibration (default: built-in; see host/data/boat.example.toml)")
     add_sync(parser)
     add_sample_rate(parser)
+    add_nmea_checksum(parser)
 
 
 _UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records"}
@@ -133,7 +135,14 @@ def run(args: argparse.Namespace) -> int:
     out = check_output(_output(args, path), [path], args.force)
     try:
         res = import_to_mcap(
-            path, out, fmt, cal, args.sync, check=check_found, sample_rate_hz=sample_rate(args)
+            path,
+            out,
+            fmt,
+            cal,
+            args.sync,
+            check=check_found,
+            sample_rate_hz=sample_rate(args),
+            nmea_checksum=args.nmea_checksum,
         )
     except ImportFailed as e:
         raise CliError(str(e)) from None

@@ -27,6 +27,7 @@ from forcemap.host.cli.common import (
     add_boat,
     add_deprecated,
     add_duration,
+    add_nmea_checksum,
     add_output,
     add_quiet,
     add_sample_rate,
@@ -140,6 +141,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     add_sync(parser)
     add_sample_rate(parser)
+    add_nmea_checksum(parser)
     parser.add_argument("--prefix", default="run", help="file name prefix (default: run)")
     add_replan_arguments(parser)
     parser.add_argument(
@@ -207,6 +209,7 @@ def _pipeline_factory(
     speed: float,
     sample_rate_hz: float | None = None,
     on_sample: Callable[[dict], object] | None = None,
+    nmea_checksum: str = "strict",
 ) -> Callable[[Any], Any]:
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
 
@@ -226,6 +229,7 @@ def _pipeline_factory(
             hold_s=hold_s,
             sample_rate_hz=sample_rate_hz,
             sources_period_s=SOURCES_PERIOD_S,
+            nmea_checksum=nmea_checksum,
         )
 
     return make
@@ -313,7 +317,12 @@ def _run_daemon(
         daemon = Daemon(
             openers,
             _pipeline_factory(
-                cal, sync, clock.speed, sample_rate(args), svc.sample if svc else None
+                cal,
+                sync,
+                clock.speed,
+                sample_rate(args),
+                svc.sample if svc else None,
+                nmea_checksum=args.nmea_checksum,
             ),
             log,
             clock=clock,
