@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.fuse.declination import igrf_declination
 from forcemap.host.vessel import mission as ms
 from forcemap.host.vessel import scenario as sc
 from forcemap.host.vessel.boat import Boat, BoatParams, HullState
@@ -173,17 +174,43 @@ class Simulation(MissionLink):
             float(snd.get("offset_m", 0.2)),
             float(snd.get("noise_m", 0.03)),
             false_echo_rate=float(snd.get("false_echo_rate", max(echoes, default=0.0))),
+            bottom_lost=next(
+                (
+                    (f.start(self.duration), f.end(self.duration))
+                    for f in self.faults
+                    if f.kind == "bottom_lost"
+                ),
+                None,
+            ),  # fmt: skip
         )
         self.bus: NmeaBus | None = None
         if self.nmea_bus:
-            var = self.scenario.magnetic_variation_deg
-            dgps = next((f for f in self.faults if f.kind == "dgps_gnss"), None)
-            lost = (dgps.start(0.0), dgps.dur) if dgps is not None and dgps.dur > 0 else None
-            self.bus = NmeaBus(self.geo, self.seed * 1000 + 13, var, self.bus_faults, lost)
+            self.bus = self._nmea_bus()
         self.uart_nmea = Uart(BUS_BYTES_PER_S, chunk=64)
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)
         self.uart_mav = Uart(MAVLINK_BYTES_PER_S, chunk=64)
+
+    def _nmea_bus(self) -> NmeaBus:
+        """The NMEA-only boat's bus with its faults' windows (and, without variation in its
+        sentences, the Earth's field as IGRF-14 has it: the truth the importer must find)."""
+        var = self.scenario.magnetic_variation_deg
+        if "no_variation" in self.bus_faults:
+            sc0 = self.scenario
+            var = igrf_declination(sc0.lat0, sc0.lon0, sc0.t0)
+        windows = {}
+        for kind in ("dgps_gnss", "position_jump"):
+            f = next((f for f in self.faults if f.kind == kind), None)
+            if f is not None and f.dur > 0:
+                windows[kind] = (f.start(self.duration), f.dur)
+        return NmeaBus(
+            self.geo,
+            self.seed * 1000 + 13,
+            var,
+            self.bus_faults,
+            windows.get("dgps_gnss"),
+            jump=windows.get("position_jump"),
+        )
 
     # ---- time bases -----------------------------------------------------------------------
     def _ns(self, t_s: float) -> int:
@@ -316,7 +343,7 @@ class Simulation(MissionLink):
         self.bridge.advance_to(u1)
         if t_new + 1e-9 >= self.next_sound:
             self.next_sound += 1.0
-            lines = self.sounder.sentences(p.depth, p.water_temp)
+            lines = self.sounder.sentences(p.depth, p.water_temp, t_new)
             if self.garbler is not None:
                 lines = self.garbler.apply(lines)
             data = "".join(x + "\r\n" for x in lines).encode("ascii", "replace")

@@ -11,8 +11,9 @@ listed with their times, their distance and the speed they imply (``QaFinding`` 
 Which track is the boat's? The first good fix sets it, or, in an import, the ``seed``: the median of
 every fix in the file with the radius the track spans, so that a log which opens with a minute of
 fixes 500 km away keeps its real track. Should the track that is left out run on by itself,
-consistent, for RESET_S with no good fix between (the boat really was moved with the logger off),
-it becomes the track, and that is said too.
+consistent, with no good fix between, for RESET_S or for longer than the track before it had lasted
+(at least MIN_RESET_S: a live run has no pre-pass, and a receiver may open with a minute of stale
+fixes), it becomes the track, and that is said too.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from forcemap.host.log.qa_records import QaFinding
 MAX_SPEED_MPS = 25.0  # 49 kn: faster than the boats forcemap maps, slower than any jump
 SLACK_M = 100.0
 RESET_S = 120.0
+MIN_RESET_S = 10.0
 EARTH_M = 6_371_000.0
 RED_SHARE = 0.05  # over this share of fixes are jumps: the position source is not to be trusted
 KNOT = 1852.0 / 3600.0
@@ -62,6 +64,7 @@ class JumpFilter:
 
     def __init__(self) -> None:
         self.anchor: tuple[float, float, float] | None = None  # t, lat, lon of the last good fix
+        self.track_t0 = 0.0  # host time the track began (its first good fix)
         self.seed_at: tuple[float, float, float] | None = None  # lat, lon, radius m
         self.run: list[tuple[float, float, float, float]] = []  # the jumps since the last good fix
         self.fixes = 0
@@ -78,7 +81,7 @@ class JumpFilter:
         self.fixes += 1
         if self.anchor is None:
             if self.seed_at is None:
-                self.anchor = (t, lat, lon)
+                self.anchor, self.track_t0 = (t, lat, lon), t
                 return False
             d = distance_m(self.seed_at[0], self.seed_at[1], lat, lon)
             ok, speed = d <= self.seed_at[2], math.inf
@@ -88,11 +91,13 @@ class JumpFilter:
             ok = d <= MAX_SPEED_MPS * dt + SLACK_M
             speed = d / dt if dt > 0 else math.inf
         if ok:
+            if self.anchor is None:
+                self.track_t0 = t
             self.anchor, self.run = (t, lat, lon), []
             return False
         if self._moved(t, lat, lon):
             self.resets.append(utc)
-            self.anchor, self.run = (t, lat, lon), []
+            self.anchor, self.run, self.track_t0 = (t, lat, lon), [], self.run[0][0]
             return False
         self.jumps += 1
         self.run.append((t, lat, lon, utc))
@@ -101,7 +106,10 @@ class JumpFilter:
 
     def _moved(self, t: float, lat: float, lon: float) -> bool:
         """The jumps since the last good fix are one consistent track for RESET_S, ending here."""
-        if not self.run or t - self.run[0][0] < RESET_S:
+        if self.anchor is None or not self.run:
+            return False
+        lasted = self.anchor[0] - self.track_t0
+        if t - self.run[0][0] < min(RESET_S, max(lasted, MIN_RESET_S)):
             return False
         pts = [*self.run, (t, lat, lon, 0.0)]
         return all(
@@ -158,12 +166,14 @@ class JumpFilter:
 
 
 def track_seed(fixes: list[tuple[float, float]]) -> tuple[float, float, float] | None:
-    """The median of some fixes (lat, lon) and the radius that holds 90 % of them, doubled, plus
-    a kilometre: where the boat's track is, in a pre-pass over a whole file (None for no fixes)."""
+    """The median of some fixes (lat, lon) and four times their median distance from it, plus a
+    kilometre: where the boat's track is, in a pre-pass over a whole file (None for no fixes). A
+    track along a line of length L from its middle: median distance L/4, so the radius holds it
+    all; fixes off the track, as long as they are fewer than half, move neither."""
     if not fixes:
         return None
     lats = sorted(f[0] for f in fixes)
     lons = sorted(f[1] for f in fixes)
     lat, lon = lats[len(lats) // 2], lons[len(lons) // 2]
     d = sorted(distance_m(lat, lon, a, b) for a, b in fixes)
-    return lat, lon, 2.0 * d[int(0.9 * (len(d) - 1))] + 1000.0
+    return lat, lon, 4.0 * d[len(d) // 2] + 1000.0
