@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from forcemap.host.fuse.declination import igrf_declination
 from forcemap.host.vessel import mission as ms
 from forcemap.host.vessel import scenario as sc
 from forcemap.host.vessel.boat import Boat, BoatParams, HullState
@@ -35,7 +34,7 @@ from .instruments import InstrumentConfig, Readings, Sensors
 from .jetyak import JETYAK, ROVER_GAINS
 from .machine_emu import PWRON_RESET
 from .mission_link import MissionLink
-from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
+from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus, make_bus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
 
 Sink = Callable[[str, int, bytes], Any]
@@ -185,32 +184,11 @@ class Simulation(MissionLink):
         )
         self.bus: NmeaBus | None = None
         if self.nmea_bus:
-            self.bus = self._nmea_bus()
+            self.bus = make_bus(self.geo, self.seed * 1000 + 13, self.scenario, self.faults)
         self.uart_nmea = Uart(BUS_BYTES_PER_S, chunk=64)
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)
         self.uart_mav = Uart(MAVLINK_BYTES_PER_S, chunk=64)
-
-    def _nmea_bus(self) -> NmeaBus:
-        """The NMEA-only boat's bus with its faults' windows (and, without variation in its
-        sentences, the Earth's field as IGRF-14 has it: the truth the importer must find)."""
-        var = self.scenario.magnetic_variation_deg
-        if "no_variation" in self.bus_faults:
-            sc0 = self.scenario
-            var = igrf_declination(sc0.lat0, sc0.lon0, sc0.t0)
-        windows = {}
-        for kind in ("dgps_gnss", "position_jump"):
-            f = next((f for f in self.faults if f.kind == kind), None)
-            if f is not None and f.dur > 0:
-                windows[kind] = (f.start(self.duration), f.dur)
-        return NmeaBus(
-            self.geo,
-            self.seed * 1000 + 13,
-            var,
-            self.bus_faults,
-            windows.get("dgps_gnss"),
-            jump=windows.get("position_jump"),
-        )
 
     # ---- time bases -----------------------------------------------------------------------
     def _ns(self, t_s: float) -> int:

@@ -35,6 +35,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
+from forcemap.host.fuse.declination import igrf_declination
 from forcemap.host.vessel.geodesy import LocalFrame
 
 from .nmea_sounder import sentence
@@ -317,3 +318,18 @@ class NmeaBus:
             return False
         s = t - self.t_first
         return self.jump[0] <= s < self.jump[0] + self.jump[1]
+
+
+def make_bus(geo: LocalFrame, seed: int, scenario, faults: list) -> NmeaBus:
+    """The bus for a simulation's scenario and faults, with the faults' windows (and, without
+    variation in its sentences, the Earth's field as IGRF-14 has it: the truth an import must find)."""
+    kinds = {f.kind for f in faults if f.kind in FAULTS}
+    var = scenario.magnetic_variation_deg
+    if "no_variation" in kinds:
+        var = igrf_declination(scenario.lat0, scenario.lon0, scenario.t0)
+    windows = {}
+    for kind in ("dgps_gnss", "position_jump"):
+        f = next((f for f in faults if f.kind == kind), None)
+        if f is not None and f.dur > 0:
+            windows[kind] = (f.start(0.0), f.dur)
+    return NmeaBus(geo, seed, var, kinds, windows.get("dgps_gnss"), windows.get("position_jump"))

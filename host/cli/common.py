@@ -351,6 +351,13 @@ def sample_rate(args: argparse.Namespace) -> float | None:
     return None if rate is None else positive("--sample-rate", rate)
 
 
+def add_pipeline_options(parser: argparse.ArgumentParser) -> None:
+    """What `run` and `import` share of the pipeline's options: --sync, --sample-rate, --nmea-checksum."""
+    add_sync(parser)
+    add_sample_rate(parser)
+    add_nmea_checksum(parser)
+
+
 def add_nmea_checksum(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--nmea-checksum",

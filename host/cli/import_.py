@@ -10,10 +10,8 @@ from typing import Any
 from forcemap.host.cli.common import (
     add_boat,
     add_deprecated,
-    add_nmea_checksum,
     add_output,
-    add_sample_rate,
-    add_sync,
+    add_pipeline_options,
     output_for,
     sample_rate,
 )
@@ -61,9 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_deprecated(parser, "--format", "--from nmea|tlog|dataflash", "source_format")
     add_boat(parser, "calibration (default: built-in; see host/data/boat.example.toml)")
-    add_sync(parser)
-    add_sample_rate(parser)
-    add_nmea_checksum(parser)
+    add_pipeline_options(parser)
 
 
 _UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records"}

@@ -27,11 +27,9 @@ from forcemap.host.cli.common import (
     add_boat,
     add_deprecated,
     add_duration,
-    add_nmea_checksum,
     add_output,
+    add_pipeline_options,
     add_quiet,
-    add_sample_rate,
-    add_sync,
     format_duration,
     positive,
     sample_rate,
@@ -139,9 +137,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser, "--rotate-min", "--rotate-every DURATION (e.g. 60m)", "rotate_s",
         convert=lambda n: float(n) * 60.0,
     )  # fmt: skip
-    add_sync(parser)
-    add_sample_rate(parser)
-    add_nmea_checksum(parser)
+    add_pipeline_options(parser)
     parser.add_argument("--prefix", default="run", help="file name prefix (default: run)")
     add_replan_arguments(parser)
     parser.add_argument(
