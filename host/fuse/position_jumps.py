@@ -56,7 +56,8 @@ class Stretch:
     def text(self) -> str:
         a = time.strftime("%H:%M:%S", time.gmtime(self.t0))
         b = time.strftime("%H:%M:%S", time.gmtime(self.t1))
-        return f"{a}-{b} UTC: {self.n} fixes up to {self.km:.3g} km off ({self.speed_mps / KNOT:.3g} kn)"
+        speed = f" ({self.speed_mps / KNOT:.3g} kn)" if self.speed_mps > 0 else ""
+        return f"{a}-{b} UTC: {self.n} fixes up to {self.km:.3g} km off the track{speed}"
 
 
 class JumpFilter:
@@ -139,7 +140,7 @@ class JumpFilter:
         if self.jumps:
             msg = (
                 f"{self.jumps} of {self.fixes} position fixes flagged as jumps (an impossible speed "
-                f"from the track) and left out, in {len(self.stretches)} stretches: {listed}{more}"
+                f"from the track) and left out, in {len(self.stretches)} stretch(es): {listed}{more}"
             )
         else:
             msg = f"no position jumps in {self.fixes} fixes"
