@@ -139,3 +139,24 @@ def test_jumps_in_the_middle_of_a_live_run(tmp_path, at):
     assert finding.value == sim.bus.jumped > 20
     s = samples(paths)
     assert np.nanmax(np.abs(s["lat"] - sim.scenario.lat0)) < 0.02
+
+
+def test_run_takes_the_same_option():
+    """`forcemap run --nmea-checksum lenient`: the daemon's pipeline parses leniently."""
+    from forcemap.host.cli import build_parser
+    from forcemap.host.cli.run import _pipeline_factory
+    from forcemap.host.fuse.calibration import Calibration
+    from forcemap.host.fuse.pipeline import NullSink
+
+    args = build_parser("run").parse_args(
+        ["run", "--nmea", "udp:10110", "--nmea-checksum", "lenient"]
+    )
+    assert args.nmea_checksum == "lenient"
+    make = _pipeline_factory(Calibration(), "interpolate", 1.0, nmea_checksum=args.nmea_checksum)
+    pipe = make(NullSink())
+    line = b"$IIHDG,063,,,,*4B\r\n"  # the Irene bus's: the checksum of "IIHDG" alone
+    pipe.feed("nmea", 1_000_000_000, 1_000_000_000, line)
+    assert pipe.nmea.parser.accepted["HDG"] == 1 and pipe.nmea.parser.variants["address"] == 1
+    strict = _pipeline_factory(Calibration(), "interpolate", 1.0)(NullSink())
+    strict.feed("nmea", 1_000_000_000, 1_000_000_000, line)
+    assert strict.nmea.parser.rejected["bad_checksum"] == 1
