@@ -160,3 +160,38 @@ def test_run_takes_the_same_option():
     strict = _pipeline_factory(Calibration(), "interpolate", 1.0)(NullSink())
     strict.feed("nmea", 1_000_000_000, 1_000_000_000, line)
     assert strict.nmea.parser.rejected["bad_checksum"] == 1
+
+
+def _headings(variation_field: str, boat: float | None) -> tuple[list[float], list[str]]:
+    """Ten seconds of RMC (its variation field as given) and a magnetic HDG of 100 deg without
+    variation, at Lausanne on 2008-08-20, through the pipeline: the headings it logged, and the
+    findings' names."""
+    from forcemap.host.fuse.calibration import Calibration
+    from forcemap.host.fuse.pipeline import ListSink, Pipeline
+    from forcemap.sim_devices.nmea_sounder import sentence
+
+    var = (variation_field, "E" if variation_field else "")
+    sink = ListSink()
+    pipe = Pipeline(Calibration(magnetic_variation_deg=boat), sink)
+    t0 = 1219250400  # 2008-08-20 16:40:00 UTC
+    for k in range(10):
+        hms = time.strftime("%H%M%S", time.gmtime(t0 + k))
+        rmc = (hms, "A", "4629.919", "N", "00639.938", "E", "4.0", "252", "200808", *var, "A")
+        lines = [sentence("II", "RMC", rmc), sentence("II", "HDG", ("100", "", "", "", ""))]
+        ns = (t0 + k) * 1_000_000_000
+        pipe.feed("nmea", ns, ns, "".join(x + "\r\n" for x in lines).encode())
+    pipe.close()
+    found = [name for name, _ in sink.meta if name.startswith("qa.")]
+    return [m["heading"] for m in sink.topic("/boat/state") if m["heading"] is not None], found
+
+
+def test_the_logs_variation_and_the_boat_file_win_over_the_model():
+    from pyIGRF14 import igrf_value
+
+    igrf = igrf_value(46.4987, 6.6656, 0.0, 2008 + 232 / 366)[0]
+    model, found = _headings("", None)
+    assert model and abs(model[-1] - (100.0 + igrf)) < 0.01 and "qa.heading.declination" in found
+    logged, found = _headings("1.5", None)
+    assert logged and abs(logged[-1] - 101.5) < 1e-6 and "qa.heading.declination" not in found
+    pinned, found = _headings("1.5", 3.0)
+    assert pinned and abs(pinned[-1] - 103.0) < 1e-6 and "qa.heading.declination" not in found
