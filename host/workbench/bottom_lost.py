@@ -14,8 +14,10 @@ window of WINDOW soundings, say which:
   soundings nearest before and after it (a sounding is never its own evidence). Near 1 on a clean
   bottom, 0.4 where six soundings in ten are false echoes, 0.2 at eight in ten, about 0.05 in scatter.
 
-Where both are low (under PATH_SHARE and LOST_SHARE) for at least MIN_SOUNDINGS soundings, the bottom
-is lost: the stretch runs out on either side to where the bottom is back (RESUME soundings in a row on
+Where both are low (under PATH_SHARE and LOST_SHARE), and the soundings jump from ping to ping (their
+median change over the window above SCATTER_M + SCATTER_SHARE x their median: 19 m in scatter from 3 to
+70 m, decimetres on a steep shallow bottom whose curves the straight lines miss) for at least
+MIN_SOUNDINGS soundings, the bottom is lost: the stretch runs out on either side to where the bottom is back (RESUME soundings in a row on
 it, or continuing their neighbours within the tolerance and a steep seabed's STEP_M), every sounding
 in it is flagged (one that lands near a path drawn through scatter is a coincidence, not the bottom),
 left out of the depth map, and the stretch is listed with its times.
@@ -31,6 +33,8 @@ import numpy as np
 WINDOW = 61
 PATH_SHARE = 0.5
 LOST_SHARE = 0.2
+SCATTER_M = 2.0  # the median change between pings in a window where the bottom is lost, at least
+SCATTER_SHARE = 0.1  # ... plus this share of the soundings' median
 STEP_M = 1.5  # the steepest step between two pings followed (the simulator's basin: 1.2 m)
 MIN_SOUNDINGS = 30
 NEAR_M = 0.3
@@ -109,13 +113,25 @@ def lost_stretches(
     depth: np.ndarray, on_path: np.ndarray, trel: np.ndarray, running: Callable
 ) -> list[LostStretch]:
     """The stretches (by reading) where the bottom was lost; ``on_path``: the soundings on the
-    seabed's path (seabed.py), ``trel`` each reading's time, ``running`` the along-track window."""
-    if len(depth) < MIN_SOUNDINGS:
+    seabed's path (seabed.py), ``trel`` each reading's time, ``running`` the along-track window.
+    Readings without a sounding (NaN) are left out: the windows count soundings."""
+    idx = np.flatnonzero(np.isfinite(depth))
+    if len(idx) < MIN_SOUNDINGS:
         return []
+    found = _stretches(depth[idx], on_path[idx], trel[idx], running)
+    return [LostStretch(int(idx[s.i0]), int(idx[s.i1]), s.t0, s.t1, s.share) for s in found]
+
+
+def _stretches(
+    depth: np.ndarray, on_path: np.ndarray, trel: np.ndarray, running: Callable
+) -> list[LostStretch]:
     bottom = on_bottom(depth, on_path)
-    share = running(np.where(np.isfinite(depth), bottom.astype(float), np.nan), WINDOW, np.nanmean)
+    share = running(bottom.astype(float), WINDOW, np.nanmean)
     path = running(path_continuity(depth, on_path), WINDOW, np.nanmean)
     low = (np.nan_to_num(share, nan=1.0) < LOST_SHARE) & (np.nan_to_num(path, nan=1.0) < PATH_SHARE)
+    # and the soundings jump, from ping to ping, by metres and a share of the depth
+    jump = running(np.abs(np.diff(depth, prepend=depth[0])), WINDOW, np.nanmedian)
+    low &= jump > SCATTER_M + SCATTER_SHARE * running(depth, WINDOW, np.nanmedian)
     near = bottom | _continues(depth)  # at the stretch's ends, the bottom on one side only
     # the bottom is back where RESUME soundings in a row are on it
     back = np.convolve(near.astype(int), np.ones(RESUME, int), "same") >= RESUME
