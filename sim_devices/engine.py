@@ -34,7 +34,7 @@ from .instruments import InstrumentConfig, Readings, Sensors
 from .jetyak import JETYAK, ROVER_GAINS
 from .machine_emu import PWRON_RESET
 from .mission_link import MissionLink
-from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus
+from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus, make_bus
 from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
 
 Sink = Callable[[str, int, bytes], Any]
@@ -173,13 +173,18 @@ class Simulation(MissionLink):
             float(snd.get("offset_m", 0.2)),
             float(snd.get("noise_m", 0.03)),
             false_echo_rate=float(snd.get("false_echo_rate", max(echoes, default=0.0))),
+            bottom_lost=next(
+                (
+                    (f.start(self.duration), f.end(self.duration))
+                    for f in self.faults
+                    if f.kind == "bottom_lost"
+                ),
+                None,
+            ),  # fmt: skip
         )
         self.bus: NmeaBus | None = None
         if self.nmea_bus:
-            var = self.scenario.magnetic_variation_deg
-            dgps = next((f for f in self.faults if f.kind == "dgps_gnss"), None)
-            lost = (dgps.start(0.0), dgps.dur) if dgps is not None and dgps.dur > 0 else None
-            self.bus = NmeaBus(self.geo, self.seed * 1000 + 13, var, self.bus_faults, lost)
+            self.bus = make_bus(self.geo, self.seed * 1000 + 13, self.scenario, self.faults)
         self.uart_nmea = Uart(BUS_BYTES_PER_S, chunk=64)
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)
@@ -316,7 +321,7 @@ class Simulation(MissionLink):
         self.bridge.advance_to(u1)
         if t_new + 1e-9 >= self.next_sound:
             self.next_sound += 1.0
-            lines = self.sounder.sentences(p.depth, p.water_temp)
+            lines = self.sounder.sentences(p.depth, p.water_temp, t_new)
             if self.garbler is not None:
                 lines = self.garbler.apply(lines)
             data = "".join(x + "\r\n" for x in lines).encode("ascii", "replace")

@@ -12,7 +12,13 @@ import numpy as np
 SOURCES = ("bridge", "depth", "mavlink", "nmea")
 # faults that are instruments: they put the NMEA bus (nmea_bus.py) on the "nmea" port
 SOURCE_KINDS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
-BUS_KINDS = SOURCE_KINDS + ("poor_gnss", "dgps_gnss")
+BUS_KINDS = SOURCE_KINDS + (
+    "poor_gnss",
+    "dgps_gnss",
+    "no_variation",
+    "checksum_variant",
+    "position_jump",
+)
 
 KINDS: dict[str, str] = {
     "corrupt": "bytes replaced by random values at `rate` per byte (source=all|bridge|depth|mavlink)",
@@ -31,6 +37,12 @@ KINDS: dict[str, str] = {
     "wanders in seconds",
     "dgps_gnss": "NMEA bus: a second receiver, GN, 4 decimals, DGPS with HDOP 0.9 and a 0.3 m error; "
     "it loses its corrections (autonomous, HDOP 4.5, 3 m error) from `at` for `for` s",
+    "no_variation": "NMEA bus: the compass's HDG has empty variation fields (its magnetic heading "
+    "is the truth less IGRF-14's declination), as RMC's",
+    "checksum_variant": "NMEA bus: every sentence's checksum computed over its address only",
+    "position_jump": "NMEA bus: the GNSS's fixes are 500 km north of the boat from `at` for `for` s",
+    "bottom_lost": "the sounder loses the bottom from `at` for `for` s: its returns scatter "
+    "from 3 to 70 m",
     "false_echoes": "the sounder returns 3-20 m at `rate` per sounding in water deeper than 70 m "
     "(a share of it from 40 m)",
 }
@@ -109,6 +121,7 @@ def parse_one(spec: str) -> Fault:
             "clock_jump": "mavlink",
             "nmea_garbage": "depth",
             "false_echoes": "depth",
+            "bottom_lost": "depth",
             **dict.fromkeys(BUS_KINDS, "nmea"),
         }.get(kind, "all"),
     )

@@ -15,6 +15,15 @@ variation, 5 Hz, 1 deg noise) and a speed log (``VWVHW``, 1 Hz). The source faul
   quality 2, RMC mode D, HDOP 0.9), its error 0.3 m; for ``lost`` = (start s, duration s) it loses
   its corrections: autonomous, HDOP 4.5, a 3 m error wandering in seconds.
 
+The log faults of issue 28 (real logs that break the rules):
+
+- ``no_variation``: the compass's HDG has empty variation fields (and RMC has none): the bus's
+  variation is the engine's, IGRF-14's at the scenario's origin and start, so that the truth is known;
+- ``checksum_variant``: every sentence's checksum is computed over its address only (``*4B`` on
+  every ``HCHDG``...), as the Irene logs of 2013 do;
+- ``position_jump``: for ``jump`` = (start s, duration s) the GNSS's fixes are JUMP_KM north of the
+  boat (a stale fix replayed at the start of a log); ``jumped`` counts the fix sentences sent so.
+
 Every device's readings are the boat's true motion at the moment they describe (the truth table).
 """
 
@@ -26,6 +35,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
+from forcemap.host.fuse.declination import igrf_declination
 from forcemap.host.vessel.geodesy import LocalFrame
 
 from .nmea_sounder import sentence
@@ -39,7 +49,20 @@ FAULTS = (
     "rate_of_turn",
     "poor_gnss",
     "dgps_gnss",
+    "no_variation",
+    "checksum_variant",
+    "position_jump",
 )
+JUMP_KM = 500.0
+
+
+def address_checksum(line: str) -> str:
+    """``line`` with its checksum computed over the address only (``$IIHDG,063,,,,*4B``)."""
+    star = line.rfind("*")
+    x = 0
+    for b in line[1 : line.index(",")].encode("ascii"):
+        x ^= b
+    return f"{line[:star]}*{x:02X}"
 
 
 @dataclass
@@ -187,6 +210,7 @@ class NmeaBus:
         variation_deg: float,
         faults: set[str],
         lost: tuple[float, float] | None = None,
+        jump: tuple[float, float] | None = None,
     ) -> None:
         # one random stream per device: a fault added leaves the other devices' noise as it was
         self.rng = {k: random.Random(seed * 10 + i) for i, k in enumerate(("hdg", "rot", "vhw"))}
@@ -209,6 +233,8 @@ class NmeaBus:
         self.gnss3 = Gnss(geo, random.Random(seed * 10 + 5), talker="GN", minute_decimals=4)
         self.gnss3.set_fix(DGPS)
         self.lost = lost  # (start, duration) s from the first step: the DGPS corrections lost
+        self.jump = jump  # (start, duration) s from the first step: the GNSS's fixes jump away
+        self.jumped = 0
         self.t_first: float | None = None
         self.relay_md = 3
         self.next = dict.fromkeys(("gnss", "gnss2", "gnss3", "hdg", "hdt", "rot", "vhw"), 0.0)
@@ -246,8 +272,12 @@ class NmeaBus:
         self._damp(m)
         out: list[str] = []
         t = m.t
+        self.t_first = t if self.t_first is None else self.t_first
         if self._due("gnss", t):
             fix = self.gnss.fix(m)
+            if self._jumping(t):
+                fix = (fix[0] + JUMP_KM / 111.195, *fix[1:])
+                self.jumped += 2 if self.gnss.gga else 1
             out += self.gnss.sentences(m, fix)
             self.last_fix = (m, fix)
             if "relay_position" in self.faults:
@@ -257,7 +287,6 @@ class NmeaBus:
                 f = (_hhmmss(t, 0), "A", la, ns, lo, ew, f"{sog:.1f}", f"{cog:.1f}", _ddmmyy(t))
                 out.append(sentence("II", "RMC", f + ("", "", "A")))
         if "dgps_gnss" in self.faults and self._due("gnss3", t):
-            self.t_first = t if self.t_first is None else self.t_first
             s = t - self.t_first
             lost = self.lost is not None and self.lost[0] <= s < self.lost[0] + self.lost[1]
             self.gnss3.set_fix(LOST if lost else DGPS)
@@ -269,6 +298,8 @@ class NmeaBus:
         if self._due("hdg", t):
             mag = (m.heading - self.variation + self.rng["hdg"].gauss(0.0, 1.0)) % 360.0
             var = f"{abs(self.variation):.1f}", "E" if self.variation >= 0 else "W"
+            if "no_variation" in self.faults:
+                var = ("", "")
             out.append(sentence("HC", "HDG", (f"{mag:.1f}", "", "", *var)))
         if "second_compass" in self.faults and self._due("hdt", t):
             out.append(sentence("II", "HDT", (f"{self.damped:.1f}", "T")))
@@ -278,4 +309,27 @@ class NmeaBus:
         if self._due("vhw", t):
             stw = max(m.stw + self.rng["vhw"].gauss(0.0, 0.02), 0.0) / KNOT
             out.append(sentence("VW", "VHW", ("", "T", "", "M", f"{stw:.2f}", "N", "", "K")))
+        if "checksum_variant" in self.faults:
+            out = [address_checksum(x) for x in out]
         return out
+
+    def _jumping(self, t: float) -> bool:
+        if self.jump is None or self.t_first is None:
+            return False
+        s = t - self.t_first
+        return self.jump[0] <= s < self.jump[0] + self.jump[1]
+
+
+def make_bus(geo: LocalFrame, seed: int, scenario, faults: list) -> NmeaBus:
+    """The bus for a simulation's scenario and faults, with the faults' windows (and, without
+    variation in its sentences, the Earth's field as IGRF-14 has it: the truth an import must find)."""
+    kinds = {f.kind for f in faults if f.kind in FAULTS}
+    var = scenario.magnetic_variation_deg
+    if "no_variation" in kinds:
+        var = igrf_declination(scenario.lat0, scenario.lon0, scenario.t0)
+    windows = {}
+    for kind in ("dgps_gnss", "position_jump"):
+        f = next((f for f in faults if f.kind == kind), None)
+        if f is not None and f.dur > 0:
+            windows[kind] = (f.start(0.0), f.dur)
+    return NmeaBus(geo, seed, var, kinds, windows.get("dgps_gnss"), windows.get("position_jump"))

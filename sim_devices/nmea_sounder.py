@@ -7,6 +7,7 @@ import random
 import pynmea2
 
 BAUD_BYTES_PER_S = 480.0  # 4800 baud, 8N1: ten bits a byte
+LOST_RANGE = (3.0, 70.0)  # m: the returns of a sounder that has lost the bottom
 
 # junk seen in real captures (NeutronDance.log: an Arduino multiplexer's status lines and boot text)
 GARBAGE_LINES = (
@@ -32,6 +33,7 @@ class Sounder:
         noise_m: float = 0.03,
         max_range: float = 100.0,
         false_echo_rate: float = 0.0,
+        bottom_lost: tuple[float, float] | None = None,
     ) -> None:
         self.rng = random.Random(seed)
         self.offset = offset_m
@@ -39,6 +41,10 @@ class Sounder:
         self.max_range = max_range
         self.false_echo_rate = false_echo_rate
         self.false_echoes = 0
+        # (start, end) s of the run: in a rough sea the sounder loses the bottom, and its returns
+        # scatter from LOST_RANGE[0] to LOST_RANGE[1] m from one ping to the next
+        self.bottom_lost = bottom_lost
+        self.lost_soundings = 0
 
     def _false_echo(self, depth: float) -> bool:
         """In deep water a weak bottom return loses to a school of fish or the thermocline:
@@ -46,10 +52,15 @@ class Sounder:
         p = self.false_echo_rate * min(max((depth - 40.0) / 30.0, 0.0), 1.0)
         return p > 0 and self.rng.random() < p
 
-    def sentences(self, depth: float, temp: float) -> list[str]:
-        """DPT, DBT and MTW for the true depth below the surface and the water temperature."""
+    def sentences(self, depth: float, temp: float, t: float = 0.0) -> list[str]:
+        """DPT, DBT and MTW for the true depth below the surface and the water temperature
+        (``t``: seconds since the run's start, for the bottom lost)."""
         d = max(depth - self.offset + self.rng.gauss(0.0, self.noise), 0.1)
-        if self._false_echo(depth):
+        lost = self.bottom_lost
+        if lost is not None and lost[0] <= t < lost[1]:
+            self.lost_soundings += 1
+            d = self.rng.uniform(*LOST_RANGE)
+        elif self._false_echo(depth):
             self.false_echoes += 1
             d = self.rng.uniform(3.0, 20.0)
         return [

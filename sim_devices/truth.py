@@ -148,6 +148,7 @@ def effects_meta(sim: Any) -> dict[str, Any]:
             "sounder_offset_m": sim.sounder.offset,
             "sounder_noise_m": sim.sounder.noise,
             "false_echoes": sim.sounder.false_echoes,
+            "bottom_lost_soundings": sim.sounder.lost_soundings,
             "nmea_bus": sorted(sim.bus_faults) if sim.nmea_bus else None,
         },
     }

@@ -50,6 +50,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--to": (VALUE, "the format of the export, where the output's name does not say"),
     "--sync": (VALUE, "how samples are matched to the boat's state"),
     "--sample-rate": (VALUE, "samples per second in the table"),
+    "--nmea-checksum": (VALUE, "strict or lenient: whether NMEA checksum variants are accepted"),
     "--bridge": (VALUE, "the bridge's port"),
     "--nmea": (VALUE, "an NMEA 0183 instrument's port"),
     "--depth": (VALUE, "an NMEA 0183 port named depth"),

@@ -102,6 +102,81 @@ NMEA = {
         },
     ),
 }
+# Irene (nmea/irene/PROVENANCE.md): counted by plain string splitting, the checksum's XOR by hand, and
+# each sentence's address against the types forcemap reads (nmea_fields.SPECS; the rest is "other")
+IRENE = {
+    "irene_2008-08-20_geneva.nmea": (
+        46800,
+        46800,
+        {
+            "DPT": 4873,
+            "GLL": 4873,
+            "HDG": 4874,
+            "MTW": 4874,
+            "MWV": 9748,  # R and T alternate
+            "RMC": 4871,
+            "VHW": 4874,
+            "VWR": 4874,
+            "other": 2939,  # IIRMB
+        },
+        {},
+    ),
+    # with --nmea-checksum lenient (NMEA_OPTIONS): 37,546 lines have their checksum computed over the
+    # address only, 1,930 the standard way (1,474 RMB and VLW, 456 DPT whose fields XOR to 0);
+    # 4 spliced lines match neither
+    "irene_2013-07-31_flensburg_checksums.nmea": (
+        39480,
+        39480,
+        {
+            "DPT": 3811,
+            "GLL": 3703,
+            "HDG": 3798,
+            "MTW": 3822,
+            "MWV": 7669,
+            "RMC": 3712,
+            "VHW": 3792,
+            "VWR": 3803,
+            "other": 5366,  # IIVLW 3,802, IIRMB 1,564
+        },
+        {"bad_checksum": 4},
+    ),
+    "irene_2013-08-03_flensburg.nmea": (
+        128574,
+        128574,
+        {
+            "DPT": 12260,
+            "GLL": 12012,  # IIGLL 11,989, and 23 spliced under GP and GI
+            "HDG": 12275,
+            "MTW": 12290,
+            "MWV": 24417,
+            "RMC": 11870,  # IIRMC 11,832, and 38 spliced under GP and GI
+            "VHW": 12196,
+            "VWR": 12205,
+            "other": 19048,  # IIVLW, GPRMB and the spliced ids that do not exist (GPRMW ...)
+        },
+        {"no_start": 1},  # line 9,643: a GPRMB that lost its $
+    ),
+    "irene_2014-06-27_geneva.nmea": (
+        75623,
+        75623,
+        {
+            "DPT": 7562,
+            "GLL": 7563,
+            "HDG": 7563,
+            "MTW": 7563,
+            "MWV": 15124,
+            "RMC": 7562,
+            "VHW": 7563,
+            "VWR": 7561,
+            "other": 7562,  # IIVLW
+        },
+        {},
+    ),
+}
+NMEA.update(IRENE)
+NMEA_OPTIONS = {"irene_2013-07-31_flensburg_checksums.nmea": ["--nmea-checksum", "lenient"]}
+# magnetic heading (HDG) and no variation in HDG or RMC: the declination is IGRF-14's, said once
+NO_VARIATION = {n for n in IRENE if "2014" not in n}
 NO_MEASUREMENTS = "no measurements in this log"
 TLOG = {
     "ardusub_2023-05-04_bluerov_small.tlog": (
@@ -169,7 +244,7 @@ def run_import(tmp_path, monkeypatch):
                 return logs[-1]
 
             monkeypatch.setattr(importers, "McapLog", fake)
-        path = next(REAL.glob(f"*/{name}"))
+        path = next(REAL.rglob(name))
         rc = main(["import", str(path), "-o", str(tmp_path), *extra])
         return rc, (logs[-1] if logs else None), tmp_path
 
@@ -177,11 +252,14 @@ def run_import(tmp_path, monkeypatch):
 
 
 def test_every_real_file_is_covered():
-    # adcp/ is covered by tests/test_adcp.py::test_every_file_in_the_adcp_folder_is_read
+    """Every data file under tests/data/real, in its folders (nmea/irene/ too), except adcp/: the
+    ADCP readers' files, which tests/test_adcp.py::test_every_file_in_the_adcp_folder_is_read covers."""
     data = {
         p.name
-        for p in REAL.glob("*/*")
-        if p.suffix.lower() not in (".md", ".csv") and p.parent.name != "adcp"
+        for p in REAL.rglob("*")
+        if p.is_file()
+        and p.relative_to(REAL).parts[0] != "adcp"
+        and p.suffix.lower() not in (".md", ".csv")
     }
     assert data == set(NMEA) | set(TLOG) | {"ardusub_4.1_bluerov_small.BIN"}
 
@@ -189,9 +267,11 @@ def test_every_real_file_is_covered():
 @pytest.mark.parametrize("name", sorted(NMEA))
 def test_nmea_capture(name, run_import, capsys):
     records, lines, accepted, rejected = NMEA[name]
-    rc, log, out = run_import(name)
+    rc, log, out = run_import(name, *NMEA_OPTIONS.get(name, []))
     text = capsys.readouterr().out
     assert rc == 0, text
+    said = [ln for ln in text.splitlines() if "magnetic heading without variation: IGRF-14" in ln]
+    assert len(said) == (name in NO_VARIATION), text
     assert f"{records} lines (nmea)" in text
     assert f"{sum(accepted.values())} accepted {dict(sorted(accepted.items()))}" in text
     assert f"{sum(rejected.values())} rejected {dict(sorted(rejected.items()))}" in text

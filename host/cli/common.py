@@ -374,3 +374,21 @@ def sample_rate(args: argparse.Namespace) -> float | None:
     """The checked ``--sample-rate``, or None for the default pacing."""
     rate = args.sample_rate
     return None if rate is None else positive("--sample-rate", rate)
+
+
+def add_pipeline_options(parser: argparse.ArgumentParser) -> None:
+    """What `run` and `import` share of the pipeline's options: --sync, --sample-rate, --nmea-checksum."""
+    add_sync(parser)
+    add_sample_rate(parser)
+    add_nmea_checksum(parser)
+
+
+def add_nmea_checksum(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--nmea-checksum",
+        choices=("strict", "lenient"),
+        default="strict",
+        help="strict (default): an NMEA sentence whose checksum fails is rejected; lenient: one "
+        "whose checksum was computed by a known variant (over the address only, without the last "
+        "field, with the $) is accepted and counted (docs/DAEMON.md)",
+    )

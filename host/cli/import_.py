@@ -12,8 +12,7 @@ from forcemap.host.cli.common import (
     add_boat,
     add_deprecated,
     add_output,
-    add_sample_rate,
-    add_sync,
+    add_pipeline_options,
     output_for,
     sample_rate,
 )
@@ -79,8 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "estimating it from bottom track against GPS",
     )
     add_boat(parser, "calibration (default: built-in; see host/data/boat.example.toml)")
-    add_sync(parser)
-    add_sample_rate(parser)
+    add_pipeline_options(parser)
 
 
 _UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records", "adcp": "ensembles"}
@@ -154,7 +152,14 @@ def run(args: argparse.Namespace) -> int:
         return _run_adcp(args, path, out)
     try:
         res = import_to_mcap(
-            path, out, fmt, cal, args.sync, check=check_found, sample_rate_hz=sample_rate(args)
+            path,
+            out,
+            fmt,
+            cal,
+            args.sync,
+            check=check_found,
+            sample_rate_hz=sample_rate(args),
+            nmea_checksum=args.nmea_checksum,
         )
     except ImportFailed as e:
         raise CliError(str(e)) from None

@@ -94,6 +94,10 @@ def print_info(info: LogInfo, out: TextIO | None = None) -> None:
         w(line + "\n")
     if info.replans:
         _print_replans(info.replans, w)
+    if info.findings:
+        w("\n  quality findings (qa.*):\n")
+        for f in info.findings.values():
+            w(f"    {f.verdict:<7}{f.category}.{f.check}: {f.message}\n")
     errors = info.error_counters()
     if errors:
         w("\n  errors, rejections and gaps (last recorded counters):\n")

@@ -28,9 +28,8 @@ from forcemap.host.cli.common import (
     add_deprecated,
     add_duration,
     add_output,
+    add_pipeline_options,
     add_quiet,
-    add_sample_rate,
-    add_sync,
     format_duration,
     positive,
     sample_rate,
@@ -138,8 +137,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser, "--rotate-min", "--rotate-every DURATION (e.g. 60m)", "rotate_s",
         convert=lambda n: float(n) * 60.0,
     )  # fmt: skip
-    add_sync(parser)
-    add_sample_rate(parser)
+    add_pipeline_options(parser)
     parser.add_argument("--prefix", default="run", help="file name prefix (default: run)")
     add_replan_arguments(parser)
     parser.add_argument(
@@ -207,6 +205,7 @@ def _pipeline_factory(
     speed: float,
     sample_rate_hz: float | None = None,
     on_sample: Callable[[dict], object] | None = None,
+    nmea_checksum: str = "strict",
 ) -> Callable[[Any], Any]:
     """Imports the pipeline when called, so the daemon can fall back to raw logging if it fails."""
 
@@ -226,6 +225,7 @@ def _pipeline_factory(
             hold_s=hold_s,
             sample_rate_hz=sample_rate_hz,
             sources_period_s=SOURCES_PERIOD_S,
+            nmea_checksum=nmea_checksum,
         )
 
     return make
@@ -313,7 +313,12 @@ def _run_daemon(
         daemon = Daemon(
             openers,
             _pipeline_factory(
-                cal, sync, clock.speed, sample_rate(args), svc.sample if svc else None
+                cal,
+                sync,
+                clock.speed,
+                sample_rate(args),
+                svc.sample if svc else None,
+                nmea_checksum=args.nmea_checksum,
             ),
             log,
             clock=clock,

@@ -23,6 +23,7 @@ from typing import Any
 
 from forcemap.host.convert.adcp_read import is_pd0
 from forcemap.host.convert.dataflash import DataflashDecoder
+from forcemap.host.convert.nmea_prepass import finding_notes, position_seed, why_no_time
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.fuse.pipeline import Pipeline, Sink
@@ -102,9 +103,9 @@ def check_importable(path: str | Path, fmt: str | None = None) -> str:
     return fmt
 
 
-def nmea_line_times(lines: list[bytes]) -> tuple[list[float], str]:
+def nmea_line_times(lines: list[bytes], checksum: str = "strict") -> tuple[list[float], str]:
     """A UNIX time for every line (see the module docstring) and how it was found."""
-    parser = NmeaParser()
+    parser = NmeaParser(checksum)
     tods: list[tuple[int, float]] = []
     date0: float | None = None
     for i, line in enumerate(lines):
@@ -163,15 +164,20 @@ def _pipeline(
     calibration: Calibration | None,
     sync: str | None,
     sample_rate_hz: float | None,
+    nmea_checksum: str = "strict",
 ) -> Pipeline:
     """The live pipeline for an import, with the file, its format and its timing in the metadata."""
+    config = {"import": str(path), "format": fmt, "timing": timing}
+    if fmt == "nmea":
+        config["nmea_checksum"] = nmea_checksum
     return Pipeline(
         calibration,
         sink,
         sync=sync,
         sample_rate_hz=sample_rate_hz,
-        config={"import": str(path), "format": fmt, "timing": timing},
+        config=config,
         diagnostics_period_s=IMPORT_DIAG_PERIOD_S,
+        nmea_checksum=nmea_checksum,
     )
 
 
@@ -181,17 +187,20 @@ def import_nmea(
     calibration: Calibration | None = None,
     sync: str | None = None,
     sample_rate_hz: float | None = None,
+    nmea_checksum: str = "strict",
 ) -> ImportResult:
-    """An NMEA 0183 capture through the pipeline's NMEA path."""
+    """An NMEA 0183 capture through the pipeline's NMEA path (``nmea_checksum``: strict or
+    lenient, forcemap.host.decode.nmea_checksum)."""
     data = Path(path).read_bytes()
     splitter = LineSplitter()
     lines = splitter.feed(data) + splitter.flush()
-    times, how = nmea_line_times(lines)
+    times, how = nmea_line_times(lines, nmea_checksum)
     if how.startswith("no UTC"):
-        raise ImportFailed(
-            f"{Path(path).name}: no time in this log (no NMEA RMC, GGA, GLL or ZDA with UTC)"
-        )
-    pipe = _pipeline(path, "nmea", how, sink, calibration, sync, sample_rate_hz)
+        raise ImportFailed(why_no_time(lines, Path(path).name, nmea_checksum))
+    pipe = _pipeline(path, "nmea", how, sink, calibration, sync, sample_rate_hz, nmea_checksum)
+    seed = position_seed(lines, nmea_checksum)
+    if seed is not None:
+        pipe.nmea.jumps.seed(*seed)
     for line, t in zip(lines, times, strict=True):
         ns = int(t * 1e9)
         pipe.feed("nmea", ns, ns, line + b"\n")
@@ -284,6 +293,7 @@ def source_notes(report: dict[str, str]) -> list[str]:
 
 def _check_errors(pipe: Pipeline, res: ImportResult) -> None:
     res.notes.extend(source_notes(pipe.sources_report))
+    res.notes.extend(finding_notes(pipe.findings))
     if pipe.errors:
         res.notes.append(
             f"internal errors: {dict(pipe.errors)}; last: {pipe.last_error.strip().splitlines()[-1]}"
@@ -297,10 +307,13 @@ def import_file(
     calibration: Calibration | None = None,
     sync: str | None = None,
     sample_rate_hz: float | None = None,
+    nmea_checksum: str = "strict",
 ) -> ImportResult:
     """Import one file in the given or detected format."""
     fmt = check_importable(path, fmt)
-    readers = {"nmea": import_nmea, "tlog": import_tlog, "dataflash": import_dataflash}
+    if fmt == "nmea":
+        return import_nmea(path, sink, calibration, sync, sample_rate_hz, nmea_checksum)
+    readers = {"tlog": import_tlog, "dataflash": import_dataflash}
     if fmt in readers:
         return readers[fmt](path, sink, calibration, sync, sample_rate_hz)
     raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
@@ -328,6 +341,7 @@ def import_to_mcap(
     sync: str | None = None,
     check: Callable[[ImportResult], None] | None = None,
     sample_rate_hz: float | None = None,
+    nmea_checksum: str = "strict",
 ) -> ImportResult:
     """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
 
@@ -340,7 +354,7 @@ def import_to_mcap(
             Path(tmp).parent, first_path=tmp, rotate_bytes=1 << 62, rotate_seconds=float("inf")
         )
         try:
-            res = import_file(path, log, fmt, calibration, sync, sample_rate_hz)
+            res = import_file(path, log, fmt, calibration, sync, sample_rate_hz, nmea_checksum)
         finally:
             log.close()
         if check is not None:

@@ -16,6 +16,7 @@ from typing import Any
 from forcemap.host.acquire.status import flatten
 from forcemap.host.convert.sources_info import SourceCollector
 from forcemap.host.log.mcap import CHUNK_SIZE, LIBRARY, FileScan, iter_records
+from forcemap.host.log.qa_records import QaFinding, is_finding
 from forcemap.host.vessel.geodesy import wrap_from_minus180
 from mcap.records import Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
@@ -70,6 +71,7 @@ class LogInfo:
     winds: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
     sources: SourceCollector = field(default_factory=SourceCollector)
     replans: list[dict[str, Any]] = field(default_factory=list)  # /plan/replan, in order
+    findings: dict[str, QaFinding] = field(default_factory=dict)  # qa.* metadata, by name
 
     @property
     def start_ns(self) -> int:
@@ -183,6 +185,8 @@ def scan_file(path: str | os.PathLike[str]) -> LogInfo:
                 info.columns = dict(record.metadata)
             elif record.name == "sources":
                 info.sources.metadata(dict(record.metadata))
+            elif is_finding(record.name):
+                info.findings[record.name] = QaFinding.from_metadata(dict(record.metadata))
     info.complete = scan.complete and not scan.truncated
     info.truncated = scan.truncated
     info.error = scan.error
@@ -250,6 +254,7 @@ def info_json(info: LogInfo) -> dict[str, Any]:
         "true_wind_routes": wind_routes(info),
         "sources": info.sources.result(),
         "replans": info.replans,
+        "findings": {n: f.to_metadata() for n, f in info.findings.items()},
     }
 
 

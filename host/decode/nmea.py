@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import pynmea2
+from forcemap.host.decode import nmea_checksum
 from forcemap.host.decode.nmea_fields import KNOT, SPECS, extract
 
 __all__ = ["KNOT", "LineSplitter", "NmeaParser", "Sentence", "depth_below_surface", "extract"]
@@ -125,11 +126,21 @@ class LineSplitter:
 
 
 class NmeaParser:
-    """Checks lines strictly. ``accepted`` counts by sentence type, ``rejected`` by reason."""
+    """Checks lines strictly. ``accepted`` counts by sentence type, ``rejected`` by reason.
 
-    def __init__(self) -> None:
+    ``checksum``: "strict" rejects every checksum that fails; "lenient" also accepts a checksum
+    computed by one of the variants of forcemap.host.decode.nmea_checksum. Either way the lines
+    whose checksum matches a variant are counted by variant (``variants``) and by address.
+    """
+
+    def __init__(self, checksum: str = "strict") -> None:
+        if checksum not in nmea_checksum.MODES:
+            raise ValueError(f"checksum must be one of {nmea_checksum.MODES}, not {checksum!r}")
+        self.checksum = checksum
         self.accepted: Counter[str] = Counter()
         self.rejected: Counter[str] = Counter()
+        self.variants: Counter[str] = Counter()  # lines whose checksum is a variant's, by variant
+        self.variant_addresses: Counter[str] = Counter()  # ... by "variant address"
         self.lines = 0
 
     def parse(self, raw: bytes | str) -> Sentence | None:
@@ -178,7 +189,8 @@ class NmeaParser:
             want = int(text[star + 1 :], 16)
         except ValueError:
             return self._reject(text, "no_checksum")
-        if _xor(text[1:star]) != want:
+        lenient = _xor(text[1:star]) != want
+        if lenient and not self._variant(text[1:star], want):
             return self._reject(text, "bad_checksum")
         if text[0] == "!":  # AIS encapsulation: well-formed, not ours
             self.accepted["other"] += 1
@@ -196,7 +208,8 @@ class NmeaParser:
             self.accepted["other"] += 1
             return Sentence(text, True, "", addr[:2], addr[2:], {})
         try:
-            msg = pynmea2.parse(text)  # the checksum is already checked above
+            # the checksum is already checked above (pynmea2 would refuse a variant's)
+            msg = pynmea2.parse(text[:star] if lenient else text)
         except (pynmea2.ParseError, ValueError, TypeError, AttributeError):
             return self._reject(text, "parse_error")
         talker = getattr(msg, "talker", "") or ""
@@ -214,9 +227,20 @@ class NmeaParser:
         self.accepted[stype] += 1
         return Sentence(text, True, "", talker, stype, extract(stype, [v.strip() for v in data]))
 
+    def _variant(self, body: str, want: int) -> bool:
+        """Count a checksum computed by a known variant; True if lenient parsing accepts it."""
+        variant = nmea_checksum.variant_of(body, want)
+        if not variant:
+            return False
+        self.variants[variant] += 1
+        self.variant_addresses[f"{variant} {body.split(',', 1)[0]}"] += 1
+        return self.checksum == "lenient"
+
     def counters(self) -> dict[str, Any]:
         return {
             "lines": self.lines,
+            "checksum": self.checksum,
+            "checksum_variants": dict(self.variants),
             "accepted": sum(self.accepted.values()),
             "rejected": sum(self.rejected.values()),
             "accepted_by_type": dict(self.accepted),

@@ -7,7 +7,7 @@ what it decodes to a ``FeedContext``: logged records (``write``), navigation and
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     from forcemap.host.fuse.assembler import SampleAssembler
@@ -32,6 +32,7 @@ class FeedContext(Protocol):
     wall: WallClock
     utc: UtcFix
     mav_nav: bool
+    last_fix: dict[str, Any] | None
 
     def write(self, topic: str, wall_s: float, record: Record) -> None: ...
 

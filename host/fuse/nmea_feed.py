@@ -13,9 +13,12 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
+from forcemap.host.decode import nmea_checksum
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
 from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse import fix_quality as fq
+from forcemap.host.fuse.declination import DeclinationModel
+from forcemap.host.fuse.position_jumps import JumpFilter
 from forcemap.host.fuse.sources import (
     nmea_fingerprint,
     receiver_name,
@@ -30,6 +33,7 @@ from forcemap.host.log.messages import (
     TrueWind,
     WaterSpeed,
 )
+from forcemap.host.log.qa_records import QaFinding
 
 if TYPE_CHECKING:
     from forcemap.host.fuse.feed import FeedContext
@@ -47,11 +51,14 @@ QUANTITY = {
 class NmeaDecoder:
     """Lines from any number of NMEA ports; values to the pipeline's state and assembler."""
 
-    def __init__(self, pipe: FeedContext) -> None:
+    def __init__(self, pipe: FeedContext, checksum: str = "strict") -> None:
         self.pipe = pipe
         self.splitters: dict[str, LineSplitter] = {}
-        self.parser = NmeaParser()
+        self.parser = NmeaParser(checksum)
         self.variation: float | None = pipe.cal.magnetic_variation_deg
+        self.log_variation = False  # a sentence of the log gave the variation
+        self.declination = DeclinationModel()  # where nothing gives it (IGRF-14)
+        self.jumps = JumpFilter()
         self.conn = "nmea"  # the port of the line being handled
         # (port, talker) -> the receiver of its last position sentence: whose fix a GSA describes
         self.receivers: dict[tuple[str, str], str] = {}
@@ -98,7 +105,21 @@ class NmeaDecoder:
                 self.line(line, source, now, None, int(now * 1e9))
 
     def counters(self) -> dict[str, Any]:
-        return {**self.parser.counters(), "bytes": self.bytes}
+        return {**self.parser.counters(), "bytes": self.bytes, "position_jumps": self.jumps.jumps}
+
+    def findings(self) -> list[QaFinding]:
+        """What this decoder found about the log: a checksum variant, the declination model's use,
+        position jumps (forcemap.host.log.qa_records)."""
+        p = self.parser
+        bad = p.rejected["bad_checksum"] + (
+            sum(p.variants.values()) if p.checksum == "lenient" else 0
+        )
+        found = [
+            nmea_checksum.finding(p.variants, p.variant_addresses, bad, p.lines, p.checksum),
+            self.declination.finding(),
+            self.jumps.finding(),
+        ]
+        return [f for f in found if f is not None]
 
     def line(
         self, line: bytes, source: str, t: float, t_mono_ns: int | None, t_wall_ns: int
@@ -204,6 +225,7 @@ class NmeaDecoder:
         if s.type in ("RMC", "HDG") and s.data.get("variation") is not None:
             if self.pipe.cal.magnetic_variation_deg is None:
                 self.variation = s.data["variation"]
+                self.log_variation = True
         return not self.pipe.mav_nav  # the autopilot is the navigation source when there is one
 
     def _receiver(self, s: Sentence) -> str:
@@ -277,9 +299,25 @@ class NmeaDecoder:
 
     def _hdm(self, s: Sentence, t: float) -> None:
         d = s.data
-        if self._nav_ok(s) and d["heading_mag"] is not None and self.variation is not None:
-            true = d["heading_mag"] + (d.get("deviation") or 0.0) + self.variation
-            self._heading(t, true, s, " +variation")
+        if not self._nav_ok(s) or d["heading_mag"] is None:
+            return
+        variation, suffix = self.variation, " +variation"
+        if variation is None:
+            variation, suffix = self._model_declination(t), " +IGRF-14"
+        if variation is not None:
+            true = d["heading_mag"] + (d.get("deviation") or 0.0) + variation
+            self._heading(t, true, s, suffix)
+
+    def _model_declination(self, t: float) -> float | None:
+        """IGRF-14's declination at the boat's last position and the log's date (None before a fix
+        or outside the model's years): forcemap.host.fuse.declination."""
+        fix = self.pipe.last_fix
+        if fix is None:
+            return None
+        value = self.declination.at(fix["lat"], fix["lon"], self.pipe.utc_s(t))
+        if value is not None:
+            self.declination.headings += 1
+        return value
 
     def _rot(self, s: Sentence, t: float) -> None:
         d = s.data
@@ -312,6 +350,8 @@ class NmeaDecoder:
         state = asm.state
         name = self.name(s)
         receiver = self._receiver(s)
+        if self.jumps.is_jump(t, lat, lon, self.pipe.utc_s(t)):
+            return  # counted and listed with its reason (position_jumps.py)
         if not self.pipe.source_reading("position", name, t, (lat, lon, sog, cog), receiver):
             return
         if sog is not None:

@@ -17,7 +17,8 @@ derived ``/boat/state``, ``/wind/apparent``, ``/wind/true`` (computed and instru
 ``/source/reading`` (every source's readings of each quantity, used or not: sources.py),
 ``/diagnostics`` and ``/samples`` (samples-table rows, docs/CONVENTIONS.md). Metadata:
 ``calibration``, ``config``, ``hello``, ``columns`` (which source fed each column), ``sources``
-(per quantity: the sources, the one used and why, their disagreement and latency; at close).
+(per quantity: the sources, the one used and why, their disagreement and latency; at close),
+``qa.*`` (quality findings: an NMEA checksum variant, the declination model, position jumps).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from forcemap.host.log.messages import (
     SourceReading,
     as_json,
 )
+from forcemap.host.log.qa_records import QaFinding
 
 # longest a sample waits for the navigation streams before it goes out with what is known
 HOLD_S = 3.0
@@ -111,6 +113,7 @@ class Pipeline:
         hold_s: float = HOLD_S,
         sample_rate_hz: float | None = None,
         sources_period_s: float | None = None,
+        nmea_checksum: str = "strict",
     ) -> None:
         self.cal = cal = calibration if calibration is not None else Calibration()
         self.hold_s = hold_s
@@ -131,7 +134,7 @@ class Pipeline:
         self.mav_nav = False
         self.selector = SourceSelector(cal.source_priorities, cal.source_timeouts)
         self.bridge = BridgeDecoder(self, rate_window_s)
-        self.nmea = NmeaDecoder(self)
+        self.nmea = NmeaDecoder(self, nmea_checksum)
         self.mav = MavDecoder(self)
         self.decoders = {"bridge": self.bridge, "nmea": self.nmea, "mavlink": self.mav}
         self.last_fix: dict[str, Any] | None = None
@@ -148,6 +151,7 @@ class Pipeline:
         self.sources_period_s = sources_period_s
         self._sources_t: float | None = None
         self.sources_report: dict[str, str] = {}  # the last ``sources`` metadata written
+        self.findings: list[QaFinding] = []  # the quality findings written at close (qa.*)
         self.closed = False
 
         self.sink.metadata("calibration", cal.as_metadata())
@@ -259,8 +263,16 @@ class Pipeline:
             self.assembler.drain(self.now, final=True)
             self._diagnostics(self.now)
             self._sources()
+            self._findings()
         except Exception:
             self.internal("close")
+
+    def _findings(self) -> None:
+        """The decoders' quality findings (checksum variant, declination, position jumps) as
+        ``qa.*`` metadata records (forcemap.host.log.qa_records)."""
+        self.findings = self.nmea.findings()
+        for f in self.findings:
+            self.sink.metadata(f.name, f.to_metadata())
 
     # --- for the decoders and the assembler --------------------------------------------------------
 

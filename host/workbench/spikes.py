@@ -25,6 +25,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.workbench.bottom_lost import LostStretch, lost_mask, lost_stretches
 from forcemap.host.workbench.seabed import reference_on, seabed_path
 from forcemap.host.workbench.table import FLAG_PREFIX, NOT_COVARIATES, Survey, family
 
@@ -37,6 +38,7 @@ HELD_SHARE = 0.7
 Z = 6.0
 MAD_TO_STD = 1.4826
 # least departure (SI) that is physically a spike, by family; depth also scales with the depth
+LOST_WHY = "the bottom lost (soundings scattered more than a seabed can, no bottom under them)"
 FLOORS = {"depth": 0.5, "current": 0.5, "wind": 8.0}  # gusts of a few m/s within seconds are wind
 DEPTH_FLOOR_SHARE = 0.05
 
@@ -52,6 +54,8 @@ class Spikes:
     trel: np.ndarray  # seconds since the survey's start
     threshold: float  # the median threshold over the flagged rows (or over all rows when none is)
     kept: bool = False  # --keep-outliers: flagged, but left in the fit
+    lost: np.ndarray | None = None  # depth: the rows where the bottom was lost (bottom_lost.py)
+    stretches: tuple[LostStretch, ...] = ()  # ... and its stretches
 
     @property
     def count(self) -> int:
@@ -65,8 +69,10 @@ class Spikes:
         """(count, why, mask) for each kind of spike, most frequent first."""
         f = self.flagged
         if self.name == "depth":
-            shallow, deep = f & (self.departure < 0), f & (self.departure > 0)
+            lost = self.lost if self.lost is not None else np.zeros(len(f), bool)
+            shallow, deep = f & ~lost & (self.departure < 0), f & ~lost & (self.departure > 0)
             out = [
+                (int(lost.sum()), LOST_WHY, lost),
                 (
                     int(shallow.sum()),
                     "false shallow echoes (fish, weed, a thermocline, wake)",
@@ -84,6 +90,9 @@ class Spikes:
         out = []
         for n, why, mask in self.kinds():
             idx = np.flatnonzero(mask)
+            if why == LOST_WHY:
+                out.append(self._lost_line(n, why))
+                continue
             t = self.trel[idx] / 60.0
             read = self.reference[idx] + self.departure[idx] if self.name == "depth" else None
             where = f"{t.min():.0f} to {t.max():.0f} min into the survey"
@@ -102,6 +111,16 @@ class Spikes:
             out.append(f"{n} of {len(self.flagged)} {unit} flagged as {why}, {where}{what}; {fate}")
         return out
 
+    def _lost_line(self, n: int, why: str) -> str:
+        where = ", ".join(s.text() for s in self.stretches)
+        fate = (
+            "kept in the fit (--keep-outliers)" if self.kept else "left out of the fit and the maps"
+        )
+        return (
+            f"{n} of {len(self.flagged)} soundings flagged as {why}, in {len(self.stretches)} "
+            f"stretch(es): {where} into the survey; {fate}"
+        )
+
     def to_json(self) -> dict:
         return {
             "target": self.name,
@@ -110,6 +129,10 @@ class Spikes:
             "kept_in_fit": self.kept,
             "kinds": {why.split(" (")[0]: n for n, why, _ in self.kinds()},
             "text": self.lines(),
+            "bottom_lost": [
+                {"start_s": s.t0, "end_s": s.t1, "soundings": s.n, "on_seabed": s.share}
+                for s in self.stretches
+            ],
         }
 
     def advice(self) -> str:
@@ -168,10 +191,14 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
     first = np.flatnonzero(np.diff(group, prepend=-1))
     readings = [p[first] for p in parts]
     flagged = np.zeros(len(first), bool)
-    off = np.zeros(len(first), bool)
+    off = lost = np.zeros(len(first), bool)
+    stretches: list[LostStretch] = []
     if fam == "depth" and len(parts) == 1:  # the reference from the seabed's continuous path only
         d = readings[0]
         off = ~seabed_path(d, FLOORS["depth"] + DEPTH_FLOOR_SHARE * np.abs(d))
+        stretches = lost_stretches(d, ~off, survey.trel[first], _running)
+        lost = lost_mask(len(d), stretches)
+        off = off | lost  # the reference bridges a stretch from the bottom on either side
     for _ in range(MAX_PASSES):
         masked = [np.where(flagged | off, np.nan, p) for p in readings]
         found = _one_pass(name, readings, masked, fam)
@@ -180,12 +207,14 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
         flagged = found.flagged
     return Spikes(
         name,
-        found.flagged[group],
+        (found.flagged | lost)[group],
         found.departure[group],
         found.reference[group],
         survey.trel,
         found.threshold,
         survey.keep_outliers,
+        lost[group] if stretches else None,
+        tuple(stretches),
     )
 
 

@@ -1,0 +1,167 @@
+"""The bottom lost: stretches where the soundings scatter more than a seabed can, so no bottom lies under them.
+
+In deep water and a rough sea a single-beam sounder loses the bottom for minutes: its returns scatter
+from a few metres to most of the depth from one ping to the next (fish, a thermocline, aeration under
+the hull, the pulse's side lobes). False echoes among a bottom that is still there leave a continuous
+seabed under them, however many they are (forcemap.host.workbench.seabed finds its path); a lost
+bottom does not, and the path drawn through its scatter is jagged. Two shares, along the track in a
+window of WINDOW soundings, say which:
+
+- the path's own continuity: each sounding on the path lies within NEAR_M + NEAR_SHARE x depth of the
+  straight line between the path's soundings before and after it. Near 1 on any bottom, with 60 % or
+  80 % false echoes or a rough sea's heave; about 0.2 through scatter from 3 to 70 m;
+- the soundings on the bottom: each sounding lies that close to the line between the *other* path
+  soundings nearest before and after it (a sounding is never its own evidence). Near 1 on a clean
+  bottom, 0.4 where six soundings in ten are false echoes, 0.2 at eight in ten, about 0.05 in scatter.
+
+Where both are low (under PATH_SHARE and LOST_SHARE), and the soundings jump from ping to ping (their
+median change over the window above SCATTER_M + SCATTER_SHARE x their median: 19 m in scatter from 3 to
+70 m, decimetres on a steep shallow bottom whose curves the straight lines miss) for at least
+MIN_SOUNDINGS soundings, the bottom is lost: the stretch runs out on either side to where the bottom is back (RESUME soundings in a row on
+it, or continuing their neighbours within the tolerance and a steep seabed's STEP_M), every sounding
+in it is flagged (one that lands near a path drawn through scatter is a coincidence, not the bottom),
+left out of the depth map, and the stretch is listed with its times.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+WINDOW = 61
+PATH_SHARE = 0.5
+LOST_SHARE = 0.2
+SCATTER_M = 2.0  # the median change between pings in a window where the bottom is lost, at least
+SCATTER_SHARE = 0.1  # ... plus this share of the soundings' median
+STEP_M = 1.5  # the steepest step between two pings followed (the simulator's basin: 1.2 m)
+MIN_SOUNDINGS = 30
+NEAR_M = 0.3
+NEAR_SHARE = 0.01
+RESUME = 3
+
+
+@dataclass
+class LostStretch:
+    """One stretch where the bottom was lost: soundings ``i0`` to ``i1`` (inclusive, by reading)."""
+
+    i0: int
+    i1: int
+    t0: float  # seconds since the survey's start
+    t1: float
+    share: float  # the share of its soundings on a seabed
+
+    @property
+    def n(self) -> int:
+        return self.i1 - self.i0 + 1
+
+    def text(self) -> str:
+        return (
+            f"{self.t0 / 60:.1f}-{self.t1 / 60:.1f} min ({self.n} soundings, "
+            f"{self.share:.0%} on a seabed)"
+        )
+
+
+def _tolerance(depth: np.ndarray) -> np.ndarray:
+    return NEAR_M + NEAR_SHARE * np.abs(depth)
+
+
+def _line(p: np.ndarray, depth: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """The straight line between the path soundings ``p`` nearest before and after each ``i``
+    (excluding ``i`` itself); the nearest one where there is none on one side."""
+    after = np.searchsorted(p, i, side="right")
+    before = np.searchsorted(p, i, side="left") - 1
+    j = p[np.clip(before, 0, len(p) - 1)]
+    k = p[np.clip(after, 0, len(p) - 1)]
+    j = np.where(before < 0, k, j)
+    k = np.where(after >= len(p), j, k)
+    w = np.where(k > j, (i - j) / np.maximum(k - j, 1), 0.0)
+    return depth[j] + w * (depth[k] - depth[j])
+
+
+def on_bottom(depth: np.ndarray, on_path: np.ndarray) -> np.ndarray:
+    """Each sounding near the line between the other path soundings before and after it."""
+    p = np.flatnonzero(on_path & np.isfinite(depth))
+    if len(p) < 2:
+        return np.zeros(len(depth), bool)
+    ref = _line(p, depth, np.arange(len(depth)))
+    return np.abs(depth - ref) <= _tolerance(ref)
+
+
+def path_continuity(depth: np.ndarray, on_path: np.ndarray) -> np.ndarray:
+    """1 for a path sounding near the line between its path neighbours, 0 if not, NaN off the path."""
+    out = np.full(len(depth), np.nan)
+    p = np.flatnonzero(on_path & np.isfinite(depth))
+    if len(p) < 3:
+        return out
+    ref = _line(p, depth, p[1:-1])
+    out[p[1:-1]] = np.abs(depth[p[1:-1]] - ref) <= _tolerance(ref)
+    return out
+
+
+def _continues(depth: np.ndarray) -> np.ndarray:
+    """Each sounding within the tolerance and STEP_M of the sounding before or after it."""
+    step = np.abs(np.diff(depth)) <= _tolerance(depth[1:]) + STEP_M
+    out = np.zeros(len(depth), bool)
+    out[1:] |= step
+    out[:-1] |= step
+    return out
+
+
+def lost_stretches(
+    depth: np.ndarray, on_path: np.ndarray, trel: np.ndarray, running: Callable
+) -> list[LostStretch]:
+    """The stretches (by reading) where the bottom was lost; ``on_path``: the soundings on the
+    seabed's path (seabed.py), ``trel`` each reading's time, ``running`` the along-track window.
+    Readings without a sounding (NaN) are left out: the windows count soundings."""
+    idx = np.flatnonzero(np.isfinite(depth))
+    if len(idx) < MIN_SOUNDINGS:
+        return []
+    found = _stretches(depth[idx], on_path[idx], trel[idx], running)
+    return [LostStretch(int(idx[s.i0]), int(idx[s.i1]), s.t0, s.t1, s.share) for s in found]
+
+
+def _stretches(
+    depth: np.ndarray, on_path: np.ndarray, trel: np.ndarray, running: Callable
+) -> list[LostStretch]:
+    bottom = on_bottom(depth, on_path)
+    share = running(bottom.astype(float), WINDOW, np.nanmean)
+    path = running(path_continuity(depth, on_path), WINDOW, np.nanmean)
+    low = (np.nan_to_num(share, nan=1.0) < LOST_SHARE) & (np.nan_to_num(path, nan=1.0) < PATH_SHARE)
+    # and the soundings jump, from ping to ping, by metres and a share of the depth
+    jump = running(np.abs(np.diff(depth, prepend=depth[0])), WINDOW, np.nanmedian)
+    low &= jump > SCATTER_M + SCATTER_SHARE * running(depth, WINDOW, np.nanmedian)
+    near = bottom | _continues(depth)  # at the stretch's ends, the bottom on one side only
+    # the bottom is back where RESUME soundings in a row are on it
+    back = np.convolve(near.astype(int), np.ones(RESUME, int), "same") >= RESUME
+    spans: list[list[int]] = []
+    edges = np.flatnonzero(np.diff(np.r_[0, low.astype(int), 0]))
+    for a, b in zip(edges[::2], edges[1::2] - 1, strict=True):
+        # the window is wide: its share dips only well inside a stretch; the stretch runs out to
+        # where the bottom is back on either side
+        while a > 0 and not back[a - 1]:
+            a -= 1
+        while b < len(depth) - 1 and not back[b + 1]:
+            b += 1
+        while a < b and near[a]:  # the last sounding of the bottom before it is not in it
+            a += 1
+        while b > a and near[b]:
+            b -= 1
+        if spans and a <= spans[-1][1] + RESUME:
+            spans[-1][1] = max(spans[-1][1], b)
+        else:
+            spans.append([int(a), int(b)])
+    return [
+        LostStretch(a, b, float(trel[a]), float(trel[b]), float(np.mean(bottom[a : b + 1])))
+        for a, b in spans
+        if b - a + 1 >= MIN_SOUNDINGS
+    ]
+
+
+def lost_mask(n: int, stretches: list[LostStretch]) -> np.ndarray:
+    """True for the readings inside the stretches."""
+    mask = np.zeros(n, bool)
+    for s in stretches:
+        mask[s.i0 : s.i1 + 1] = True
+    return mask
