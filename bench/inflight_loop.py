@@ -162,7 +162,9 @@ def fly(
         if kind == "HEARTBEAT":
             rp.heartbeat(md.MODE_NAMES.get(int(msg.custom_mode), str(msg.custom_mode)))
         elif kind == "GLOBAL_POSITION_INT" and msg.lat:
-            rp.position(msg.lat * 1e-7, msg.lon * 1e-7)
+            d = rp.position(msg.lat * 1e-7, msg.lon * 1e-7, samples.last_t)
+            if d is not None:
+                pending.append(d)
         elif kind == "MISSION_CURRENT":
             d = rp.mission_current(int(msg.seq), samples.last_t)
             if d is not None:
@@ -190,7 +192,8 @@ def fly(
             decisions.append(d)
             if d.items is not None:
                 sim.advance(sim.t + LATENCY_S)
-                apply(rp, d, link, lambda: sim.t)
+                rp.note_latency(LATENCY_S)
+                apply(rp, d, link, lambda: sim.t, lambda: sim.advance(sim.t + 0.2))
     pipe.close()
     sim.finish()
     return score(sim, m.lines, decisions, log)

@@ -39,4 +39,8 @@ class Replan(Record):
     current_mean_mps: Opt = None  # mapped current speed, mean along all intended lines
     clipped: int = 0  # waypoints moved back within the bounds
     clipped_max_m: float = 0.0
-    cpu_s: Opt = None
+    cpu_s: Opt = None  # the decision's CPU time, without the map's
+    map_cpu_s: Opt = None  # getting the maps (a refit of the samples so far)
+    late: bool = False  # it missed its turn: the boat was on the next line first (t: decided at)
+    refused: bool = False  # the autopilot refused the upload, or did not answer it
+    turn_end_t: Opt = None  # when the turn it was for ended, if it was late

@@ -34,11 +34,36 @@ class MissionIn:
     lines_latlon: np.ndarray  # (k, 2, 2)
 
 
+PARALLEL_DEG = 20.0  # legs within this of one another's direction (either way) are parallel
+GROUP_SHARE = 0.6  # a direction whose legs add up to this share of the main one's is surveyed too
+
+
 def survey_lines(wps: np.ndarray) -> np.ndarray:
-    """The legs that are survey lines: those at least LINE_FRACTION of the longest (the rest are turns)."""
+    """The legs that are survey lines: long parallel legs, not the short connectors between them.
+
+    Legs are grouped by direction (within PARALLEL_DEG, either way); the group with the most length is
+    the survey's direction (a cross-hatched survey's second direction counts if it has GROUP_SHARE of
+    that length); its legs at least LINE_FRACTION as long as its longest are the lines. Connectors,
+    lead-in and overshoot legs are shorter, or run across the lines and add up to less."""
     legs = np.stack([wps[:-1], wps[1:]], axis=1)
-    length = np.hypot(*(legs[:, 1] - legs[:, 0]).T)
-    return legs[length >= LINE_FRACTION * length.max()]
+    d = legs[:, 1] - legs[:, 0]
+    length = np.hypot(*d.T)
+    ang = np.degrees(np.arctan2(d[:, 0], d[:, 1])) % 180.0
+    group = np.full(len(legs), -1)
+    for k in np.argsort(-length):
+        if group[k] >= 0 or length[k] < 1.0:
+            continue
+        diff = np.abs((ang - ang[k] + 90.0) % 180.0 - 90.0)
+        group[(group < 0) & (diff <= PARALLEL_DEG) & (length >= 1.0)] = k
+    totals = {g: float(length[group == g].sum()) for g in set(group.tolist()) if g >= 0}
+    if not totals:
+        return legs[:0]
+    best = max(totals.values())
+    keep = np.zeros(len(legs), dtype=bool)
+    for g, total in totals.items():
+        if total >= GROUP_SHARE * best:
+            keep |= (group == g) & (length >= LINE_FRACTION * length[g])
+    return legs[keep]
 
 
 def read_mission(path: str, scenario: str = "river") -> MissionIn:

@@ -93,8 +93,10 @@ def _sidecar_lines(path: Path) -> dict[str, Any]:
     """The intended lines of a planned waypoint file, from the FILE.json written beside it (if any)."""
     side = path.with_suffix(".json")
     try:
-        lines = json.loads(side.read_text())["lines"]
-        return {"lines_latlon": [ln["latlon"] for ln in lines]}
+        doc = json.loads(side.read_text())
+        if doc.get("lines_given") is False:  # every leg, written for a mission with no lines of its own
+            return {}
+        return {"lines_latlon": [ln["latlon"] for ln in doc["lines"]]}
     except (OSError, ValueError, KeyError, TypeError):
         return {}
 
@@ -225,6 +227,7 @@ def to_json(mission: Mission, geo: LocalFrame) -> dict[str, Any]:
     return {
         "name": mission.name,
         "loop": mission.loop,
+        "lines_given": mission.lines is not None,  # else "lines" are every leg
         "lat0": geo.lat0,
         "lon0": geo.lon0,
         "waypoints": [
