@@ -33,7 +33,7 @@ from .boat_model import BoatModel
 from .maps import Field, Maps
 from .metrics import score_lines, summary
 from .line_progress import match_lines
-from .mission_io import nav_items
+from .mission_io import nav_items, survey_legs
 from .predict import predict_track
 from .splice import splice
 
@@ -173,6 +173,11 @@ class Replanner:
         self.bound_m, self.lead_s = bound_m, lead_s
         self.log = log or (lambda s: None)
         self.lines = frame.points_to_local(np.asarray(lines_latlon, dtype=float))
+        survey = survey_legs(self.lines)
+        if not survey.all():  # short connectors between survey lines, given as lines: turns
+            self.log(f"replan: {int((~survey).sum())} of the {len(survey)} intended lines are short "
+                     "connectors between the survey lines: flown as turns")  # fmt: skip
+            self.lines = self.lines[survey]
         self.set_items(items, None)
         # points every ~10 m along every intended line: where the map's mean current is reported
         self.along = np.concatenate(
