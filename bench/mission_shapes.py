@@ -44,7 +44,9 @@ def camera(dist: float) -> wp.Item:
     return wp.Item(CAM_TRIGG_DIST, params=(dist, 0.0, 1.0, 0.0), frame=2)
 
 
-def shape(name: str, scenario: str = "river") -> tuple[list[wp.Item], np.ndarray, np.ndarray | None]:
+def shape(
+    name: str, scenario: str = "river"
+) -> tuple[list[wp.Item], np.ndarray, np.ndarray | None]:
     """(mission items, home first; the five survey lines (local m, as flown); the intended lines the
     file gives explicitly (local m) or None: recognised from the mission)."""
     scen = sc.load(scenario)
@@ -105,7 +107,9 @@ def plan_with_survey(items: list[wp.Item], visual: list[list[float]]) -> dict:
     first = next(k for k, it in enumerate(items[1:], 1) if it.command == wp.NAV_WAYPOINT)
     doc = qgc_plan.plan_document(items[0], items[1:first])
     simple = doc["mission"]["items"]
-    generated = [qgc_plan.simple_item(it, len(simple) + k + 1) for k, it in enumerate(items[first:])]
+    generated = [
+        qgc_plan.simple_item(it, len(simple) + k + 1) for k, it in enumerate(items[first:])
+    ]
     doc["groundStation"] = "QGroundControl"
     doc["mission"]["items"] = simple + [{
         "TransectStyleComplexItem": {

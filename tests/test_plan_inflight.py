@@ -121,7 +121,11 @@ def test_manual_stops_replanning_until_auto() -> None:
         # line's end is waiting for the turn
         def watch() -> None:
             s = sim.boat.s
-            if not switched and sim.current_seq() == 2 and np.hypot(s.x - end[0], s.y - end[1]) < 20:
+            if (
+                not switched
+                and sim.current_seq() == 2
+                and np.hypot(s.x - end[0], s.y - end[1]) < 20
+            ):
                 switched.append(sim.t)
                 sim.mode_changes = [md.ModeChange(sim.t + 0.5, md.MODES["MANUAL"]),
                                     md.ModeChange(sim.t + 8.0, md.AUTO)]  # fmt: skip

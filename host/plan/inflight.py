@@ -30,9 +30,9 @@ from forcemap.host.vessel.geodesy import LocalFrame
 from . import line_progress as lp
 from .adjust import adjust
 from .boat_model import BoatModel
+from .line_progress import match_lines
 from .maps import Field, Maps
 from .metrics import score_lines, summary
-from .line_progress import match_lines
 from .mission_io import nav_items, survey_legs
 from .predict import predict_track
 from .splice import splice
@@ -312,7 +312,9 @@ class Replanner:
         d.current_mean = round(float(np.mean(np.hypot(e, n))), 3)
         ahead = self.seqs > d.keep_seq
         d.old_wps, d.old_speeds = self.xy[ahead], self.speeds[ahead]
-        d.old = self._predict(np.vstack([begin, d.old_wps]), np.r_[np.nan, d.old_speeds], rest, maps)
+        d.old = self._predict(
+            np.vstack([begin, d.old_wps]), np.r_[np.nan, d.old_speeds], rest, maps
+        )
         plan, _ = adjust(rest, maps, self.boat, start=begin, reorder=False)
         wps, speeds = plan.wps[1:], plan.speeds[1:]
         d.plan_lines = [(a - 1, b - 1) for a, b in plan.line_wps]

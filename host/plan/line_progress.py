@@ -86,7 +86,9 @@ def turn_over(
     return along >= ON_NEXT_M and abs(across) < ON_LINE_M
 
 
-def to_go(pos: np.ndarray | None, current: int | None, line: np.ndarray, seqs: tuple[int, int]) -> float:
+def to_go(
+    pos: np.ndarray | None, current: int | None, line: np.ndarray, seqs: tuple[int, int]
+) -> float:
     """Metres left on the line (inf when the boat is not flying it yet, or not near it)."""
     if pos is None or current is None or not seqs[0] < current <= seqs[1]:
         return float("inf")

@@ -30,7 +30,9 @@ from .upload import Uploader, download, set_current
 MODES = {0: "MANUAL", 4: "HOLD", 10: "AUTO", 11: "RTL"}  # ArduPilot Rover's custom_mode
 QUEUE_MAX = 2000
 RETRY_S = 10.0  # read the mission back again after this long when the autopilot did not answer
-WAIT_MAX = 1500  # waits (0.2 s each) for a line to end before a decision made ahead of it is dropped
+WAIT_MAX = (
+    1500  # waits (0.2 s each) for a line to end before a decision made ahead of it is dropped
+)
 
 
 def remaining(frame: LocalFrame, wps: np.ndarray | None, speeds: np.ndarray | None) -> list:

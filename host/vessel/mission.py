@@ -95,7 +95,9 @@ def _sidecar_lines(path: Path) -> dict[str, Any]:
     side = path.with_suffix(".json")
     try:
         doc = json.loads(side.read_text())
-        if doc.get("lines_given") is False:  # every leg, written for a mission with no lines of its own
+        if (
+            doc.get("lines_given") is False
+        ):  # every leg, written for a mission with no lines of its own
             return {}
         return {"lines_latlon": [ln["latlon"] for ln in doc["lines"]]}
     except (OSError, ValueError, KeyError, TypeError):
@@ -104,7 +106,11 @@ def _sidecar_lines(path: Path) -> dict[str, Any]:
 
 def _from_items(p: Path, home: waypoints.Item, items: list, lines: np.ndarray | None, kind: str):  # type: ignore[no-untyped-def]
     latlon, speeds, seqs = waypoints.nav_points(items)
-    m: dict[str, Any] = {"latlon": latlon.tolist(), "speeds": speeds.tolist(), "seqs": seqs.tolist()}
+    m: dict[str, Any] = {
+        "latlon": latlon.tolist(),
+        "speeds": speeds.tolist(),
+        "seqs": seqs.tolist(),
+    }
     m["loop"] = False
     m["items"] = [home, *items]
     if lines is not None:  # a .plan survey's transects

@@ -120,6 +120,8 @@ def plan_document(home: Item, items: list[Item], template: dict | None = None) -
     return doc
 
 
-def write_plan(path: str | Path, home: Item, items: list[Item], template: dict | None = None) -> None:
+def write_plan(
+    path: str | Path, home: Item, items: list[Item], template: dict | None = None
+) -> None:
     """Write ``items`` as a .plan (every item a SimpleItem; the template's other fields kept)."""
     Path(path).write_text(json.dumps(plan_document(home, items, template), indent=4) + "\n")
