@@ -144,6 +144,7 @@ def fly(
     mission_file: str | None = None,
     judge: np.ndarray | None = None,
     on_upload=None,  # type: ignore[no-untyped-def]  # called with the link after each accepted upload
+    on_decision=None,  # type: ignore[no-untyped-def]  # called with the Simulation and each decision
 ) -> Run:
     """Fly the lawnmower once (or ``mission_file``, scored on ``judge``: its survey lines, local m)
     with (or without) in-flight replanning; score the true track."""
@@ -198,10 +199,12 @@ def fly(
         while pending and rp is not None:
             d = pending.popleft()
             decisions.append(d)
+            if on_decision is not None:
+                on_decision(sim, d)
             if d.items is not None:
                 sim.advance(sim.t + LATENCY_S)
                 rp.note_latency(LATENCY_S)
-                apply(rp, d, link, lambda: sim.t, lambda: sim.advance(sim.t + 0.2))
+                apply(rp, d, link, lambda: sim.t)
                 if d.uploaded and on_upload is not None:
                     on_upload(link)
     pipe.close()

@@ -114,31 +114,15 @@ def test_naked_or_lost_upload_keeps_the_old_mission_and_it_is_flown() -> None:
 
 def test_manual_stops_replanning_until_auto() -> None:
     switched: list[float] = []
-    end = mission("river").lines[0, 1]
 
-    def setup(sim: Simulation) -> None:
-        # the operator takes the boat 20 m before the first line ends: the decision made ahead of the
-        # line's end is waiting for the turn
-        def watch() -> None:
-            s = sim.boat.s
-            if (
-                not switched
-                and sim.current_seq() == 2
-                and np.hypot(s.x - end[0], s.y - end[1]) < 20
-            ):
-                switched.append(sim.t)
-                sim.mode_changes = [md.ModeChange(sim.t + 0.5, md.MODES["MANUAL"]),
-                                    md.ModeChange(sim.t + 8.0, md.AUTO)]  # fmt: skip
+    def operator(sim: Simulation, d) -> None:  # type: ignore[no-untyped-def]
+        # the operator takes the boat while the first decision is being planned, for 8 s
+        if not switched:
+            switched.append(sim.t)
+            sim.mode_changes = [md.ModeChange(sim.t + 0.5, md.MODES["MANUAL"]),
+                                md.ModeChange(sim.t + 8.0, md.AUTO)]  # fmt: skip
 
-        step = sim.step
-
-        def step_and_watch() -> None:
-            step()
-            watch()
-
-        sim.step = step_and_watch  # type: ignore[method-assign]
-
-    run = fly("river", 2, configure=setup, provider=provider(1.5), duration_s=SHORT_S)
+    run = fly("river", 2, on_decision=operator, provider=provider(1.5), duration_s=SHORT_S)
     first, second = run.decisions[0], run.decisions[1]
     assert switched and first.items is not None and not first.uploaded
     assert "not sent" in first.reason  # decided in AUTO, but MANUAL came before the upload

@@ -26,25 +26,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame
+from forcemap.host.vessel.waypoints import NAV_WAYPOINT
 
 from . import line_progress as lp
 from .adjust import adjust
 from .boat_model import BoatModel
+from .bounds import BOUND_M, MARGIN_M, clip, map_problem, owners
 from .line_progress import match_lines
-from .maps import Field, Maps
+from .maps import Maps
 from .metrics import score_lines, summary
 from .mission_io import nav_items, survey_legs
 from .predict import predict_track
 from .splice import splice
 
-BOUND_M = 30.0  # largest move of a waypoint across its intended line
-MARGIN_M = 60.0  # the mission's area (its waypoints and lines) grown by this much
-MAX_CURRENT_MPS = 8.0  # faster than any river a survey boat works in
-MAX_WIND_MPS = 40.0
 MIN_GAIN_M = 0.3  # upload when the worst remaining line's predicted p95 improves by this much ...
 MIN_COVERAGE_GAIN = 0.01  # ... or the remaining lines' predicted coverage by this share
 LEAD_S = 15.0  # decide this long (the data's clock) before a line ends, at least ...
-LEAD_MAX_S = 60.0  # ... and at most, however slow the last decision was
+LEAD_MAX_S = 90.0  # ... and at most, however slow the last decisions were
 
 
 @dataclass
@@ -92,61 +90,6 @@ class Decision:
     late: bool = False  # it missed its turn (the boat was on the next line first)
     turn_end_t: float | None = None  # when that turn ended (the data's clock)
     refused: bool = False  # the autopilot refused the upload, or did not answer it
-
-
-def map_problem(maps: Maps, area: tuple[float, float, float, float]) -> str | None:
-    """Why a map cannot be trusted over ``area`` (x0, x1, y0, y1), or None."""
-    for name, f, limit in (
-        ("current", maps.current, MAX_CURRENT_MPS),
-        ("wind", maps.wind, MAX_WIND_MPS),
-    ):
-        e, n = _in_area(f, area)
-        if not (np.all(np.isfinite(e)) and np.all(np.isfinite(n))):
-            return f"the {name} map has values that are not numbers"
-        top = float(np.max(np.hypot(e, n))) if e.size else 0.0
-        if top > limit:
-            return f"the {name} map reaches {top:.1f} m/s (more than {limit:g} m/s)"
-    return None
-
-
-def _in_area(f: Field, area: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    ny, nx = f.east.shape
-    gx = f.x0 + f.step * np.arange(nx)
-    gy = f.y0 + f.step * np.arange(ny)
-    cx = (gx >= area[0] - f.step) & (gx <= area[1] + f.step)
-    cy = (gy >= area[2] - f.step) & (gy <= area[3] + f.step)
-    if not cx.any() or not cy.any():  # a coarse grid (one cell over everything): all of it
-        return f.east, f.north
-    return f.east[np.ix_(cy, cx)], f.north[np.ix_(cy, cx)]
-
-
-def owners(line_wps: list[tuple[int, int]], n: int) -> np.ndarray:
-    """For each waypoint of a laid-out plan, the line it belongs to (run-in, on it, overrun); -1: none."""
-    out = np.full(n, -1)
-    for j, (a, b) in enumerate(line_wps):
-        out[max(a - 1, 0) : min(b + 2, n)] = j
-    return out
-
-
-def clip(
-    wps: np.ndarray, own: np.ndarray, lines: np.ndarray, bound_m: float, area: tuple
-) -> tuple[np.ndarray, int, float]:
-    """Waypoints moved back within ``bound_m`` across their line and into ``area``; how many moved, and
-    the largest move (m)."""
-    out = wps.copy()
-    for k, j in enumerate(own):
-        if j < 0:
-            continue
-        a, b = lines[j]
-        u = (b - a) / np.hypot(*(b - a))
-        nrm = np.array([u[1], -u[0]])
-        off = float((out[k] - a) @ nrm)
-        if abs(off) > bound_m:
-            out[k] -= (off - np.sign(off) * bound_m) * nrm
-    out[:, 0] = np.clip(out[:, 0], area[0], area[1])
-    out[:, 1] = np.clip(out[:, 1], area[2], area[3])
-    moved = np.hypot(*(out - wps).T)
-    return out, int(np.sum(moved > 0.01)), float(moved.max()) if len(moved) else 0.0
 
 
 class Replanner:
@@ -264,8 +207,10 @@ class Replanner:
         )
 
     def note_latency(self, seconds: float) -> None:
-        """How long (the data's clock) a decision took to be ready: decide at least twice that early."""
-        self.lead_s = float(np.clip(max(self.lead_s, 2.0 * seconds), LEAD_S, LEAD_MAX_S))
+        """How long (the data's clock) a decision took to be ready: the next ones are made 1.5 times
+        the longer of the last two that early (a loaded machine, a fast simulation)."""
+        self.latencies = [*getattr(self, "latencies", [])[-1:], float(seconds)]
+        self.lead_s = float(np.clip(1.5 * max(self.latencies), LEAD_S, LEAD_MAX_S))
 
     # ---- the decision ------------------------------------------------------------------------------
     def decide(self, i: int, t: float) -> Decision:
@@ -369,6 +314,21 @@ class Replanner:
     def still_in_turn(self, d: Decision) -> bool:
         """Whether the boat, in AUTO, has not yet started the line after the one ``d`` followed."""
         return self.mode == "AUTO" and not self.turn_missed(d)
+
+    def ahead_on_next(self, d: Decision) -> int:
+        """In ``d``'s mission, the waypoint of the next line at least ON_NEXT_M ahead of the boat."""
+        assert d.items is not None and self.pos is not None
+        first, last = d.line_seqs[d.line_done + 1]
+        a, b = self.lines[d.line_done + 1]
+        here = lp.along_across(self.pos, a, b)[0]
+        geo = self.frame
+        for seq in range(first, last + 1):
+            it = d.items[seq]
+            if it.command == NAV_WAYPOINT:
+                p = geo.points_to_local(np.array([it.lat, it.lon]))
+                if lp.along_across(p, a, b)[0] > here + lp.ON_NEXT_M:
+                    return seq
+        return last
 
     def resume_seq(self, d: Decision) -> int:
         """The item to go for once ``d`` is accepted: the kept turn point, or the first new waypoint

@@ -61,26 +61,15 @@ def to_record(d: Decision, rp: Replanner) -> Replan:
     )  # fmt: skip
 
 
-def apply(
-    rp: Replanner,
-    d: Decision,
-    link,  # type: ignore[no-untyped-def]
-    now: Callable[[], float],
-    wait: Callable[[], object] | None = None,
-    max_waits: int = WAIT_MAX,
-) -> None:
-    """Upload a decision's mission in the turn it was made for: once the line has ended (``wait`` lets
-    telemetry in meanwhile), unless the boat has left AUTO or is already on the next line; then set
-    the item. A refused or unanswered upload leaves the autopilot's mission as it was."""
+def apply(rp: Replanner, d: Decision, link, now: Callable[[], float]) -> None:  # type: ignore[no-untyped-def]
+    """Upload a decision's mission as soon as it is ready, unless the boat has left AUTO or is already
+    on the next line: the items up to the line's end (or its overrun) are kept, so the line being flown
+    does not change; then set the item. A refused or unanswered upload leaves the autopilot's mission
+    as it was. An upload that the boat outran (it reached the next line while the items went out) has
+    it go on along that line, never back to the run-in."""
     drain = getattr(link, "drain", None)
     if drain is not None:
         drain()  # the telemetry that arrived while planning: where the boat is now, its mode
-    n = 0
-    while wait is not None and n < max_waits and rp.mode == "AUTO" and not rp.line_over(d):
-        if rp.turn_missed(d):
-            break
-        wait()
-        n += 1
     if rp.mode != "AUTO":
         d.reason += "; not sent: the boat left AUTO first"
         rp.uploaded(d, False)
@@ -98,7 +87,16 @@ def apply(
         rp.log(f"replan: upload failed: {e}")
         ok = False
     if ok:
-        seq = rp.resume_seq(d)
+        if drain is not None:
+            drain()
+        if rp.turn_missed(d):
+            d.reason += "; uploaded, but " + rp.late(d).replace(
+                "; tried", "; the boat goes on, tried"
+            )
+            rp.log(f"replan after line {d.line_done + 1}: {rp.late(d)}")
+            seq = rp.ahead_on_next(d)
+        else:
+            seq = rp.resume_seq(d)
         if seq != rp.current:
             set_current(link, seq)
         d.t_sent = now()
@@ -265,7 +263,7 @@ class ReplanService(threading.Thread):
                 try:
                     self.rp.note_latency(self.last_t - d.t)
                     if d.items is not None:
-                        apply(self.rp, d, self.link, time.time, lambda: self.link.pump(0.2))
+                        apply(self.rp, d, self.link, time.time)
                     self.record(to_record(d, self.rp))
                     if d.uploaded:
                         self._show_plan()
