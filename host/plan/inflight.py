@@ -137,6 +137,7 @@ class Replanner:
         self.done = -1  # the last intended line decided for
         self.on_line = -1  # the last intended line the boat has been seen flying
         self.turn_end_t: dict[int, float] = {}  # line -> when the turn after it ended
+        self.warmed = False
 
     def set_items(self, items: list, line_seqs: list[tuple[int, int]] | None) -> None:
         """The mission the autopilot now holds (home first); where each line starts and ends in it."""
@@ -182,6 +183,10 @@ class Replanner:
             return None
         args = (self.pos, self.current, self.lines[i], self.line_seqs[i])
         left = lp.to_go(*args)
+        if not self.warmed and left < 0.5 * lp.along_across(self.pos, *self.lines[i])[2]:
+            self.warmed = True  # a first map half-way along the first line: the first fit's cost
+            self.maps()  # (imports, caches) is not paid by the first decision
+
         if not (lp.line_ended(*args) or left <= self.boat.cruise_speed * self.lead_s):
             return None
         self.done = i
