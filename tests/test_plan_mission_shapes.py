@@ -229,12 +229,12 @@ def test_every_shape_replans_in_its_turns_and_keeps_the_users_items(
     path = write(name, tmp_path)[0 if kind == "waypoints" else 1]
     original = shape(name)[0]
     readbacks: list[list[wp.Item]] = []
-    run = fly("river", 2, provider=provider(1.5), mission_file=str(path), judge=shape(name)[1],
+    run = fly("river", 2, provider=provider(1.5, 0.5), mission_file=str(path), judge=shape(name)[1],
               duration_s=900.0, on_upload=lambda link: readbacks.append(download(link)))  # fmt: skip
     # one decision per turn between the five survey lines, each in its turn, all accepted
     assert len(run.decisions) == 4
     assert not any(d.late or d.refused for d in run.decisions), [d.reason for d in run.decisions]
-    assert run.uploads >= 2 and len(readbacks) == run.uploads
+    assert run.uploads >= 1 and len(readbacks) == run.uploads
     user_speed = any(i.command == wp.DO_CHANGE_SPEED for i in original)
     for got in readbacks:
         # the camera items come back as they were, in their order, each after a waypoint

@@ -41,7 +41,7 @@ from .splice import splice
 
 MIN_GAIN_M = 0.3  # upload when the worst remaining line's predicted p95 improves by this much ...
 MIN_COVERAGE_GAIN = 0.01  # ... or the remaining lines' predicted coverage by this share
-LEAD_S = 15.0  # decide this long (the data's clock) before a line ends, at least ...
+LEAD_S = 30.0  # decide this long (the data's clock) before a line ends, at least ...
 LEAD_MAX_S = 90.0  # ... and at most, however slow the last decisions were
 
 
@@ -336,10 +336,11 @@ class Replanner:
         return last
 
     def resume_seq(self, d: Decision) -> int:
-        """The item to go for once ``d`` is accepted: the kept turn point, or the first new waypoint
-        if the boat has passed it while the upload went on."""
-        assert d.set_current is not None and d.first_nav is not None
-        return d.set_current if int(self.current or 0) <= d.set_current else d.first_nav
+        """The item to go for once ``d`` is accepted: the one the boat goes for, if it is among the items
+        kept (the line it is flying), else the first new waypoint (it went on into the turn)."""
+        assert d.first_nav is not None and d.keep_seq is not None
+        c = int(self.current or 0)
+        return c if d.first_seq == d.keep_seq + 1 and c <= d.keep_seq else d.first_nav
 
     def uploaded(self, d: Decision, ok: bool) -> None:
         """How the upload of ``d`` went: the autopilot's mission is the new one only if it was accepted."""
