@@ -7,7 +7,8 @@ For each mission file (bench/mission_shapes.py writes them: the simulator's rive
 file and as a QGC .plan with a survey complex item) and each --speed: `forcemap sim --scenario river
 --mission FILE --speed S --ports P -o TRUTH --seed 5` and `forcemap run --mavlink ... --clock sim:...
 --mission FILE --replan`, two processes as in the field. The true track (TRUTH/samples.csv) is scored
-against the original survey lines 3 to 5. Prints a markdown row per run with the decisions from the
+against the original survey lines 3 to 5, up to the boat's arrival at the mission's last waypoint
+(after it the motor is off and the boat drifts with the river). Prints a markdown row per run with the decisions from the
 log (made, uploaded, late, refused), the wall time, the load average and how often the simulator fell
 behind its speed (a loaded machine), and writes WORK/live.json.
 """
@@ -26,12 +27,14 @@ from pathlib import Path
 import numpy as np
 from forcemap.host.log.mcap import read_messages
 from forcemap.host.plan.metrics import score_lines, summary
+from forcemap.host.vessel.geodesy import LocalFrame
+from forcemap.host.vessel.mission import read_items
 
 from bench.mission_shapes import shape, write
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-m", "forcemap.host.cli"]
-DURATION = "12m"
+DURATION = "14m"  # the mission once through is 11-12 min; the rest is cut (mission_end)
 
 
 def fly_live(mission: Path, speed: float, work: Path, replan: bool = True, seed: int = 5) -> dict:
@@ -67,13 +70,14 @@ def fly_live(mission: Path, speed: float, work: Path, replan: bool = True, seed:
         (ln for ln in s.stdout.splitlines() + s.stderr.splitlines() if "fell behind" in ln), ""
     )
     rows = np.genfromtxt(truth / "samples.csv", delimiter=",", names=True)
+    recs = [
+        m.message for p in sorted(out.rglob("*.mcap")) for m in read_messages(p, "/plan/replan")
+    ]
+    rows = rows[: mission_end(rows, recs, mission)]
     xy = np.column_stack([rows["x"], rows["y"]])
     survey = shape("plain")[1]
     scores = score_lines(rows["t"], xy, survey)
     judged = summary(scores[2:])
-    recs = [
-        m.message for p in sorted(out.rglob("*.mcap")) for m in read_messages(p, "/plan/replan")
-    ]
     res = {
         "case": tag, "p95_worst_judged": round(float(judged["p95_worst_line"]), 2),
         "coverage_judged": round(float(judged["coverage"]), 4),
@@ -93,6 +97,22 @@ def fly_live(mission: Path, speed: float, work: Path, replan: bool = True, seed:
         flush=True,
     )
     return res
+
+
+def mission_end(rows: np.ndarray, recs: list[dict], mission: Path) -> int:
+    """The truth's row where the boat reached the last waypoint of the mission it held at the end:
+    after it the motor is off and the boat drifts with the river, which is no survey line's pass."""
+    uploaded = [r for r in recs if r["uploaded"]]
+    if uploaded:
+        lat, lon = uploaded[-1]["new_remaining"][-1][:2]
+    else:
+        last = read_items(mission)[1][-1]
+        lat, lon = last.lat, last.lon
+    frame = LocalFrame(float(lat), float(lon))
+    d = np.hypot(*frame.to_local(rows["lat"], rows["lon"]))
+    after = rows["t"] >= (uploaded[-1]["t"] if uploaded else rows["t"][0])
+    hit = np.flatnonzero(after & (d < 6.0))
+    return int(hit[0]) + 1 if len(hit) else len(rows)
 
 
 def main() -> None:
