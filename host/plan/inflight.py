@@ -229,13 +229,18 @@ class Replanner:
 
     def _keep_seq(self, i: int) -> int:
         """The last item kept: line ``i``'s end, or an overrun point straight after it."""
-        end, start_next = self.line_seqs[i][1], self.line_seqs[i + 1][0]
-        k = int(np.searchsorted(self.seqs, end))
-        if k + 1 < len(self.seqs) and self.seqs[k + 1] < start_next:
+        end = self.line_seqs[i][1]
+        over = self._overrun(i)
+        return over if over is not None and over < self.line_seqs[i + 1][0] else int(end)
+
+    def _overrun(self, i: int) -> int | None:
+        """The waypoint right after line ``i``'s end if it carries straight on (within 15 degrees)."""
+        k = int(np.searchsorted(self.seqs, self.line_seqs[i][1]))
+        if k + 1 < len(self.seqs):
             along, across, length = lp.along_across(self.xy[k + 1], *self.lines[i])
-            if along > length and abs(across) < 0.27 * (along - length):  # within 15 degrees
+            if along > length and abs(across) < 0.27 * (along - length):
                 return int(self.seqs[k + 1])
-        return int(end)
+        return None
 
     def _plan(self, d: Decision, i: int, t: float) -> str:
         if self.mode != "AUTO":
@@ -310,7 +315,7 @@ class Replanner:
         items, new_seqs, line_seqs = splice(
             self.items, d.first_seq, self.line_seqs, d.line_done + 1,
             self.frame.points_to_latlon(d.new_wps), d.new_speeds, d.plan_lines,
-            self.boat.cruise_speed,
+            self.boat.cruise_speed, self._overrun(len(self.lines) - 1),
         )  # fmt: skip
         d.items, d.first_nav = items, new_seqs[0]
         d.set_current = c if c <= d.keep_seq else d.first_nav

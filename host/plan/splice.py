@@ -37,16 +37,18 @@ def splice(
     speeds: np.ndarray,
     plan_lines: list[tuple[int, int]],
     cruise: float,
+    old_overrun: int | None = None,
 ) -> tuple[list[wp.Item], list[int], list[tuple[int, int]]]:
     """The new mission (home first): ``items[:first_seq]``, then the planned waypoints ``latlon`` with
     leg ``speeds`` (NaN: the user's speed there, else ``cruise``) for the lines from ``first_line`` on
     (``plan_lines``: each one's first and last index in ``latlon``), with the replaced part's other
-    items kept. Also the new waypoints' seqs and the new lines' (first, last) seqs."""
+    items kept (``old_overrun``: the last line's overrun waypoint, which the plan's own replaces).
+    Also the new waypoints' seqs and the new lines' (first, last) seqs."""
     old_ll, old_sp, old_seqs = nav_items(items)
     last_end = line_seqs[-1][1]
     tail_from = next(
         (s for s in range(max(first_seq, last_end + 1), len(items))
-         if items[s].command == wp.NAV_WAYPOINT),
+         if items[s].command == wp.NAV_WAYPOINT and s != old_overrun),
         len(items),
     )  # fmt: skip
     roles = _roles(line_seqs)
