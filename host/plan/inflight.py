@@ -8,11 +8,12 @@ latest maps (a ``MapProvider``), predicts the remaining mission as the
 autopilot holds it and as `host/plan` would lay it out from here (run-ins, overruns, turn points moved
 against the drift, leg speeds, lines in the order and directions given), and returns a ``Decision``:
 the new mission (the items already flown and the waypoint the boat is going for unchanged, the rest
-replaced, its DO_ items kept: host/plan/splice.py) or the reason not to. The caller uploads it in the
-turn after the line (``apply`` in service.py) and says how that went (``uploaded``); a decision that
-misses its turn says so with its timings, and the next turn gets a new one.
+replaced, its DO_ items kept: host/plan/splice.py) or the reason not to. The caller uploads it as soon
+as it is ready (``apply`` in service.py: the line being flown is kept up to its end) and says how that
+went (``uploaded``); a decision that misses its turn says so with its timings, and the next turn gets
+a new one.
 
-What it never does: upload mid-line (only when a line has ended and the next has not started), decide
+What it never does: change the line being flown, upload once the boat is on the next line, decide
 in a mode other than AUTO, move a waypoint more than ``bound_m`` across its line or outside the
 mission's area plus ``margin_m`` (clipped, counted in the decision), or use a map with values no river
 or wind has (NaN, a current over MAX_CURRENT_MPS, a wind over MAX_WIND_MPS).
@@ -96,8 +97,8 @@ class Replanner:
     """The mission the autopilot holds, where the boat is on its lines, and the decision for each turn.
 
     A decision is taken ``lead_s`` (the data's clock) before the boat reaches the end of a line, or when
-    the line ends if that comes first, and is meant to be uploaded in the turn after it: between the
-    line's end and the boat being on the next line (host/plan/line_progress.py).
+    the line ends if that comes first, and must be uploaded before the turn after it is over: before
+    the boat is on the next line (host/plan/line_progress.py).
     """
 
     def __init__(
