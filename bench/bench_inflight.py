@@ -2,7 +2,7 @@
 an unmapped river, flown with and without `--replan`, on the planner's boat and on two boats unlike it;
 the dam-release day; `plan` between surveys on the unlike boats; and the cost of one decision.
 
-    python bench/bench_inflight.py --work /tmp/inflight [--only loop|boats|dam|between|cost]
+    python -m bench.bench_inflight --work /tmp/inflight [--only loop|boats|dam|between|cost|shapes]
 
 Prints a markdown table per part and writes WORK/inflight.json.
 """
@@ -155,10 +155,26 @@ def cost(out: list, work: Path) -> None:
     out.append({"decision_cpu_s_long": t_long, "lines": len(ll), "reason": d.reason})
 
 
+def shapes(out: list, work: Path) -> None:
+    """Every mission shape people fly (bench/mission_shapes.py), as a WPL file and as a QGC .plan, flown
+    with --replan on maps refitted in flight; judged on the five survey lines (lines 3-5)."""
+    from bench.mission_shapes import SHAPES, shape, write
+
+    header()
+    for name in SHAPES:
+        for path in write(name, work / "shapes"):
+            r = fly("river", 2, replan=True, mission_file=str(path), judge=shape(name)[1])
+            res = row(f"{path.name}, --replan", r)
+            res["late"] = sum(d.late for d in r.decisions)
+            out.append(res)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--work", default="/tmp/inflight")
-    ap.add_argument("--only", choices=["loop", "boats", "dam", "between", "cost"], action="append")
+    ap.add_argument(
+        "--only", choices=["loop", "boats", "dam", "between", "cost", "shapes"], action="append"
+    )
     a = ap.parse_args()
     work = Path(a.work)
     work.mkdir(parents=True, exist_ok=True)
@@ -167,7 +183,7 @@ def main() -> None:
     for p in parts:
         res[p] = []
         print(f"\n### {p}\n", flush=True)
-        if p in ("between", "cost"):
+        if p in ("between", "cost", "shapes"):
             globals()[p](res[p], work)
         else:
             globals()[p](res[p])

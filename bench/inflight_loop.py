@@ -21,6 +21,7 @@ from forcemap.host.log.messages import as_json
 from forcemap.host.plan.boat_model import BoatModel
 from forcemap.host.plan.inflight import Decision, Replanner
 from forcemap.host.plan.metrics import score_lines, summary
+from forcemap.host.plan.mission_io import read_mission
 from forcemap.host.plan.refit_maps import RefitMaps
 from forcemap.host.plan.service import apply
 from forcemap.host.vessel import mission as ms
@@ -140,10 +141,18 @@ def fly(
     configure=None,  # type: ignore[no-untyped-def]  # called with the started Simulation
     provider=None,  # type: ignore[no-untyped-def]  # the maps (default: refitted on the samples so far)
     bound_m: float = 30.0,
+    mission_file: str | None = None,
+    judge: np.ndarray | None = None,
+    on_upload=None,  # type: ignore[no-untyped-def]  # called with the link after each accepted upload
+    on_decision=None,  # type: ignore[no-untyped-def]  # called with the Simulation and each decision
 ) -> Run:
-    """Fly the lawnmower once with (or without) in-flight replanning; score the true track."""
-    m = mission(scenario)
+    """Fly the lawnmower once (or ``mission_file``, scored on ``judge``: its survey lines, local m)
+    with (or without) in-flight replanning; score the true track."""
     scen = sc.load(scenario)
+    m = mission(scenario) if mission_file is None else ms.load(mission_file, scen)
+    if mission_file is not None:  # the intended lines as `run --mission FILE` reads them
+        lines_ll = read_mission(mission_file, scenario).lines_latlon
+        m.lines = LocalFrame(scen.lat0, scen.lon0).points_to_local(lines_ll)
     sim = Simulation(scen, m, effects or [], seed=seed, boat_params=boat and boat[0],
                      gains=boat and boat[1])  # fmt: skip
     frame = LocalFrame(scen.lat0, scen.lon0)
@@ -162,7 +171,9 @@ def fly(
         if kind == "HEARTBEAT":
             rp.heartbeat(md.MODE_NAMES.get(int(msg.custom_mode), str(msg.custom_mode)))
         elif kind == "GLOBAL_POSITION_INT" and msg.lat:
-            rp.position(msg.lat * 1e-7, msg.lon * 1e-7)
+            d = rp.position(msg.lat * 1e-7, msg.lon * 1e-7, samples.last_t)
+            if d is not None:
+                pending.append(d)
         elif kind == "MISSION_CURRENT":
             d = rp.mission_current(int(msg.seq), samples.last_t)
             if d is not None:
@@ -179,7 +190,7 @@ def fly(
     if configure is not None:
         configure(sim)
     if replan:
-        lines_ll = frame.points_to_latlon(m.lines)
+        lines_ll = frame.points_to_latlon(m.lines)  # type: ignore[arg-type]
         rp = Replanner(list(sim.autopilot.uplink.accepted), lines_ll, frame, BoatModel(),
                        provider or maps, bound_m=bound_m, log=log.append)  # fmt: skip
     decisions: list[Decision] = []
@@ -188,12 +199,17 @@ def fly(
         while pending and rp is not None:
             d = pending.popleft()
             decisions.append(d)
+            if on_decision is not None:
+                on_decision(sim, d)
             if d.items is not None:
                 sim.advance(sim.t + LATENCY_S)
+                rp.note_latency(LATENCY_S)
                 apply(rp, d, link, lambda: sim.t)
+                if d.uploaded and on_upload is not None:
+                    on_upload(link)
     pipe.close()
     sim.finish()
-    return score(sim, m.lines, decisions, log)
+    return score(sim, m.lines if judge is None else judge, decisions, log)  # type: ignore[arg-type]
 
 
 def score(sim: Simulation, lines: np.ndarray, decisions: list[Decision], log: list[str]) -> Run:

@@ -39,6 +39,8 @@ class MissionLink:
     def _mission_items(self) -> list[wpl.Item]:
         """The mission as the autopilot holds it (home first); numbers each waypoint's item."""
         m = self.mission
+        if m.items is not None and m.seqs is not None:  # a file's items, DO_ commands and all
+            return list(m.items)
         lat, lon = self.geo.to_latlon(m.waypoints[:, 0], m.waypoints[:, 1])
         latlon = np.column_stack([lat, lon])
         items = wpl.items_for(latlon, m.speeds)

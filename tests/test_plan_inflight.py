@@ -115,26 +115,18 @@ def test_naked_or_lost_upload_keeps_the_old_mission_and_it_is_flown() -> None:
 def test_manual_stops_replanning_until_auto() -> None:
     switched: list[float] = []
 
-    def setup(sim: Simulation) -> None:
-        # the operator takes the boat in the first turn, the moment the first line ends
-        def watch() -> None:
-            if sim.current_seq() == 3 and not switched:
-                switched.append(sim.t)
-                sim.mode_changes = [md.ModeChange(sim.t + 0.5, md.MODES["MANUAL"]),
-                                    md.ModeChange(sim.t + 8.0, md.AUTO)]  # fmt: skip
+    def operator(sim: Simulation, d) -> None:  # type: ignore[no-untyped-def]
+        # the operator takes the boat while the first decision is being planned, for 8 s
+        if not switched:
+            switched.append(sim.t)
+            sim.mode_changes = [md.ModeChange(sim.t + 0.5, md.MODES["MANUAL"]),
+                                md.ModeChange(sim.t + 8.0, md.AUTO)]  # fmt: skip
 
-        step = sim.step
-
-        def step_and_watch() -> None:
-            step()
-            watch()
-
-        sim.step = step_and_watch  # type: ignore[method-assign]
-
-    run = fly("river", 2, configure=setup, provider=provider(1.5), duration_s=SHORT_S)
+    run = fly("river", 2, on_decision=operator, provider=provider(1.5), duration_s=SHORT_S)
     first, second = run.decisions[0], run.decisions[1]
     assert switched and first.items is not None and not first.uploaded
     assert "not sent" in first.reason  # decided in AUTO, but MANUAL came before the upload
+    assert not first.late and not first.refused
     assert second.uploaded and second.t_sent is not None and second.t_sent > switched[0] + 8.0
     assert any("mode MANUAL" in x for x in run.log)
 
@@ -181,8 +173,10 @@ def test_no_decision_in_manual_hold_or_rtl_nor_mid_line() -> None:
     sim.start(10.0, lambda *a: None)
     rp = Replanner(sim.autopilot.uplink.accepted, frame.points_to_latlon(m.lines), frame, BoatModel(),
                    provider(1.5))  # fmt: skip
-    rp.position(*frame.points_to_latlon(np.array(m.lines[0, 1])))
-    assert rp.mission_current(2, 50.0) is None  # on the first line: nothing to decide
+    a, b = m.lines[0]
+    rp.position(*frame.points_to_latlon(0.5 * (a + b)))
+    assert rp.mission_current(2, 50.0) is None  # mid-line: nothing to decide
+    rp.position(*frame.points_to_latlon(np.array(b)))
     for mode in ("MANUAL", "HOLD", "RTL"):
         rp.heartbeat(mode)
         rp.done = -1

@@ -107,14 +107,15 @@ def print_info(info: LogInfo, out: TextIO | None = None) -> None:
 
 
 def _print_replans(replans: list[dict[str, Any]], w: Any) -> None:
-    n_up = sum(bool(r.get("uploaded")) for r in replans)
-    w(f"\n  in-flight replanning: {len(replans)} decisions, {n_up} uploaded\n")
+    from forcemap.host.log.plan_records import describe_counts
+
+    w(f"\n  in-flight replanning: {describe_counts(replans)}\n")
     for r in replans:
         age = r.get("map_age_s")
         age_s = f"map {age:.0f} s old" if isinstance(age, int | float) else "no map"
         cur = r.get("current_mean_mps")
         cur_s = f", current {cur:.2f} m/s" if isinstance(cur, int | float) else ""
-        mark = "uploaded" if r.get("uploaded") else "kept    "
+        mark = "uploaded" if r.get("uploaded") else "late    " if r.get("late") else "kept    "
         t = _fmt_time(int(float(r.get("t", 0)) * 1e9))
         w(f"    {t}  after line {int(r.get('line_done', -1)) + 1}  {mark}  {age_s}{cur_s}: "
           f"{r.get('reason', '')}\n")  # fmt: skip

@@ -34,11 +34,13 @@ sets the speed per leg (DO_CHANGE_SPEED). Docs: docs/PLAN.md.
 examples:
   forcemap plan survey.csv --mission lawnmower -o planned             # simulator mission by name
   forcemap plan survey.csv --mission survey.waypoints -o planned      # Mission Planner / QGC file
+  forcemap plan survey.csv --mission survey.plan -o planned           # QGC .plan: also planned.plan
   forcemap plan logs/run-1.mcap --mission my.toml --boat boat.toml -o planned --json -
   forcemap plan survey.csv --mission survey.waypoints -o planned --upload /dev/ttyACM0,115200
 
 writes PLANNED.waypoints (QGC WPL 110: load it in Mission Planner or QGroundControl), PLANNED.toml
 (`forcemap sim --mission PLANNED.toml`) and PLANNED.json (waypoints, intended lines, the prediction);
+from a QGC .plan also PLANNED.plan (every item a SimpleItem, the file's other fields kept);
 -o FOLDER/ (an existing folder) names them FOLDER/MISSION-planned.*. With --json - stdout carries only
 the JSON (the table goes to stderr).
 """
@@ -52,7 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mission",
         required=True,
-        help="QGC WPL 110 file (.waypoints), simulator mission TOML, or a built-in mission name",
+        help="QGC WPL 110 file (.waypoints), QGC .plan, simulator mission TOML, or a built-in "
+        "mission name",
     )
     add_output(
         parser, "PLANNED: writes PLANNED.waypoints, PLANNED.toml, PLANNED.json; an existing folder "
@@ -154,7 +157,9 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.quiet
     if args.output.is_dir():  # a folder: the three files named like the mission
         args.output = args.output / f"{Path(args.mission).stem}-planned"
-    for path in output_paths(args.output):
+    from forcemap.host.vessel.qgc_plan import is_plan
+
+    for path in output_paths(args.output, plan=is_plan(args.mission)):
         check_output(path, [args.table, args.mission], args.force)
     check_json_output(args, [args.table, args.mission])
     if not args.table.exists():
@@ -199,6 +204,7 @@ def run(args: argparse.Namespace) -> int:
         frame.points_to_latlon(plan.lines),
         report,
         f"{mission.name} adjusted by forcemap plan for {args.table.name}",
+        mission.plan_doc,
     )
     save_plan(args.table, mission.name, result, maps)
     for p in paths:

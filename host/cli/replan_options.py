@@ -15,9 +15,10 @@ def add_replan_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mission",
         metavar="MISSION",
-        help="with --replan: the mission the autopilot flies (QGC WPL 110 or simulator TOML, with "
-        "its intended lines in MISSION.json if it was planned); checked against the autopilot's "
-        "copy (default: the autopilot's mission, read back)",
+        help="with --replan: the mission the autopilot flies (QGC WPL 110, QGC .plan or simulator "
+        "TOML; its survey lines from MISSION.json if it was planned, a .plan's survey transects, "
+        "else its long parallel legs); checked against the autopilot's copy (default: the "
+        "autopilot's mission, read back)",
     )
     parser.add_argument(
         "--replan",

@@ -61,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mission",
         default="lawnmower",
-        help="built-in name, a mission TOML path, or a QGC WPL 110 file (.waypoints)",
+        help="built-in name, a mission TOML path, a QGC WPL 110 file (.waypoints) or a QGC .plan",
     )
     add_duration(
         parser,

@@ -39,4 +39,25 @@ class Replan(Record):
     current_mean_mps: Opt = None  # mapped current speed, mean along all intended lines
     clipped: int = 0  # waypoints moved back within the bounds
     clipped_max_m: float = 0.0
-    cpu_s: Opt = None
+    cpu_s: Opt = None  # the decision's CPU time, without the map's
+    map_cpu_s: Opt = None  # getting the maps (a refit of the samples so far)
+    late: bool = False  # it missed its turn: the boat was on the next line first (t: decided at)
+    refused: bool = False  # the autopilot refused the upload, or did not answer it
+    turn_end_t: Opt = None  # when the turn it was for ended, if it was late
+
+
+def replan_counts(records: list[dict]) -> dict[str, int]:
+    """How many /plan/replan decisions were made, uploaded, late (missed their turn) and refused (the
+    autopilot refused the upload or did not answer it)."""
+    return {
+        "made": len(records),
+        "uploaded": sum(bool(r.get("uploaded")) for r in records),
+        "late": sum(bool(r.get("late")) for r in records),
+        "refused": sum(bool(r.get("refused")) for r in records),
+    }
+
+
+def describe_counts(records: list[dict]) -> str:
+    """'5 decisions made, 3 uploaded, 1 late, 1 refused'."""
+    c = replan_counts(records)
+    return f"{c['made']} decisions made, {c['uploaded']} uploaded, {c['late']} late, {c['refused']} refused"

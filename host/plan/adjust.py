@@ -34,6 +34,7 @@ APPROACH_MAX_M = 90.0
 OVERRUN_M = 12.0
 STRETCH_M = 60.0
 ITERATIONS = 4
+CORNER_M = 1.0  # a line starting this close to where the last one ended continues from it
 SETTLED_M = 0.25  # stop adjusting when no stretch would move more than this
 
 
@@ -78,19 +79,28 @@ def upstream_first(lines: np.ndarray, maps: Maps) -> np.ndarray:
 def layout(
     lines: np.ndarray, approach: np.ndarray, shifts: list[np.ndarray], maps: Maps, boat: BoatModel
 ) -> Plan:
-    """Waypoints for the lines: run-in, the (shifted) line split into stretches, overrun; speeds per leg."""
+    """Waypoints for the lines: run-in, the (shifted) line split into stretches, overrun; speeds per leg.
+    Lines that share a waypoint with the one before (a corner, as every leg of a grid given as a line)
+    are chained at it: no overrun before the corner, no run-in after it."""
     pts: list[np.ndarray] = []
     line_wps = []
+    chained = [i > 0 and float(np.hypot(*(a - lines[i - 1][1]))) < CORNER_M
+               for i, (a, _) in enumerate(lines)]  # fmt: skip
     for i, (a, b) in enumerate(lines):
         d = b - a
         length = float(np.hypot(*d))
         u = d / length
         n_st = len(shifts[i]) - 1
         on = [a + (k / n_st) * d + shifts[i][k] * np.array([u[1], -u[0]]) for k in range(n_st + 1)]
-        pts.append(on[0] - approach[i] * u)
-        line_wps.append((len(pts), len(pts) + n_st))
-        pts += on
-        pts.append(on[-1] + OVERRUN_M * u)
+        if chained[i]:
+            line_wps.append((len(pts) - 1, len(pts) - 1 + n_st))
+            pts += on[1:]
+        else:
+            pts.append(on[0] - approach[i] * u)
+            line_wps.append((len(pts), len(pts) + n_st))
+            pts += on
+        if i + 1 == len(lines) or not chained[i + 1]:
+            pts.append(on[-1] + OVERRUN_M * u)
     wps = np.array(pts)
     speeds = np.full(len(wps), np.nan)
     for k in range(1, len(wps)):

@@ -30,6 +30,9 @@ from .upload import Uploader, download, set_current
 MODES = {0: "MANUAL", 4: "HOLD", 10: "AUTO", 11: "RTL"}  # ArduPilot Rover's custom_mode
 QUEUE_MAX = 2000
 RETRY_S = 10.0  # read the mission back again after this long when the autopilot did not answer
+WAIT_MAX = (
+    1500  # waits (0.2 s each) for a line to end before a decision made ahead of it is dropped
+)
 
 
 def remaining(frame: LocalFrame, wps: np.ndarray | None, speeds: np.ndarray | None) -> list:
@@ -54,19 +57,29 @@ def to_record(d: Decision, rp: Replanner) -> Replan:
         old_coverage=d.old.get("coverage"), new_coverage=d.new.get("coverage"),
         map_age_s=d.map_age_s, map_samples=d.map_samples, current_mean_mps=d.current_mean,
         clipped=d.clipped, clipped_max_m=round(d.clipped_max_m, 2), cpu_s=round(d.cpu_s, 3),
+        map_cpu_s=round(d.map_cpu_s, 3), late=d.late, refused=d.refused, turn_end_t=d.turn_end_t,
     )  # fmt: skip
 
 
 def apply(rp: Replanner, d: Decision, link, now: Callable[[], float]) -> None:  # type: ignore[no-untyped-def]
-    """Upload a decision's mission unless the boat has left the turn or AUTO; then set the item.
-    A refused or unanswered upload leaves the autopilot's mission as it was."""
+    """Upload a decision's mission as soon as it is ready, unless the boat has left AUTO or is already
+    on the next line: the items up to the line's end (or its overrun) are kept, so the line being flown
+    does not change; then set the item. A refused or unanswered upload leaves the autopilot's mission
+    as it was. An upload that the boat outran (it reached the next line while the items went out) has
+    it go on along that line, never back to the run-in."""
     drain = getattr(link, "drain", None)
     if drain is not None:
         drain()  # the telemetry that arrived while planning: where the boat is now, its mode
-    if not rp.still_in_turn(d):
-        d.reason += "; not sent: the boat left the turn or AUTO first"
+    if rp.mode != "AUTO":
+        d.reason += "; not sent: the boat left AUTO first"
         rp.uploaded(d, False)
         return
+    if not rp.still_in_turn(d):
+        d.reason += "; not sent, " + rp.late(d)
+        rp.log(f"replan after line {d.line_done + 1}: {rp.late(d)}")
+        rp.uploaded(d, False)
+        return
+    rp.finish(d)  # for the item the boat goes for now
     try:
         Uploader(link, d.items, (1, 1), log=rp.log).run()  # type: ignore[arg-type]
         ok = True
@@ -74,7 +87,18 @@ def apply(rp: Replanner, d: Decision, link, now: Callable[[], float]) -> None:  
         rp.log(f"replan: upload failed: {e}")
         ok = False
     if ok:
-        set_current(link, rp.resume_seq(d))
+        if drain is not None:
+            drain()
+        if rp.turn_missed(d):
+            d.reason += "; uploaded, but " + rp.late(d).replace(
+                "; tried", "; the boat goes on, tried"
+            )
+            rp.log(f"replan after line {d.line_done + 1}: {rp.late(d)}")
+            seq = rp.ahead_on_next(d)
+        else:
+            seq = rp.resume_seq(d)
+        if seq != rp.current:
+            set_current(link, seq)
         d.t_sent = now()
     rp.uploaded(d, ok)
 
@@ -173,7 +197,9 @@ class ReplanService(threading.Thread):
         if kind == "HEARTBEAT" and m.get_srcComponent() == 1:
             rp.heartbeat(MODES.get(int(m.custom_mode), f"mode {m.custom_mode}"))
         elif kind == "GLOBAL_POSITION_INT" and m.lat:
-            rp.position(m.lat * 1e-7, m.lon * 1e-7)
+            d = rp.position(m.lat * 1e-7, m.lon * 1e-7, self.last_t)
+            if d is not None:
+                self._pending.append(d)
         elif kind == "MISSION_CURRENT":
             d = rp.mission_current(int(m.seq), self.last_t)
             if d is not None:
@@ -235,6 +261,7 @@ class ReplanService(threading.Thread):
             while self._pending:
                 d = self._pending.pop(0)
                 try:
+                    self.rp.note_latency(self.last_t - d.t)
                     if d.items is not None:
                         apply(self.rp, d, self.link, time.time)
                     self.record(to_record(d, self.rp))

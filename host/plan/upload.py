@@ -14,7 +14,8 @@ import sys
 from pathlib import Path
 
 from forcemap.host.errors import CliError
-from forcemap.host.vessel.waypoints import Item, read_wpl
+from forcemap.host.vessel.mission import read_items
+from forcemap.host.vessel.waypoints import Item
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 
@@ -135,9 +136,9 @@ def connect(port: str, timeout_s: float = 10.0):  # type: ignore[no-untyped-def]
 
 
 def upload_file(port: str, path: str | Path, progress: bool = True) -> int:
-    """Upload a QGC WPL 110 file (home and items) to the autopilot on ``port``."""
+    """Upload a QGC WPL 110 or .plan file (home and items) to the autopilot on ``port``."""
     try:
-        home, items = read_wpl(path)
+        home, items = read_items(path)
     except ValueError as e:
         raise CliError(str(e)) from e
     conn = connect(port)

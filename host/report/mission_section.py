@@ -94,9 +94,10 @@ def read_replans(table: Path) -> list[dict]:
 
 def replan_section(replans: list[dict]) -> list[str]:
     """One row per in-flight decision: when, after which line, the map, predictions and the reason."""
-    n_up = sum(bool(r.get("uploaded")) for r in replans)
+    from forcemap.host.log.plan_records import describe_counts
+
     rows = [
-        f"<h3>In flight</h3><p>{len(replans)} replanning decisions, {n_up} uploaded "
+        f"<h3>In flight</h3><p>Replanning: {describe_counts(replans)} "
         '(`forcemap run --replan`; docs/PLAN.md, "In flight").</p>',
         "<table><tr><th>after line</th><th>map age s</th><th>current m/s</th>"
         "<th>p95 m kept / new</th><th>coverage kept / new</th><th>uploaded</th><th>reason</th></tr>",

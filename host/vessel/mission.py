@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from forcemap.host.vessel import waypoints
+from forcemap.host.vessel import qgc_plan, waypoints
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.vessel.scenario import Scenario
 
@@ -35,6 +35,7 @@ class Mission:
     seqs: np.ndarray | None = (
         None  # mission item sequence number of each waypoint (MISSION_CURRENT)
     )
+    items: list | None = None  # the mission items as a file gave them (home first), DO_ items too
 
 
 def _centred(half: float, spacing: float) -> np.ndarray:
@@ -93,21 +94,48 @@ def _sidecar_lines(path: Path) -> dict[str, Any]:
     """The intended lines of a planned waypoint file, from the FILE.json written beside it (if any)."""
     side = path.with_suffix(".json")
     try:
-        lines = json.loads(side.read_text())["lines"]
-        return {"lines_latlon": [ln["latlon"] for ln in lines]}
+        doc = json.loads(side.read_text())
+        if (
+            doc.get("lines_given") is False
+        ):  # every leg, written for a mission with no lines of its own
+            return {}
+        return {"lines_latlon": [ln["latlon"] for ln in doc["lines"]]}
     except (OSError, ValueError, KeyError, TypeError):
         return {}
+
+
+def _from_items(p: Path, home: waypoints.Item, items: list, lines: np.ndarray | None, kind: str):  # type: ignore[no-untyped-def]
+    latlon, speeds, seqs = waypoints.nav_points(items)
+    m: dict[str, Any] = {
+        "latlon": latlon.tolist(),
+        "speeds": speeds.tolist(),
+        "seqs": seqs.tolist(),
+    }
+    m["loop"] = False
+    m["items"] = [home, *items]
+    if lines is not None:  # a .plan survey's transects
+        m["lines_latlon"] = lines.tolist()
+    else:
+        m.update(_sidecar_lines(p))
+    return {"mission": {"description": f"{kind} {p.name}", **m}}, p.stem
+
+
+def read_items(path: str | Path) -> tuple[waypoints.Item, list[waypoints.Item]]:
+    """(home, mission items) of a QGC WPL 110 or .plan file (ValueError if it is neither)."""
+    if qgc_plan.is_plan(path):
+        home, items, _, _ = qgc_plan.read_plan(path)
+        return home, items
+    return waypoints.read_wpl(path)
 
 
 def _read(name_or_path: str) -> tuple[dict[str, Any], str]:
     p = Path(name_or_path)
     if p.suffix == ".waypoints" or (p.is_file() and p.read_bytes()[:7] == b"QGC WPL"):
-        _, items = waypoints.read_wpl(p)
-        latlon, speeds, seqs = waypoints.nav_points(items)
-        m = {"latlon": latlon.tolist(), "speeds": speeds.tolist(), "seqs": seqs.tolist()}
-        m["loop"] = False
-        m.update(_sidecar_lines(p))
-        return {"mission": {"description": f"waypoint file {p.name}", **m}}, p.stem
+        home, items = waypoints.read_wpl(p)
+        return _from_items(p, home, items, None, "waypoint file")
+    if qgc_plan.is_plan(p):
+        home, items, lines, _ = qgc_plan.read_plan(p)
+        return _from_items(p, home, items, lines, "QGC plan")
     if p.suffix == ".toml" or p.exists():
         return tomllib.loads(p.read_text()), p.stem
     res = resources.files("forcemap.host.vessel") / MISSION_DIR / f"{name_or_path}.toml"
@@ -156,8 +184,9 @@ def load(name_or_path: str | Mission, scenario: Scenario) -> Mission:
         lines = np.array(m["lines"], dtype=float).reshape(-1, 2, 2)
     seqs = np.array(m["seqs"], dtype=int) if "seqs" in m else None
     return Mission(
-        name, str(m.get("description", "")), wps, bool(m.get("loop", True)), speeds, lines, seqs
-    )
+        name, str(m.get("description", "")), wps, bool(m.get("loop", True)), speeds, lines, seqs,
+        m.get("items"),
+    )  # fmt: skip
 
 
 def from_items(items: list[waypoints.Item], geo: LocalFrame, start: tuple[float, float]) -> Mission:
@@ -201,7 +230,10 @@ def save_toml(path: str | Path, mission: Mission, geo: LocalFrame) -> None:
 
 
 def save_waypoints(path: str | Path, mission: Mission, geo: LocalFrame) -> None:
-    """The mission as a QGC WPL 110 file (home at the first waypoint)."""
+    """The mission as a QGC WPL 110 file (home at the first waypoint), or its file's items if it has them."""
+    if mission.items is not None:
+        waypoints.write_wpl(path, mission.items[0], mission.items[1:])
+        return
     lat, lon = geo.to_latlon(mission.waypoints[:, 0], mission.waypoints[:, 1])
     latlon = np.column_stack([lat, lon])
     waypoints.write_wpl(
@@ -225,6 +257,7 @@ def to_json(mission: Mission, geo: LocalFrame) -> dict[str, Any]:
     return {
         "name": mission.name,
         "loop": mission.loop,
+        "lines_given": mission.lines is not None,  # else "lines" are every leg
         "lat0": geo.lat0,
         "lon0": geo.lon0,
         "waypoints": [
