@@ -151,15 +151,17 @@ def _run(args: argparse.Namespace, out: Path) -> int:
         for _, path in files:
             check_output(path, [args.table], force=args.force)
     with small_blas():
-        fits = []
-        for t in targets:
-            note(f"map of {t}: the workspace's latest fit ...", progress)
-            fits.append(survey.latest_fit(t, progress))
+        fits, skipped = _latest_fits(survey, targets, progress)
         note(f"gridding at {args.resolution:g} m ...", progress)
         grid = survey.grid(fits, args.resolution, args.mask_distance)
     print_notes(survey.table)
+    for t, why in skipped.items():
+        print(f"note: skipped {t}: {why}; the other maps are written", file=sys.stderr)
     for n in grid.notes:
         print(f"note: {n}", file=sys.stderr)
+    plan = {
+        fmt: [(t, p) for t, p in files if not t or t in grid.layers] for fmt, files in plan.items()
+    }
     written = []
     for fmt, files in plan.items():
         for target, path in files:
@@ -170,7 +172,44 @@ def _run(args: argparse.Namespace, out: Path) -> int:
                 written.append(write_netcdf(grid, path))
             else:
                 written.append(write_contours(grid, layer, path))
-    summary = {
+    write_json(args.json, _summary(grid, written, skipped))
+    out = human(args)
+    print(
+        f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
+        f"{int(grid.mask.sum())} mapped",
+        file=out,
+    )
+    for t, layer in grid.layers.items():
+        if layer.calibration is not None:
+            print(f"{t}: {layer.calibration.line()}", file=out)
+    for p in written:
+        print(f"wrote {p}", file=out)
+    return 0
+
+
+def _latest_fits(survey, targets: list[str], progress: bool) -> tuple[list, dict[str, str]]:
+    """The workspace's latest fit of each target; a target that cannot be modelled (a constant or empty
+    column) is skipped with why, and the others are still mapped."""
+    from forcemap.host.progress import note
+    from forcemap.host.workbench.errors import WorkbenchError
+
+    fits, skipped = [], {}
+    for t in targets:
+        note(f"map of {t}: the workspace's latest fit ...", progress)
+        try:
+            fits.append(survey.latest_fit(t, progress))
+        except WorkbenchError as exc:
+            skipped[t] = str(exc)
+    if not fits:
+        raise CliError("no target could be mapped: " + "; ".join(skipped.values()))
+    return fits, skipped
+
+
+def _summary(grid, written: list[Path], skipped: dict[str, str]) -> dict:
+    """The --json summary: the grid, each map's held-out coverage and blank cells, what was skipped."""
+    import numpy as np
+
+    return {
         "crs": f"EPSG:{grid.epsg}",
         "zone": grid.zone_name,
         "resolution_m": grid.resolution,
@@ -178,15 +217,15 @@ def _run(args: argparse.Namespace, out: Path) -> int:
         "mapped_cells": int(grid.mask.sum()),
         "mask_distance_m": grid.max_distance,
         "targets": {t: " + ".join(layer.terms) for t, layer in grid.layers.items()},
+        "coverage95": {
+            t: layer.calibration.to_json()
+            for t, layer in grid.layers.items()
+            if layer.calibration is not None
+        },
+        "blank_cells": {
+            t: int((grid.mask & ~np.isfinite(next(iter(layer.bands.values())))).sum())
+            for t, layer in grid.layers.items()
+        },  # fmt: skip
+        "skipped": skipped,
         "files": [str(p) for p in written],
     }
-    write_json(args.json, summary)
-    out = human(args)
-    print(
-        f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
-        f"{int(grid.mask.sum())} mapped",
-        file=out,
-    )
-    for p in written:
-        print(f"wrote {p}", file=out)
-    return 0

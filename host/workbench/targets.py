@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 from forcemap.host.vessel.geodesy import wrap_from_minus180
 from forcemap.host.workbench import clock_offset
-from forcemap.host.workbench.cv import CVResult
+from forcemap.host.workbench.cv import Calibration, CVResult
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
 from forcemap.host.workbench.spec import BASELINE, parse_terms
@@ -58,6 +58,9 @@ class SurveyModel:
                 survey, self.vector, self.clock_offset
             )
         self.survey = survey
+        # the predictive band's held-out coverage and the factor on the maps' sd (`calibrate`)
+        self.calibration: Calibration | None = None
+        self.cv_: CVResult | None = None  # the blocked CV `calibrate` ran, if it ran one
 
     def _check_target(self, survey: Survey) -> None:
         target = self.target
@@ -267,34 +270,72 @@ class SurveyModel:
             )
         return CVResult(self.measured, mean, lo, hi, circular=self.circular)
 
+    def calibrate(self, folds: np.ndarray, cv: CVResult | None = None) -> CVResult:
+        """Cross-validate on `folds` (or take `cv`, done on them) and keep the `Calibration` of the predictive
+        band: the maps' sd is then the predictive sd times its factor. Returns the CV."""
+        cv = self.cv(folds) if cv is None else cv
+        self.calibration = Calibration.of(cv, folds, self.survey.xy)
+        self.cv_ = cv
+        return cv
+
+    @property
+    def sd_scale(self) -> float:
+        return self.calibration.sd_scale if self.calibration is not None else 1.0
+
+    @property
+    def signal_sd(self) -> float:
+        """The measured target's own spread (deg about its circular mean for a direction)."""
+        if not hasattr(self, "measured"):
+            self._prepare_y()
+        m = self.measured
+        if self.circular:
+            r = np.radians(m)
+            mean = np.degrees(np.arctan2(np.sin(r).mean(), np.cos(r).mean()))
+            return float(np.sqrt(np.mean(wrap_from_minus180(m - mean) ** 2)))
+        return float(np.std(m))
+
     def _frame_cv(self, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The flow frame at each held-out sample from the frame models refitted without its fold: the
         full-data frame has seen the held-out vectors, and a direction target would be predicted by them."""
         return survey_fits(self.survey).frame_cv(self.vector, folds)
 
     def predict_grid(self, xy: np.ndarray) -> dict[str, np.ndarray]:
-        """Mean and std of the target on map positions; for vectors also the east/north components."""
+        """Mean and predictive std of the target on map positions (what a new measurement there would differ
+        from the mean by: latent plus noise variance, times the calibration's `sd_scale`), and `mean_std`, the
+        sd of the mean alone; for vectors also the east/north components and their predictive stds."""
         names = {i for s in self.term_specs for i in s.inputs}
         X = grid_inputs(self.survey, names, xy)
+        k = self.sd_scale
         mu_p, sd_p = self.primary.predict(X, return_std=True)
+        noise_p = self.primary.noise_std_
         if self.secondary is None:
-            return {"mean": mu_p, "std": sd_p}
+            return {"mean": mu_p, "std": k * np.hypot(sd_p, noise_p), "mean_std": sd_p}
         mu_s, sd_s = self.secondary.predict({"position": xy}, return_std=True)
+        noise_s = self.secondary.noise_std_
         ue, un = frame_direction(self.survey, self.vector, xy)
-        mean, lo, hi = self.combine(mu_p, sd_p, 0.0, mu_s, sd_s, 0.0, ue=ue, un=un)
-        (ma, sa), (mc, sc) = (
-            ((mu_p, sd_p), (mu_s, sd_s)) if self.primary_is_along else ((mu_s, sd_s), (mu_p, sd_p))
+        mean, lo, hi = self.combine(mu_p, sd_p, noise_p, mu_s, sd_s, noise_s, ue=ue, un=un)
+        (ma, sa, na), (mc, sc, nc) = (
+            ((mu_p, sd_p, noise_p), (mu_s, sd_s, noise_s))
+            if self.primary_is_along
+            else ((mu_s, sd_s, noise_s), (mu_p, sd_p, noise_p))
         )
+        pa, pc = np.hypot(sa, na), np.hypot(sc, nc)  # a new measurement's along and across spread
         east, north = ma * ue - mc * un, ma * un + mc * ue
         spread = (hi - lo) / 3.92 if self.vector.aspect == "speed" else (hi - lo) / 2 / 1.96
+        v2 = np.maximum(ma**2 + mc**2, 1e-12)
+        if self.vector.aspect == "speed":  # the mean's sd to first order in the components' sds
+            mean_std = np.sqrt((ma * sa) ** 2 + (mc * sc) ** 2) / np.sqrt(v2)
+        else:
+            mean_std = np.degrees(np.sqrt((mc * sa) ** 2 + (ma * sc) ** 2) / v2)
         return {
             "mean": mean,
-            "std": spread,
+            "std": k * spread,
+            "mean_std": mean_std,
             "east": east,
             "north": north,
             "speed": np.hypot(east, north),
-            "speed_std": np.sqrt(sa**2 + sc**2),
+            "speed_std": k * np.hypot(pa, pc),
             # the along and across components are independent: rotate their variances
-            "east_std": np.sqrt((sa * ue) ** 2 + (sc * un) ** 2),
-            "north_std": np.sqrt((sa * un) ** 2 + (sc * ue) ** 2),
+            "east_std": k * np.hypot(pa * ue, pc * un),
+            "north_std": k * np.hypot(pa * un, pc * ue),
         }
