@@ -25,11 +25,17 @@ from forcemap.host.errors import CliError
 EPILOG = """\
 The maps are the workspace's latest fits of each target (the rule of `report` and `plan`: the terms of
 the latest `forcemap fit`, the paper's baseline where there is none), evaluated on a regular grid in the
-survey's UTM zone (WGS 84). Cells farther than --mask-distance from every sample are left empty (nodata).
+survey's UTM zone (WGS 84). Cells farther than --mask-distance from every sample are left empty (nodata),
+and so are a target's cells beyond its blocked CV's reach (an untested extrapolation), with a predictive
+sd above the measured values' own, or a depth at or above the surface (each counted in a note). The sd
+bands are predictive: what a new measurement would differ by (mean and noise), widened to cover 95 % of
+blocked-CV held-out samples; the coverage is printed per target. A target that cannot be modelled (a
+constant or empty column) is skipped with a note, and the others are written.
 
 -o decides the format:
   maps.tif       a Cloud Optimized GeoTIFF per target (maps-depth.tif, ... with several targets): bands
-                 mean and sd for a scalar; east, north, their sds, speed, speed_sd, dir for a vector
+                 mean, sd, mean_sd for a scalar; east, north, their sds, speed, speed_sd, dir and
+                 speed_mean_sd (dir_mean_sd) for a vector
   maps.nc        one NetCDF file (CF-1.8) with every target, for xarray and ocean-model tools
   maps.geojson   contours of each scalar map (lon/lat), for web maps and Foxglove
   maps/          a folder: all three (TARGET.tif, maps.nc, TARGET-contours.geojson)

@@ -181,14 +181,16 @@ class SurveyModel:
         ue=None,
         un=None,
         interval: bool = True,
+        spread: bool = False,
     ) -> tuple:
         """(mean, lower95, upper95) of the target from latent means/stds of the flow-frame components; without
-        `interval` the bounds are NaN (for a vector the quantiles over the draws are most of the cost)."""
+        `interval` the bounds are NaN (for a vector the quantiles over the draws are most of the cost). With
+        `spread`, a fourth: the sd of the mean alone (of the latent draws, about their mean)."""
         if self.secondary is None:
             if not interval:
                 return mu_p, np.full_like(mu_p, np.nan), np.full_like(mu_p, np.nan)
             half = 1.96 * np.sqrt(sd_p**2 + noise_p**2)
-            return mu_p, mu_p - half, mu_p + half
+            return (mu_p, mu_p - half, mu_p + half) + ((sd_p,) if spread else ())
         rng = np.random.default_rng(12345)
         z1, z2 = rng.standard_normal((2, N_DRAWS))
         if self.primary_is_along:
@@ -196,6 +198,7 @@ class SurveyModel:
         else:
             (ma, sa, na), (mc, sc, nc) = (mu_s, sd_s, noise_s), (mu_p, sd_p, noise_p)
         out_mean, out_lo, out_hi = np.empty(len(mu_p)), np.empty(len(mu_p)), np.empty(len(mu_p))
+        out_sd = np.empty(len(mu_p))
         ue = self.ue if ue is None else ue
         un = self.un if un is None else un
         for a0 in range(0, len(mu_p), 4096):
@@ -208,7 +211,10 @@ class SurveyModel:
             else:
                 out_lo[sl] = out_hi[sl] = np.nan
             if self.vector.aspect == "speed":
-                out_mean[sl] = np.hypot(a_lat, c_lat).mean(axis=1)
+                lat_speed = np.hypot(a_lat, c_lat)
+                out_mean[sl] = lat_speed.mean(axis=1)
+                if spread:
+                    out_sd[sl] = lat_speed.std(axis=1)
                 if not interval:
                     continue
                 obs = np.hypot(a_obs, c_obs)
@@ -220,18 +226,22 @@ class SurveyModel:
                     n = a * un[sl, None] + c * ue[sl, None]
                     return self.vector.direction(e, n)
 
-                lat = np.radians(direction(a_lat, c_lat))
+                lat_deg = direction(a_lat, c_lat)
+                lat = np.radians(lat_deg)
                 mean = (
                     np.degrees(np.arctan2(np.sin(lat).mean(axis=1), np.cos(lat).mean(axis=1)))
                     % 360.0
                 )
+                if spread:
+                    dev = wrap_from_minus180(lat_deg - mean[:, None])
+                    out_sd[sl] = np.sqrt((dev**2).mean(axis=1))
                 if not interval:
                     out_mean[sl] = mean
                     continue
                 dev = np.abs(wrap_from_minus180(direction(a_obs, c_obs) - mean[:, None]))
                 half = np.quantile(dev, 0.95, axis=1)
                 out_mean[sl], out_lo[sl], out_hi[sl] = mean, mean - half, mean + half
-        return out_mean, out_lo, out_hi
+        return (out_mean, out_lo, out_hi) + ((out_sd,) if spread else ())
 
     def cv(
         self,
@@ -313,7 +323,9 @@ class SurveyModel:
         mu_s, sd_s = self.secondary.predict({"position": xy}, return_std=True)
         noise_s = self.secondary.noise_std_
         ue, un = frame_direction(self.survey, self.vector, xy)
-        mean, lo, hi = self.combine(mu_p, sd_p, noise_p, mu_s, sd_s, noise_s, ue=ue, un=un)
+        mean, lo, hi, mean_std = self.combine(
+            mu_p, sd_p, noise_p, mu_s, sd_s, noise_s, ue=ue, un=un, spread=True
+        )
         (ma, sa, na), (mc, sc, nc) = (
             ((mu_p, sd_p, noise_p), (mu_s, sd_s, noise_s))
             if self.primary_is_along
@@ -322,11 +334,6 @@ class SurveyModel:
         pa, pc = np.hypot(sa, na), np.hypot(sc, nc)  # a new measurement's along and across spread
         east, north = ma * ue - mc * un, ma * un + mc * ue
         spread = (hi - lo) / 3.92 if self.vector.aspect == "speed" else (hi - lo) / 2 / 1.96
-        v2 = np.maximum(ma**2 + mc**2, 1e-12)
-        if self.vector.aspect == "speed":  # the mean's sd to first order in the components' sds
-            mean_std = np.sqrt((ma * sa) ** 2 + (mc * sc) ** 2) / np.sqrt(v2)
-        else:
-            mean_std = np.degrees(np.sqrt((mc * sa) ** 2 + (ma * sc) ** 2) / v2)
         return {
             "mean": mean,
             "std": k * spread,
