@@ -172,3 +172,18 @@ def test_history_plots_fits_as_points_in_the_order_made():
     )
     ticks = [t for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
     assert ticks == [1, 2, 3]
+
+
+def test_the_planners_stress_test_uses_the_maps_cv_error_when_it_is_larger():
+    """A map whose predictive sd is small but whose held-out error is 0.1 m/s in a 1 m/s current is
+    uncertain by 10 %, not by its sd's 0.5 %."""
+    from forcemap.host.plan.maps import Field, Maps
+    from forcemap.host.plan.planner import relative_sd
+
+    ones, sd = np.ones((5, 5)), np.full((5, 5), 0.005)
+    current = Field(0.0, 0.0, 25.0, ones, 0 * ones, sd, sd, ["const"], cv_rmse=0.1)
+    maps = Maps(current, Field.still(), 0.0, 0.0)
+    lines = np.array([[[10.0, 10.0], [90.0, 10.0]]])
+    assert relative_sd(lines, maps) == pytest.approx(0.1)
+    current.cv_rmse = 0.0
+    assert relative_sd(lines, maps) == pytest.approx(0.005)

@@ -260,13 +260,14 @@ def round_steps(diagnosis_json: dict) -> list[str]:
         {**diagnosis_json, "added": None, "cv_rmse_after": diagnosis_json["baseline"]["cv_rmse"]}
     ]
     out = []
+    unit = f" {u}" if (u := unit_of(diagnosis_json.get("target", ""))) else ""
     for i, r in enumerate(rounds, 1):
         before = r["baseline"]["cv_rmse"]
-        step = f"round {i}: blocked-CV RMSE {before:.4g}"
+        step = f"round {i}: blocked-CV RMSE {before:.4g}{unit}"
         if r.get("added"):
             after = r["cv_rmse_after"]
             fall = 1.0 - after / before if before > 0 else 0.0
-            step += f" -> {after:.4g} with {r['added']} ({fall:.0%} lower)"
+            step += f" -> {after:.4g}{unit} with {r['added']} ({fall:.0%} lower)"
         else:
             step += ": nothing more found" + (
                 f"; survey advice: {r['advice']}" if r.get("advice") else ""
