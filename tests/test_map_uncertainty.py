@@ -63,7 +63,8 @@ def _assert_covers(fits: dict) -> None:
     for target, fit in fits.items():
         cal = fit.calibration
         assert 0.90 <= cal.coverage <= 0.98, (target, cal)
-        assert cal.sd_scale >= 1.0 and cal.reach_m > 0
+        assert cal.sd_scale >= 1.0 or cal.model_coverage > 0.98, (target, cal)
+        assert cal.reach_m > 0
 
 
 def test_the_predictive_band_covers_95_percent_on_the_real_capture(paccup):

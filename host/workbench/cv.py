@@ -122,10 +122,12 @@ class CVResult:
         return np.where(np.isfinite(r), r, np.where(np.abs(e) > 0, np.inf, 0.0))
 
 
-# the predictive sd of a map is only ever widened (a band that covers more than 95 % is kept: a factor
-# below 1 from some folds' luck would narrow it where the others need it wide), and by at most this much
-# (a wildly wrong model must not be made to look calibrated by one factor)
+# the predictive sd of a map is widened where its band covers less than 95 % of held-out samples, and narrowed
+# only where it covers more than OVER_COVERAGE (a factor below 1 from some folds' luck would narrow a band that
+# the other folds need wide); by at most this much either way (a wildly wrong model must not be made to look
+# calibrated by one factor)
 MAX_SD_SCALE = 10.0
+OVER_COVERAGE = 0.98
 # cells farther from every sample than the distance within which this share of the CV's held-out samples lay
 # from their training samples are an extrapolation the CV did not test
 REACH_QUANTILE = 0.9
@@ -138,7 +140,8 @@ class Calibration:
 
     `model_coverage`: the share of blocked-CV held-out samples inside the model's own predictive 95 % band
     (latent plus noise variance). `sd_scale`: the factor on the band's half-widths (the maps' sd) that puts
-    95 % of the held-out samples inside it (at least 1). `coverage`: the coverage of the scaled band, cross-fitted: each
+    95 % of the held-out samples inside it (at least 1 unless the model's own band covers more than
+    OVER_COVERAGE). `coverage`: the coverage of the scaled band, cross-fitted: each
     fold's samples are judged by the factor the other folds' samples give (so it is not 95 % by
     construction). `reach_m`: how far from their training samples the CV's held-out samples lay (the
     REACH_QUANTILE quantile): where a map is farther from the track, the CV has not tested it."""
@@ -151,11 +154,13 @@ class Calibration:
     @classmethod
     def of(cls, cv: CVResult, folds: np.ndarray, xy: np.ndarray) -> Calibration:
         r = cv.band_ratio
-        scale = _scale(r)
+        floor = 1.0 / MAX_SD_SCALE if cv.coverage95 > OVER_COVERAGE else 1.0
+        scale = _scale(r, floor)
         covered = np.empty(len(r), bool)
         for f in np.unique(folds):
             test = folds == f
-            covered[test] = r[test] <= _scale(r[~test]) if (~test).any() else r[test] <= scale
+            k = _scale(r[~test], floor) if (~test).any() else scale
+            covered[test] = r[test] <= k
         return cls(scale, cv.coverage95, float(covered.mean()), cv_reach(xy, folds))
 
     def to_json(self) -> dict:
@@ -185,11 +190,11 @@ class Calibration:
         return text
 
 
-def _scale(ratio: np.ndarray) -> float:
+def _scale(ratio: np.ndarray, floor: float) -> float:
     if not len(ratio):
         return 1.0
     q = float(np.quantile(ratio, 0.95))
-    return float(np.clip(q, 1.0, MAX_SD_SCALE)) if np.isfinite(q) else MAX_SD_SCALE
+    return float(np.clip(q, floor, MAX_SD_SCALE)) if np.isfinite(q) else MAX_SD_SCALE
 
 
 def cv_reach(xy: np.ndarray, folds: np.ndarray, quantile: float = REACH_QUANTILE) -> float:
