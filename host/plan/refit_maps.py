@@ -72,7 +72,9 @@ class RefitMaps:
 
 def moved(f: Field, dx: float, dy: float) -> Field:
     """A field on a grid whose origin is (dx, dy) m from the frame it is wanted in."""
-    return Field(f.x0 + dx, f.y0 + dy, f.step, f.east, f.north, f.east_sd, f.north_sd, f.terms)
+    return Field(
+        f.x0 + dx, f.y0 + dy, f.step, f.east, f.north, f.east_sd, f.north_sd, f.terms, f.cv_rmse
+    )
 
 
 class BoardMaps:
