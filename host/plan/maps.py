@@ -124,9 +124,11 @@ def fit_field(
     terms: list[str],
     bounds: tuple[float, float, float, float],
     step: float = GRID_STEP_M,
+    cv: bool = True,
 ) -> Field:
-    """Fit the east and north components of ``prefix`` and predict them, with std, on a grid over ``bounds``
-    (the vector's spikes left out unless the survey keeps outliers)."""
+    """Fit the east and north components of ``prefix`` and predict them, with their predictive std, on a
+    grid over ``bounds`` (the vector's spikes left out unless the survey keeps outliers); with ``cv``, also
+    their blocked-CV RMSE (an in-flight refit skips it: it must be quick, and its sd is what it has)."""
     survey = without_spikes(survey, f"{prefix}_speed")[0]
     vt = survey.vector_target(f"{prefix}_speed")
     e, n = survey.components(vt)  # type: ignore[arg-type]
@@ -147,8 +149,9 @@ def fit_field(
             m.fit(X, comp)
             mu, sd = m.predict(G, return_std=True, include_noise=True)
             out += [mu.reshape(GX.shape), sd.reshape(GX.shape)]
-            sq.append(float(np.mean((comp - m.cv_predict(folds, return_std=False)[0]) ** 2)))
-    rmse = math.sqrt(0.5 * sum(sq))  # per component, as the sds are
+            if cv:
+                sq.append(float(np.mean((comp - m.cv_predict(folds, return_std=False)[0]) ** 2)))
+    rmse = math.sqrt(sum(sq) / len(sq)) if sq else 0.0  # per component, as the sds are
     return Field(
         float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms), rmse
     )

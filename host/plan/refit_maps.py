@@ -65,7 +65,7 @@ class RefitMaps:
             if np.isfinite(e).sum() < MIN_SAMPLES:
                 fields[prefix] = Field.still()
                 continue
-            fields[prefix] = fit_field(sv, prefix, list(BASELINE), self.bounds)
+            fields[prefix] = fit_field(sv, prefix, list(BASELINE), self.bounds, cv=False)
         maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0)
         return MapSnapshot(maps, float(sv.columns["t"][-1]), sv.n)
 
