@@ -156,10 +156,12 @@ class Fit:
 
     def _cv(self):
         self._fitted()
-        if self.result_ is None:  # restored from the workspace: cross-validate on first use
+        if self.result_ is None:  # restored from the workspace: cross-validate on first use, once
             from forcemap.host.workbench.fitting import make_folds
 
-            self.cv_ = self.model_.cv(make_folds(self.model_.survey, self.folds))
+            if getattr(self, "cv_", None) is None:
+                done = self.model_.cv_ if self.folds == "blocked" else None  # its calibration's CV
+                self.cv_ = done or self.model_.cv(make_folds(self.model_.survey, self.folds))
             return self.cv_
         return self.result_.cv
 
