@@ -77,7 +77,7 @@ class Survey:
     def latest_fit(self, target: str, progress: bool = False) -> Fit:
         """The workspace's latest fit of `target` (the rule of `report` and `plan`): its terms, rebuilt
         from its saved hyperparameters when they fit this table; the baseline if there is no fit."""
-        from forcemap.host.workbench.fitting import map_terms, refit_or_restore
+        from forcemap.host.workbench.fitting import calibrated, map_terms, refit_or_restore
         from forcemap.host.workbench.workspace import load_history, workspace_dir
 
         ws = workspace_dir(self.path, create=False)
@@ -85,7 +85,7 @@ class Survey:
         terms = map_terms(self.table, history, target)
         check_terms(terms)
         fit = Fit(target, terms=terms)
-        fit.model_ = refit_or_restore(ws, history, self.table, target, terms, progress)
+        fit.model_ = calibrated(refit_or_restore(ws, history, self.table, target, terms, progress))
         fit.survey_, fit.result_ = self, None
         return fit
 
@@ -112,6 +112,7 @@ class Survey:
         with ThreadPoolExecutor(workers) as pool:
             layers = list(pool.map(lambda f: evaluate(grid, f.model_), fits))
         grid.layers = {f.target: layer for f, layer in zip(fits, layers, strict=True)}
+        grid.notes += [n for layer in layers for n in layer.notes]
         return grid
 
 
@@ -163,10 +164,12 @@ class Fit:
 
     def _cv(self):
         self._fitted()
-        if self.result_ is None:  # restored from the workspace: cross-validate on first use
+        if self.result_ is None:  # restored from the workspace: cross-validate on first use, once
             from forcemap.host.workbench.fitting import make_folds
 
-            self.cv_ = self.model_.cv(make_folds(self.model_.survey, self.folds))
+            if getattr(self, "cv_", None) is None:
+                done = self.model_.cv_ if self.folds == "blocked" else None  # its calibration's CV
+                self.cv_ = done or self.model_.cv(make_folds(self.model_.survey, self.folds))
             return self.cv_
         return self.result_.cv
 
@@ -181,14 +184,25 @@ class Fit:
 
     @property
     def coverage95(self) -> float:
+        """The share of held-out samples inside the model's own predictive 95 % band."""
         return float(self._cv().coverage95)
+
+    @property
+    def calibration(self):
+        """The predictive band's `Calibration`: its held-out coverage once scaled (`coverage`), the factor on
+        the maps' sd (`sd_scale`), the model's own coverage, and how far from the track the CV reached."""
+        from forcemap.host.workbench.fitting import calibrated
+
+        return calibrated(self._fitted()).calibration
 
     def __repr__(self) -> str:
         terms = " + ".join(self.model_.terms) if hasattr(self, "model_") else "not fitted"
         return f"Fit({self.target!r}: {terms})"
 
     def predict(self, lat, lon) -> dict[str, np.ndarray]:
-        """The model at positions (degrees): `mean` and `std` (and east/north/speed for a vector)."""
+        """The model at positions (degrees): `mean`, `std` the predictive sd (what a new measurement there
+        would differ by: latent plus noise, scaled by the calibration), `mean_std` the sd of the mean alone
+        (and east/north/speed with their predictive sds for a vector)."""
         from forcemap.host.vessel.geodesy import LocalFrame
 
         model = self._fitted()

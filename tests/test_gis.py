@@ -59,8 +59,11 @@ def test_geotiff_round_trip_and_cog_profile(fitted):
     lat, lon = _samples(survey)
     assert summary["crs"] == "EPSG:32732"  # its centre, 6.001 E, is in zone 32 (south)
     for target, bands in (
-        ("depth", ["mean", "sd"]),
-        ("current_speed", ["east", "north", "east_sd", "north_sd", "speed", "speed_sd", "dir"]),
+        ("depth", ["mean", "sd", "mean_sd"]),
+        (
+            "current_speed",
+            ["east", "north", "east_sd", "north_sd", "speed", "speed_sd", "dir", "speed_mean_sd"],
+        ),
     ):
         with rasterio.open(out / f"{target}.tif") as ds:
             assert ds.crs.to_epsg() == int(summary["crs"].split(":")[1])
@@ -99,7 +102,9 @@ def test_netcdf_round_trip_and_cf_attributes(fitted):
     assert std["depth_sd"] == "sea_floor_depth_below_sea_surface standard_error"
     assert std["current_east"] == "eastward_sea_water_velocity"
     assert std["current_north"] == "northward_sea_water_velocity"
-    assert ds["depth"].attrs["ancillary_variables"] == "depth_sd"
+    assert ds["depth"].attrs["ancillary_variables"] == "depth_sd depth_mean_sd"
+    assert "predictive" in ds["depth_sd"].attrs["long_name"]
+    assert "of the mean only" in ds["depth_mean_sd"].attrs["long_name"]
     assert ds["current_east"].attrs["ancillary_variables"] == "current_east_sd"
     import netCDF4
 
@@ -142,16 +147,24 @@ def test_netcdf_round_trip_and_cf_attributes(fitted):
 
 
 def test_masked_cells_are_far_from_every_sample(fitted):
-    survey, _, out, summary = fitted
+    """Blank beyond the mask distance and beyond the reach of the blocked CV (an untested extrapolation);
+    within both, blank only where the predictive sd exceeds the measured depths' own spread."""
+    survey, fits, out, summary = fitted
     with rasterio.open(out / "depth.tif") as ds:
-        mean = ds.read(1)
+        mean, sd = ds.read(1), ds.read(2)
+    from forcemap.host.gis.grid import SD_SHARE
     from scipy.spatial import cKDTree
 
     grid = make_grid(survey.table, 4.0)
     dist, _ = cKDTree(survey.table.xy).query(grid.local_xy)
     dist = dist.reshape(mean.shape)
-    assert np.isnan(mean[dist > summary["mask_distance_m"]]).all()
-    assert np.isfinite(mean[dist < summary["mask_distance_m"] - 1.0]).all()
+    reach = summary["coverage95"]["depth"]["reach_m"]
+    assert 0 < reach and summary["blank_cells"]["depth"] > 0
+    assert np.isnan(mean[dist > min(summary["mask_distance_m"], reach)]).all()
+    inside = dist < min(summary["mask_distance_m"], reach) - 1.0
+    assert np.isfinite(mean[inside]).mean() > 0.9
+    signal = float(np.std(fits["depth"].model_.measured))
+    assert (sd[np.isfinite(sd)] <= SD_SHARE * signal).all()
 
 
 def test_contours_are_lonlat_lines_at_round_levels(fitted):

@@ -143,7 +143,10 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
     )
     assert code == 0
     base = json.loads(out_json.read_text())
-    assert set(base) == {"target", "terms", "cv_rmse", "cv_mae", "coverage95", "spikes"}
+    assert set(base) == {
+        "target", "terms", "cv_rmse", "cv_mae", "coverage95", "calibration", "spikes",
+    }  # fmt: skip
+    assert set(base["calibration"]) == {"sd_scale", "model_coverage", "coverage", "reach_m"}
     assert base["target"] == "current_speed" and base["terms"] == [
         "const",
         "gp(position, matern32)",

@@ -386,7 +386,7 @@ def test_grid_maps_the_spikes_only_with_keep_outliers(tmp_path):
     rows = np.array(sorted(truth))
     cols = load_survey(path, keep_outliers=True).columns
     lat, lon = cols["lat"][rows], cols["lon"][rows]
-    at_echoes = {}
+    at_echoes, blank = {}, {}
     for keep in (False, True):
         out = tmp_path / f"depth-{keep}.tif"
         args = ["grid", str(path), "-o", str(out), "--target", "depth", "--resolution", "5"]
@@ -396,12 +396,16 @@ def test_grid_maps_the_spikes_only_with_keep_outliers(tmp_path):
             mean = ds.read(1)
             e, n = Transformer.from_crs(4326, ds.crs.to_epsg(), always_xy=True).transform(lon, lat)
             cells = [ds.index(ei, ni) for ei, ni in zip(e, n, strict=True)]
-            at_echoes[keep] = np.array([mean[r, c] for r, c in cells])
+            blank[keep] = np.isnan([mean[r, c] for r, c in cells]).mean()
             # the map is the API's fit of the table read the same way (--keep-outliers = keep_outliers)
             to_ll = Transformer.from_crs(ds.crs.to_epsg(), 4326, always_xy=True)
             for r, c in cells[:: max(1, len(cells) // 10)]:
                 clon, clat = to_ll.transform(*ds.xy(r, c))
-                assert abs(fit.predict(clat, clon)["mean"][0] - mean[r, c]) < 1e-6
-    # the false shallow echoes, kept in, pull the map up where they were read
-    assert np.isfinite(at_echoes[True]).all() and np.isfinite(at_echoes[False]).all()
+                want = fit.predict(clat, clon)["mean"][0]
+                assert np.isnan(mean[r, c]) or abs(want - mean[r, c]) < 1e-6
+        at_echoes[keep] = fit.predict(lat, lon)["mean"]
+    # without the echoes the map is there; kept in, they make the noise as large as the depths' whole
+    # spread, so a new sounding is predicted no better than by their average: grid leaves those cells blank
+    assert blank[False] == 0.0
+    assert blank[True] == 1.0 and fit.model_.primary.noise_std_ > 0.9 * fit.model_.signal_sd
     assert np.mean(at_echoes[False] - at_echoes[True]) > 1.0

@@ -269,9 +269,16 @@ def run(args: argparse.Namespace) -> int:
     print(f"hidden phenomenon    : {args.phenomena}")
     print(f"diagnosis            : {found or 'no missing effect found'}")
     print(
-        f"blocked-CV RMSE      : {before:.3f} -> {after:.3f} ({args.target}, {100 * (before - after) / before:.0f} % lower)"
+        f"blocked-CV RMSE      : {before:.3f} -> {after:.3f}{_unit(args.target)} ({args.target}, "
+        f"{100 * (before - after) / before:.0f} % lower)"
     )
     print(f"MCAP log             : {mcaps[0]}")
     print(f"report               : {report}")
     print(f"took                 : {time.monotonic() - t_start:.0f} s")
     return 0
+
+
+def _unit(target: str) -> str:
+    from forcemap.host.workbench.table import unit_of
+
+    return f" {u}" if (u := unit_of(target)) else ""

@@ -28,11 +28,17 @@ from forcemap.host.extras import install_hint
 EPILOG = """\
 The maps are the workspace's latest fits of each target (the rule of `report` and `plan`: the terms of
 the latest `forcemap fit`, the paper's baseline where there is none), evaluated on a regular grid in the
-survey's UTM zone (WGS 84). Cells farther than --mask-distance from every sample are left empty (nodata).
+survey's UTM zone (WGS 84). Cells farther than --mask-distance from every sample are left empty (nodata),
+and so are a target's cells beyond its blocked CV's reach (an untested extrapolation), with a predictive
+sd above the measured values' own, or a depth at or above the surface (each counted in a note). The sd
+bands are predictive: what a new measurement would differ by (mean and noise), widened to cover 95 % of
+blocked-CV held-out samples; the coverage is printed per target. A target that cannot be modelled (a
+constant or empty column) is skipped with a note, and the others are written.
 
 -o decides the format:
   maps.tif       a Cloud Optimized GeoTIFF per target (maps-depth.tif, ... with several targets): bands
-                 mean and sd for a scalar; east, north, their sds, speed, speed_sd, dir for a vector
+                 mean, sd, mean_sd for a scalar; east, north, their sds, speed, speed_sd, dir and
+                 speed_mean_sd (dir_mean_sd) for a vector
   maps.nc        one NetCDF file (CF-1.8) with every target, for xarray and ocean-model tools
   maps.geojson   contours of each scalar map (lon/lat), for web maps and Foxglove
   maps/          a folder: all three (TARGET.tif, maps.nc, TARGET-contours.geojson)
@@ -155,15 +161,17 @@ def _run(args: argparse.Namespace, out: Path) -> int:
         for _, path in files:
             check_output(path, [args.table], force=args.force)
     with small_blas():
-        fits = []
-        for t in targets:
-            note(f"map of {t}: the workspace's latest fit ...", progress)
-            fits.append(survey.latest_fit(t, progress))
+        fits, skipped = _latest_fits(survey, targets, progress)
         note(f"gridding at {args.resolution:g} m ...", progress)
         grid = survey.grid(fits, args.resolution, args.mask_distance)
     print_notes(survey.table)
+    for t, why in skipped.items():
+        print(f"note: skipped {t}: {why}; the other maps are written", file=sys.stderr)
     for n in grid.notes:
         print(f"note: {n}", file=sys.stderr)
+    plan = {
+        fmt: [(t, p) for t, p in files if not t or t in grid.layers] for fmt, files in plan.items()
+    }
     written = []
     for fmt, files in plan.items():
         for target, path in files:
@@ -174,7 +182,46 @@ def _run(args: argparse.Namespace, out: Path) -> int:
                 written.append(write_netcdf(grid, path))
             else:
                 written.append(write_contours(grid, layer, path))
-    summary = {
+    write_json(args.json, _summary(grid, written, skipped))
+    out = human(args)
+    print(
+        f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
+        f"{int(grid.mask.sum())} mapped",
+        file=out,
+    )
+    for t, layer in grid.layers.items():
+        if layer.datum:
+            print(f"{t}: {layer.datum}", file=out)
+        if layer.calibration is not None:
+            print(f"{t}: {layer.calibration.line()}", file=out)
+    for p in written:
+        print(f"wrote {p}", file=out)
+    return 0
+
+
+def _latest_fits(survey, targets: list[str], progress: bool) -> tuple[list, dict[str, str]]:
+    """The workspace's latest fit of each target; a target that cannot be modelled (a constant or empty
+    column) is skipped with why, and the others are still mapped."""
+    from forcemap.host.progress import note
+    from forcemap.host.workbench.errors import WorkbenchError
+
+    fits, skipped = [], {}
+    for t in targets:
+        note(f"map of {t}: the workspace's latest fit ...", progress)
+        try:
+            fits.append(survey.latest_fit(t, progress))
+        except WorkbenchError as exc:
+            skipped[t] = str(exc)
+    if not fits:
+        raise CliError("no target could be mapped: " + "; ".join(skipped.values()))
+    return fits, skipped
+
+
+def _summary(grid, written: list[Path], skipped: dict[str, str]) -> dict:
+    """The --json summary: the grid, each map's held-out coverage and blank cells, what was skipped."""
+    import numpy as np
+
+    return {
         "crs": f"EPSG:{grid.epsg}",
         "zone": grid.zone_name,
         "resolution_m": grid.resolution,
@@ -182,18 +229,15 @@ def _run(args: argparse.Namespace, out: Path) -> int:
         "mapped_cells": int(grid.mask.sum()),
         "mask_distance_m": grid.max_distance,
         "targets": {t: " + ".join(layer.terms) for t, layer in grid.layers.items()},
+        "coverage95": {
+            t: layer.calibration.to_json()
+            for t, layer in grid.layers.items()
+            if layer.calibration is not None
+        },
+        "blank_cells": {
+            t: int((grid.mask & ~np.isfinite(next(iter(layer.bands.values())))).sum())
+            for t, layer in grid.layers.items()
+        },  # fmt: skip
+        "skipped": skipped,
         "files": [str(p) for p in written],
     }
-    write_json(args.json, summary)
-    out = human(args)
-    print(
-        f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
-        f"{int(grid.mask.sum())} mapped",
-        file=out,
-    )
-    for layer in grid.layers.values():
-        if layer.datum:
-            print(f"{layer.target}: {layer.datum}", file=out)
-    for p in written:
-        print(f"wrote {p}", file=out)
-    return 0

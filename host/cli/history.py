@@ -53,15 +53,23 @@ def run(args: argparse.Namespace) -> int:
     else:
         plot = ws / "history.png"  # the workspace's own file, redrawn every time
         check_output(plot, [args.table], force=True)
+    from forcemap.host.workbench.table import unit_of
+
     if history:
         print(
-            f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} {'cov95':>6}  terms"
+            f"{'fit':>3}  {'time (UTC)':<20} {'target':<16} {'folds':<8} {'cv_rmse':>9} {'cv_mae':>9} "
+            f"{'unit':<4} {'cov95':>6}  terms"
         )
     for h in history:
         print(
             f"{h['fit']:>3}  {h['time']:<20} {h['target']:<16} {h.get('folds', ''):<8} {h['cv_rmse']:>9.4g} "
-            f"{h['cv_mae']:>9.4g} {h['coverage95']:>6.1%}  {' + '.join(h['terms'])}"
-            + (f"  (crossline RMSE {h['crossline_rmse']:.4g})" if "crossline_rmse" in h else "")
+            f"{h['cv_mae']:>9.4g} {unit_of(h['target']):<4} {h['coverage95']:>6.1%}  "
+            f"{' + '.join(h['terms'])}"
+            + (
+                f"  (crossline RMSE {h['crossline_rmse']:.4g} {unit_of(h['target'])})"
+                if "crossline_rmse" in h
+                else ""
+            )
         )
     for target, d in diagnoses.items():
         print(f"diagnose {target}:")

@@ -104,7 +104,8 @@ def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
         )
     print(
         f"mission time {o.track.duration:.0f} s -> {p.track.duration:.0f} s; "
-        f"map uncertainty of the current: {result.current_scale_sd:.1%} (1 sd, along the lines)"
+        f"map uncertainty of the current: {result.current_scale_sd:.1%} of its speed (1 sd along the "
+        f"lines: the larger of its predictive sd and its blocked-CV RMSE, {result.current_cv_rmse:.3g} m/s)"
     )
     print("how the planned mission's prediction depends on the map:")
     for name, s in result.sensitivity.items():

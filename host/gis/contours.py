@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from forcemap.host.contours import contour_lines
-from forcemap.host.gis.grid import Layer, MapGrid
+from forcemap.host.gis.grid import POSITIVE, Layer, MapGrid
 from forcemap.host.gis.names import band_attrs
 from forcemap.host.outputs import atomic_write
 
@@ -20,6 +20,8 @@ def contour_features(grid: MapGrid, layer: Layer, band: str = "mean") -> dict:
     to_lonlat = Transformer.from_crs(grid.epsg, 4326, always_xy=True)
     features = []
     for level, xy_lines in contour_lines(grid.easting, grid.northing, z):
+        if layer.target in POSITIVE and level <= 0.0:
+            continue  # never a depth at or above the surface (such cells are blank already)
         lines = []
         for line in xy_lines:
             lon, lat = to_lonlat.transform(line[:, 0], line[:, 1])

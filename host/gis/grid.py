@@ -42,6 +42,9 @@ class Layer:
     )
     prefix: str | None = None  # the vector's column prefix: "current", "wind", "current_paper"
     datum: str | None = None  # what a depth map is measured from (workbench.water_level.map_datum)
+    # what the layer left blank beyond the grid's mask, and why (`trusted`)
+    notes: list[str] = field(default_factory=list)
+    calibration: object = None  # the model's `cv.Calibration`, if it has one
 
 
 @dataclass
@@ -64,6 +67,9 @@ class MapGrid:
     local_xy: np.ndarray = field(
         default=None, repr=False
     )  # (ny*nx, 2) cell centres in the survey frame
+    distance: np.ndarray = field(
+        default=None, repr=False
+    )  # (ny, nx) m to the nearest sample (inf: masked)
 
     @property
     def easting(self) -> np.ndarray:
@@ -175,7 +181,7 @@ def make_grid(
     span = (float(np.min(t)), float(np.max(t)))
     return MapGrid(
         epsg, x0, y1, resolution, nx, ny, glat, glon, mask, max_distance, span, notes=notes,
-        local_xy=local_xy,
+        local_xy=local_xy, distance=dist.reshape(ny, nx),
     )  # fmt: skip
 
 
@@ -209,10 +215,11 @@ def true_north(grid: MapGrid) -> float:
 
 
 def layer_bands(model, pred: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The bands of one target from `SurveyModel.predict_grid`: mean and sd for a scalar; east, north,
-    their sds, speed, its sd and direction (its convention: wind FROM, current TO) for a vector."""
+    """The bands of one target from `SurveyModel.predict_grid`: mean, sd (predictive: what a new measurement
+    would differ by) and mean_sd (the mean's own sd) for a scalar; east, north, their predictive sds, speed,
+    its predictive sd, direction (its convention: wind FROM, current TO) and the target's mean_sd for a vector."""
     if "east" not in pred:
-        return {"mean": pred["mean"], "sd": pred["std"]}
+        return {"mean": pred["mean"], "sd": pred["std"], "mean_sd": pred["mean_std"]}
     vt = model.vector
     bands = {
         "east": pred["east"],
@@ -225,18 +232,64 @@ def layer_bands(model, pred: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     }
     if vt.aspect == "dir":
         bands["dir_sd"] = pred["std"]
+    bands[f"{vt.aspect}_mean_sd"] = pred["mean_std"]
     return bands
 
 
+# a cell is left blank where a new measurement's predicted spread exceeds this share of the measured values' own
+# spread: there the map predicts no better than the survey's average would
+SD_SHARE = 1.0
+# targets that cannot be at or below zero (depth below the surface)
+POSITIVE = {"depth"}
+
+
+def untrusted(grid: MapGrid, model, pred: dict[str, np.ndarray], keep: np.ndarray):
+    """Which of the mapped cells `keep` a target leaves blank, and a note per reason: farther from the track
+    than its blocked CV's held-out samples lay from their training data (an untested extrapolation), a
+    predictive sd above SD_SHARE x the measured spread, or a positive quantity (depth) at or below zero."""
+    cal, target = getattr(model, "calibration", None), model.target
+    drop = np.zeros(int(keep.sum()), bool)
+    notes = []
+    if cal is not None and grid.distance is not None:
+        far = grid.distance.ravel()[keep] > cal.reach_m
+        if far.any():
+            notes.append(
+                f"{target}: {int(far.sum())} cells farther than {cal.reach_m:.0f} m from every sample left "
+                "blank (90 % of the blocked CV's held-out samples lay within that of their training data: "
+                "beyond it the map is an untested extrapolation)"
+            )
+        drop |= far
+    sd = pred["std"]
+    signal = float(model.signal_sd)
+    vague = ~drop & (sd > SD_SHARE * signal) if signal > 0 else np.zeros_like(drop)
+    if vague.any():
+        notes.append(
+            f"{target}: {int(vague.sum())} cells whose predictive sd exceeds {SD_SHARE:g} x the measured "
+            f"values' own ({signal:.3g}) left blank: the map predicts no better there than their average"
+        )
+    drop |= vague
+    if target in POSITIVE:
+        low = ~drop & (pred["mean"] <= 0.0)
+        if low.any():
+            notes.append(
+                f"{target}: {int(low.sum())} cells where the model's mean is at or above the surface "
+                f"(<= 0 m, down to {float(pred['mean'][low].min()):.1f} m) left blank: it cannot be"
+            )
+        drop |= low
+    return drop, notes
+
+
 def evaluate(grid: MapGrid, model) -> Layer:
-    """A fitted `SurveyModel` on the grid's mapped cells (NaN elsewhere), as a `Layer`."""
+    """A fitted `SurveyModel` on the grid's mapped cells (NaN elsewhere, and where `untrusted`), as a `Layer`."""
     keep = grid.mask.ravel()
     pred = model.predict_grid(grid.local_xy[keep])
     bands = layer_bands(model, pred)
+    drop, notes = untrusted(grid, model, pred, keep)
+    cells = np.flatnonzero(keep)[~drop]
     out = {}
     for name, values in bands.items():
         full = np.full(grid.ny * grid.nx, np.nan)
-        full[keep] = values
+        full[cells] = values[~drop]
         out[name] = full.reshape(grid.ny, grid.nx)
     vt = model.vector if "east" in pred else None
     layer = Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
@@ -244,4 +297,5 @@ def evaluate(grid: MapGrid, model) -> Layer:
         from forcemap.host.workbench.water_level import map_datum
 
         layer.datum = map_datum(model.survey, list(model.terms))
+    layer.notes, layer.calibration = notes, getattr(model, "calibration", None)
     return layer

@@ -29,11 +29,20 @@ VECTOR_LONG_NAMES = {
 }
 
 
+def _split(layer, band: str) -> tuple[str, str]:
+    """(the band's quantity, its kind: "value", "sd" the predictive sd, "mean_sd" the sd of the mean)."""
+    scalar = layer.vector is None
+    if band == "mean_sd" or band.endswith("_mean_sd"):
+        return ("mean" if scalar else band[: -len("_mean_sd")]), "mean_sd"
+    if band == "sd" or band.endswith("_sd"):
+        return ("mean" if band == "sd" else band[:-3]), "sd"
+    return band, "value"
+
+
 def band_attrs(layer, band: str) -> dict[str, str]:
-    """CF attributes of one band of a layer (a `_sd` band is the standard error of its mean)."""
-    base, sd = (band[:-3], True) if band.endswith("_sd") or band == "sd" else (band, False)
-    if band == "sd":
-        base = "mean"
+    """CF attributes of one band of a layer: a `_sd` band is the predictive standard deviation (what a new
+    measurement would differ from the mean by), a `mean_sd` band the standard deviation of the mean alone."""
+    base, kind = _split(layer, band)
     if layer.vector is None:
         std, units = SCALAR_STANDARD_NAMES.get(layer.target, (None, ""))
         long = layer.target.replace("_", " ")
@@ -42,16 +51,24 @@ def band_attrs(layer, band: str) -> dict[str, str]:
         units = "degree" if base == "dir" else "m s-1"
         conv = "where it blows from" if layer.vector == "wind" else "where it flows to"
         long = VECTOR_LONG_NAMES[base].format(f=layer.vector, conv=conv)
-    attrs = {"long_name": f"standard deviation of the model's {long}" if sd else f"model {long}"}
-    if std:
-        attrs["standard_name"] = f"{std} standard_error" if sd else std
+    long_names = {
+        "value": f"model {long}",
+        "sd": f"predictive standard deviation of the {long}: what a new measurement would differ from "
+        "the model's mean by (latent and noise variance, scaled to cover 95 % of blocked-CV held-out "
+        "samples at 1.96 sd)",
+        "mean_sd": f"standard deviation of the model's mean {long} (of the mean only, not of a new "
+        "measurement)",
+    }
+    attrs = {"long_name": long_names[kind]}
+    if std and kind != "mean_sd":
+        attrs["standard_name"] = f"{std} standard_error" if kind == "sd" else std
     if units:
         attrs["units"] = units
     return attrs
 
 
 def variable_name(layer, band: str) -> str:
-    """The NetCDF variable of a band: `depth`, `depth_sd`, `current_east`, `wind_speed_sd`, ..."""
+    """The NetCDF variable of a band: `depth`, `depth_sd`, `depth_mean_sd`, `current_east`, `wind_speed_sd`..."""
     if layer.vector is None:
-        return layer.target if band == "mean" else f"{layer.target}_sd"
+        return layer.target if band == "mean" else f"{layer.target}_{band}"
     return f"{layer.prefix}_{band}"

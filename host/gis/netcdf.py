@@ -39,10 +39,15 @@ def to_dataset(grid: MapGrid):
             attrs["forcemap_model_terms"] = " + ".join(layer.terms)
             if layer.datum:
                 attrs["vertical_datum"] = layer.datum
+            if layer.calibration is not None:
+                attrs["forcemap_coverage95"] = layer.calibration.line()
+            if layer.notes:
+                attrs["forcemap_notes"] = "; ".join(layer.notes)
             if not (band == "sd" or band.endswith("_sd")):
-                sd = "sd" if band == "mean" else f"{band}_sd"
-                if sd in layer.bands:
-                    attrs["ancillary_variables"] = variable_name(layer, sd)
+                sds = ["sd", "mean_sd"] if band == "mean" else [f"{band}_sd", f"{band}_mean_sd"]
+                sds = [variable_name(layer, sd) for sd in sds if sd in layer.bands]
+                if sds:
+                    attrs["ancillary_variables"] = " ".join(sds)
             data[variable_name(layer, band)] = (("y", "x"), values, attrs)
     start, end = grid.time_coverage()
     datums = [f"{lay.target}: {lay.datum}" for lay in grid.layers.values() if lay.datum]
@@ -55,8 +60,12 @@ def to_dataset(grid: MapGrid):
         "time_coverage_end": end,
         "model_terms": "; ".join(terms),
         "comment": (
-            f"cells farther than {grid.max_distance:g} m from every sample are missing; covariates other "
-            "than position are held at the survey's typical values (time at mid-survey)"
+            f"cells farther than {grid.max_distance:g} m from every sample are missing, and so are a "
+            "target's cells beyond its cross-validation's reach, with a predictive sd above the measured "
+            "values' own, or a depth at or above the surface (see each variable's forcemap_notes); "
+            "covariates other than position are held at the survey's typical values (time at mid-survey); "
+            "*_sd variables are predictive standard deviations (a new measurement), *_mean_sd those of the "
+            "mean alone"
         ),
         "geospatial_crs": f"EPSG:{grid.epsg} ({grid.zone_name})",
         "resolution_m": float(grid.resolution),

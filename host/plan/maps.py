@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.progress import note
+from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import HYPER_SPACING_S, DesignCache, Model, small_blas
 from forcemap.host.workbench.spec import BASELINE, parse_term
@@ -31,7 +32,9 @@ PLANNABLE_INPUTS = {"position", "t", "depth"}
 
 @dataclass
 class Field:
-    """A gridded vector field (m/s, the velocity of the medium) with the standard deviation of each component."""
+    """A gridded vector field (m/s, the velocity of the medium) with the predictive standard deviation of each
+    component (what a new measurement would differ by: the mean's and the noise's), and the components'
+    blocked-CV RMSE (`cv_rmse`, m/s: how far the map was from held-out measurements)."""
 
     x0: float
     y0: float
@@ -41,6 +44,7 @@ class Field:
     east_sd: np.ndarray
     north_sd: np.ndarray
     terms: list[str] = field(default_factory=list)
+    cv_rmse: float = 0.0
     _lists: tuple = field(default=(), repr=False)
 
     def at(self, x: float, y: float, scale: float = 1.0) -> tuple[float, float]:
@@ -143,9 +147,11 @@ def fit_field(
     terms: list[str],
     bounds: tuple[float, float, float, float],
     step: float = GRID_STEP_M,
+    cv: bool = True,
 ) -> Field:
-    """Fit the east and north components of ``prefix`` and predict them, with std, on a grid over ``bounds``
-    (the vector's spikes left out unless the survey keeps outliers)."""
+    """Fit the east and north components of ``prefix`` and predict them, with their predictive std, on a
+    grid over ``bounds`` (the vector's spikes left out unless the survey keeps outliers); with ``cv``, also
+    their blocked-CV RMSE (an in-flight refit skips it: it must be quick, and its sd is what it has)."""
     survey = without_spikes(survey, f"{prefix}_speed")[0]
     vt = survey.vector_target(f"{prefix}_speed")
     e, n = survey.components(vt)  # type: ignore[arg-type]
@@ -156,15 +162,21 @@ def fit_field(
     GX, GY = np.meshgrid(gx, gy)
     # the grid's inputs: time at mid-survey, depth from the survey's depth map at each node
     G = grid_inputs(survey, names, np.column_stack([GX.ravel(), GY.ravel()]))
-    out = []
+    out, sq = [], []
     grams = DesignCache()  # the east and north components share their features
+    folds = blocked_folds(X["position"])[0]
     with small_blas():
         for comp in (e[ok], n[ok]):
             m = Model(terms, max_basis=MAX_BASIS, hyper_spacing_s=HYPER_SPACING_S, memory=grams)
             m.fit(X, comp)
-            mu, sd = m.predict(G, return_std=True)
+            mu, sd = m.predict(G, return_std=True, include_noise=True)
             out += [mu.reshape(GX.shape), sd.reshape(GX.shape)]
-    return Field(float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms))
+            if cv:
+                sq.append(float(np.mean((comp - m.cv_predict(folds, return_std=False)[0]) ** 2)))
+    rmse = math.sqrt(sum(sq) / len(sq)) if sq else 0.0  # per component, as the sds are
+    return Field(
+        float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms), rmse
+    )
 
 
 def survey_maps(

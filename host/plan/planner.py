@@ -51,6 +51,7 @@ class PlanResult:
     ]  # per line, stretches (from, to) in m along the line
     sensitivity: dict = field(default_factory=dict)
     current_scale_sd: float = 0.0
+    current_cv_rmse: float = 0.0  # m/s, the current map's blocked-CV RMSE per component
     unchanged: bool = False  # the original already held its lines and is kept as it is
 
     def to_json(self) -> dict:
@@ -59,6 +60,7 @@ class PlanResult:
             "planned": self.planned.to_json(),
             "no_headway_m": self.no_headway,
             "current_relative_sd": self.current_scale_sd,
+            "current_cv_rmse_m_s": self.current_cv_rmse,
             "unchanged": self.unchanged,
             "sensitivity": self.sensitivity,
         }
@@ -85,11 +87,13 @@ def no_headway(lines: np.ndarray, maps: Maps, boat: BoatModel) -> list[list[tupl
 
 
 def relative_sd(lines: np.ndarray, maps: Maps) -> float:
-    """The map's current speed uncertainty relative to its speed, along the lines."""
+    """The map's current uncertainty relative to its speed along the lines: the larger of its predictive sd
+    there (what a new measurement would differ by, not the mean's sd alone) and its blocked-CV RMSE."""
     pts = np.concatenate([a + np.linspace(0, 1, 50)[:, None] * (b - a) for a, b in lines])
     e, n, sd = maps.current.sample(pts)
     speed = np.hypot(e, n)
-    return float(np.mean(sd) / max(np.mean(speed), 1e-6)) if speed.mean() > 0.05 else 0.0
+    spread = max(float(np.mean(sd)), maps.current.cv_rmse)
+    return spread / max(float(np.mean(speed)), 1e-6) if speed.mean() > 0.05 else 0.0
 
 
 def _deltas(sc: list[LineScore], base: Outcome, duration: float) -> dict:
@@ -141,6 +145,7 @@ def plan_mission(
         no_headway(planned.plan.lines, maps, boat),
         sensitivity(planned.plan, maps, boat, planned, rel),
         rel,
+        maps.current.cv_rmse,
         planned is original,
     )
 

@@ -65,14 +65,16 @@ class RefitMaps:
             if np.isfinite(e).sum() < MIN_SAMPLES:
                 fields[prefix] = Field.still()
                 continue
-            fields[prefix] = fit_field(sv, prefix, list(BASELINE), self.bounds)
+            fields[prefix] = fit_field(sv, prefix, list(BASELINE), self.bounds, cv=False)
         maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0)
         return MapSnapshot(maps, float(sv.columns["t"][-1]), sv.n)
 
 
 def moved(f: Field, dx: float, dy: float) -> Field:
     """A field on a grid whose origin is (dx, dy) m from the frame it is wanted in."""
-    return Field(f.x0 + dx, f.y0 + dy, f.step, f.east, f.north, f.east_sd, f.north_sd, f.terms)
+    return Field(
+        f.x0 + dx, f.y0 + dy, f.step, f.east, f.north, f.east_sd, f.north_sd, f.terms, f.cv_rmse
+    )
 
 
 class BoardMaps:

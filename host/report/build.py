@@ -7,6 +7,7 @@ parts. A new section is one function and one line in `SECTIONS`.
 from __future__ import annotations
 
 import base64
+import functools
 import html
 import importlib.util
 import time
@@ -19,14 +20,14 @@ from forcemap.host.extras import install_hint
 from forcemap.host.gis.grid import MapGrid, evaluate, make_grid, project
 from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
-from forcemap.host.report.map_figure import grid_figure
+from forcemap.host.report.map_figure import grid_figure, point_figure
 from forcemap.host.report.mission_section import mission_section
 from forcemap.host.workbench import data_quality, plots
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
-from forcemap.host.workbench.fitting import latest_terms, map_terms, refit_or_restore
-from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.fitting import calibrated, latest_terms, map_terms, refit_or_restore
+from forcemap.host.workbench.table import Survey, unit_of
 from forcemap.host.workbench.targets import SurveyModel
 from forcemap.host.workbench.workspace import load_diagnoses, load_history, workspace_dir
 
@@ -34,7 +35,7 @@ CSS = """
 body { font-family: sans-serif; max-width: 1100px; margin: 1em auto; color: #222; }
 h1 { font-size: 1.5em; } h2 { border-bottom: 1px solid #ccc; margin-top: 1.6em; }
 table { border-collapse: collapse; font-size: 0.9em; } td, th { border: 1px solid #ccc; padding: 3px 6px; }
-th { background: #eee; } img { max-width: 100%; } .found { color: #060; font-weight: bold; }
+th { background: #eee; } img { max-width: 100%; } img.map { width: 100%; } .found { color: #060; font-weight: bold; }
 .none { color: #555; } .small { font-size: 0.85em; color: #555; }
 """
 
@@ -59,20 +60,33 @@ class ReportContext:
     models: dict[tuple[str, tuple[str, ...]], SurveyModel] = field(default_factory=dict)
 
     def model(self, target: str, terms: list[str]) -> SurveyModel:
-        """The fitted model of `target` with `terms`: rebuilt from the workspace's saved fit when there is
-        one, else fitted; once per report."""
+        """The fitted model of `target` with `terms`, with its predictive band's calibration: rebuilt from
+        the workspace's saved fit when there is one, else fitted; once per report."""
         key = (target, tuple(terms))
         if key not in self.models:
-            self.models[key] = refit_or_restore(
-                self.ws, self.history, self.survey, target, terms, self.progress
+            self.models[key] = calibrated(
+                refit_or_restore(self.ws, self.history, self.survey, target, terms, self.progress)
             )
         return self.models[key]
 
+    @functools.cached_property
+    def frame(self) -> tuple[MapGrid, tuple[np.ndarray, np.ndarray], list[str]]:
+        """The one grid, frame and origin of every map in the report (`report_grid`), and the track on it."""
+        return report_grid(self.survey)
 
-def img(fig, alt: str) -> str:
-    """An <img> with the figure embedded as base64 PNG."""
+    def track_of(self, survey: Survey) -> tuple[np.ndarray, np.ndarray]:
+        """The samples of `survey` (the report's, or a model's rows) in the maps' frame."""
+        grid = self.frame[0]
+        if grid.epsg == 0:
+            return survey.columns["x"], survey.columns["y"]
+        return project(grid, survey.columns["lat"], survey.columns["lon"])
+
+
+def img(fig, alt: str, cls: str = "") -> str:
+    """An <img> with the figure embedded as base64 PNG (`cls` "map": the page's width)."""
     data = base64.b64encode(plots.png_bytes(fig)).decode()
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+    klass = f' class="{cls}"' if cls else ""
+    return f'<img{klass} alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
 def header_section(ctx: ReportContext) -> list[str]:
@@ -114,10 +128,12 @@ def data_quality_section(ctx: ReportContext) -> list[str]:
 
 def measurements_section(ctx: ReportContext) -> list[str]:
     parts = ["<h2>Measurements</h2>"]
+    grid, track, _ = ctx.frame
     for col, label, _ in MAPPED:
         if col in ctx.survey.columns:
             values = ctx.survey.columns[col]
-            parts.append(img(plots.scatter_map(ctx.survey, values, f"measured {col}", label), col))
+            fig = point_figure(grid, track, values, f"measured {col}", label)
+            parts.append(img(fig, col, "map"))
     return parts
 
 
@@ -144,7 +160,7 @@ def report_grid(survey: Survey) -> tuple[MapGrid, tuple[np.ndarray, np.ndarray],
 
 def maps_section(ctx: ReportContext) -> list[str]:
     survey = ctx.survey
-    grid, track, notes = report_grid(survey)
+    grid, track, notes = ctx.frame
     parts = [
         "<h2>Model maps: mean and uncertainty</h2>",
         "<p>Wind and current are modelled through their east/north components: arrows show the modelled "
@@ -152,7 +168,11 @@ def maps_section(ctx: ReportContext) -> list[str]:
         "covariates are evaluated at typical values (depth from its own map, time at mid-survey). "
         f"The grid is the one <code>forcemap grid</code> writes ({html.escape(grid.zone_name)}, "
         f"{grid.resolution:g} m cells; cells farther than {grid.max_distance:.0f} m from every sample are "
-        "left blank); the arrow marks true north.</p>",
+        "left blank, and so are a map's cells beyond its cross-validation's reach or where its predictive "
+        "sd exceeds the measured values' own); the arrow marks true north. The uncertainty is the "
+        "<b>predictive</b> sd: what a new measurement at that point would differ from the mean by (the "
+        "mean's uncertainty plus the measurement noise), widened where the blocked cross-validation "
+        "shows the model's own band covering less than 95 % of held-out samples.</p>",
     ]
     parts += [f"<p class=small>note: {html.escape(n)}</p>" for n in notes]
     for target, label, _ in MAPPED:
@@ -167,7 +187,10 @@ def maps_section(ctx: ReportContext) -> list[str]:
             continue
         name = target.split("_")[0]
         parts.append(f"<h3>{html.escape(name)}: {html.escape(' + '.join(terms))}</h3>")
-        parts.append(img(grid_figure(grid, layer, track, label), target))
+        if layer.calibration is not None:
+            parts.append(f"<p>{html.escape(layer.calibration.line())}.</p>")
+        parts += [f"<p class=small>note: {html.escape(n)}</p>" for n in layer.notes]
+        parts.append(img(grid_figure(grid, layer, track, label), target, "map"))
         if layer.datum:
             parts.append(f"<p class=small>{html.escape(layer.datum)}.</p>")
     return parts
@@ -193,20 +216,24 @@ def _target_residuals(ctx: ReportContext, target: str) -> list[str]:
         note(f"report: residuals of {target} ...", ctx.progress)
         sm = ctx.model(target, terms)
         survey = sm.survey  # the rows the model is fitted on: the target's spikes left out
-        cv = sm.cv(blocked_folds(survey.xy)[0])
+        cv = sm.cv_ if sm.cv_ is not None else sm.cv(blocked_folds(survey.xy)[0])
     except WorkbenchError as exc:
-        return [f"<p class=small>{html.escape(target)}: {html.escape(str(exc))}</p>"]
-    unit = " deg" if sm.circular else ""
+        return [f"<p class=small>{html.escape(target)}: not modelled ({html.escape(str(exc))})</p>"]
+    u = unit_of(target)
+    unit = f" {u}" if u else ""
     parts = [
         f"<h3>{html.escape(target)}: {html.escape(' + '.join(terms))}</h3>",
-        f"<p>CV RMSE {cv.rmse:.4g}{unit}, MAE {cv.mae:.4g}{unit}, 95 % coverage {cv.coverage95:.1%}.</p><ul>",
+        f"<p>CV RMSE {cv.rmse:.4g}{unit}, MAE {cv.mae:.4g}{unit}, the model's own predictive 95 % band "
+        f"covers {cv.coverage95:.1%}"
+        + (f"; {html.escape(sm.calibration.line())}" if sm.calibration else "")
+        + ".</p><ul>",
     ]
     parts += [f"<li>{html.escape(s)}</li>" for s in failure_summary(survey, cv.error, unit)]
     parts.append("</ul>")
     title = f"{target}: held-out residuals"
-    parts.append(
-        img(plots.scatter_map(survey, cv.error, title, "residual", "RdBu_r", True), "residual map")
-    )
+    label = f"residual ({u})" if u else "residual"
+    fig = point_figure(ctx.frame[0], ctx.track_of(survey), cv.error, title, label, "RdBu_r", True)
+    parts.append(img(fig, "residual map", "map"))
     extra = {k: v for k, v in sm.X.items() if k != "position"}
     title = f"{target}: residual against covariates"
     parts.append(
@@ -228,8 +255,10 @@ def diagnoses_section(ctx: ReportContext) -> list[str]:
 
 def _diagnosis(target: str, d: dict) -> list[str]:
     base = d["baseline"]
+    unit = f" {u}" if (u := unit_of(target)) else ""
     parts = [
-        f"<h3>{html.escape(target)} (model {html.escape(' + '.join(base['terms']))}, CV RMSE {base['cv_rmse']:.4g})</h3>"
+        f"<h3>{html.escape(target)} (model {html.escape(' + '.join(base['terms']))}, blocked-CV RMSE "
+        f"{base['cv_rmse']:.4g}{unit}, pooled over 3 assignments of the blocks to folds)</h3>"
     ]
     if d.get("missing_effect_found") and d["candidates"]:
         parts.append(
@@ -242,7 +271,7 @@ def _diagnosis(target: str, d: dict) -> list[str]:
     )
     for i, c in enumerate(d["candidates"][:10], 1):
         parts.append(
-            f"<tr><td>{i}</td><td>{html.escape(c['covariate'])}</td><td>{c['cv_rmse']:.4g}</td>"
+            f"<tr><td>{i}</td><td>{html.escape(c['covariate'])}</td><td>{c['cv_rmse']:.4g}{unit}</td>"
             f"<td>{c['improvement']:+.1%}</td><td class=small>{html.escape(c['explanation'])}</td></tr>"
         )
     parts.append("</table>")
@@ -254,12 +283,13 @@ def history_section(ctx: ReportContext) -> list[str]:
     if not ctx.history:
         return parts + ["<p>No fits recorded yet.</p>"]
     parts.append(
-        "<table><tr><th>fit</th><th>target</th><th>terms</th><th>CV RMSE</th><th>MAE</th><th>coverage 95 %</th></tr>"
+        "<table><tr><th>fit</th><th>target</th><th>terms</th><th>CV RMSE</th><th>MAE</th><th>model's 95 % band covers</th></tr>"
     )
     for h in ctx.history:
+        unit = f" {u}" if (u := unit_of(h["target"])) else ""
         parts.append(
             f"<tr><td>{h['fit']}</td><td>{html.escape(h['target'])}</td><td>{html.escape(' + '.join(h['terms']))}</td>"
-            f"<td>{h['cv_rmse']:.4g}</td><td>{h['cv_mae']:.4g}</td><td>{h['coverage95']:.1%}</td></tr>"
+            f"<td>{h['cv_rmse']:.4g}{unit}</td><td>{h['cv_mae']:.4g}{unit}</td><td>{h['coverage95']:.1%}</td></tr>"
         )
     parts.append("</table>")
     parts.append(img(plots.history_figure(ctx.history), "error history"))

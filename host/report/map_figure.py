@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from forcemap.host.gis.grid import Layer, MapGrid, true_north
+from forcemap.host.gis.grid import POSITIVE, Layer, MapGrid, true_north
 from forcemap.host.workbench.plots import new_figure
 
 PAGE_WIDTH_IN = 11.0
@@ -60,8 +60,36 @@ def decorate(ax, grid: MapGrid, north_deg: float) -> None:
     )  # fmt: skip
 
 
+def point_figure(
+    grid: MapGrid,
+    track: tuple[np.ndarray, np.ndarray],
+    values: np.ndarray,
+    title: str,
+    label: str,
+    cmap: str = "viridis",
+    symmetric: bool = False,
+):
+    """Values at the samples (measurements, residuals) in the model maps' frame and origin, the page's width."""
+    aspect = grid.nx / max(grid.ny, 1)
+    fig = new_figure((PAGE_WIDTH_IN, min(9.0, max(2.6, (PAGE_WIDTH_IN - 1.8) / aspect + 0.9))))
+    fig.set_layout_engine("constrained")
+    ax = fig.subplots()
+    sx, sy = grid.x0, grid.y1 - grid.ny * grid.resolution
+    kw = {}
+    if symmetric:
+        lim = float(np.nanpercentile(np.abs(values), 98)) or 1.0
+        kw = {"vmin": -lim, "vmax": lim}
+    sc = ax.scatter(track[0] - sx, track[1] - sy, c=values, s=3, cmap=cmap, **kw)
+    fig.colorbar(sc, ax=ax, label=label, shrink=0.85)
+    ax.set_xlim(0, grid.nx * grid.resolution)
+    ax.set_ylim(0, grid.ny * grid.resolution)
+    ax.set_title(title, fontsize=10)
+    decorate(ax, grid, true_north(grid))
+    return fig
+
+
 def grid_figure(grid: MapGrid, layer: Layer, track: tuple[np.ndarray, np.ndarray], label: str):
-    """Mean (colour; arrows for a vector, contours for a scalar) and 1-sd uncertainty of one layer."""
+    """Mean (colour; arrows for a vector, contours for a scalar) and predictive 1-sd uncertainty of one layer."""
     (w, h), side = figsize(grid)
     fig = new_figure((w, h))
     fig.set_layout_engine("constrained")
@@ -90,14 +118,20 @@ def grid_figure(grid: MapGrid, layer: Layer, track: tuple[np.ndarray, np.ndarray
             X[sl], Y[sl], u[sl], v[sl], color="white", angles="xy", scale_units="xy", scale=scale
         )
     elif finite.any() and hi > lo and min(mean.shape) >= 2:  # a one-row grid has no contours
-        cs = a1.contour(X, Y, mean, levels=np.linspace(lo, hi, 8), colors="k", linewidths=0.6)
-        a1.clabel(cs, fontsize=7, fmt="%.1f")
+        levels = np.linspace(lo, hi, 8)
+        if layer.target in POSITIVE:
+            levels = levels[levels > 0.0]  # never a depth at or above the surface
+        if len(levels):
+            cs = a1.contour(X, Y, mean, levels=levels, colors="k", linewidths=0.6)
+            a1.clabel(cs, fontsize=7, fmt="%.1f")
     a1.plot(track[0] - sx, track[1] - sy, ",", color="0.6", alpha=0.3)
     a1.set_title(f"{label}: model mean", fontsize=10)
     top = np.nanpercentile(sd, 99) if np.isfinite(sd).any() else 1.0
     pc2 = a2.pcolormesh(X, Y, sd, shading="auto", cmap="magma", vmin=0.0, vmax=top)
-    fig.colorbar(pc2, ax=a2, label=f"sd of {label}")
-    a2.set_title(f"{label}: model uncertainty (1 sd)", fontsize=10)
+    fig.colorbar(pc2, ax=a2, label=f"predictive sd of {label}")
+    a2.set_title(
+        f"{label}: predictive uncertainty (1 sd of a new measurement, latent + noise)", fontsize=10
+    )
     for ax in (a1, a2):
         decorate(ax, grid, north)
     return fig

@@ -144,8 +144,9 @@ def mission_section(table: Path, survey) -> list[str]:  # type: ignore[no-untype
         f"{' (unchanged: the mission already holds its lines)' if res.get('unchanged') else ''}.</p>",
         f'<img alt="mission tracks" src="data:image/png;base64,{png}">',
         _table(plan),
-        f"<p class=small>The map's current is uncertain by {res['current_relative_sd']:.1%} (1 sd) along the "
-        f"lines; with the current scaled by twice that: {sens}. A map from another day (other discharge) "
+        f"<p class=small>The map's current is uncertain by {res['current_relative_sd']:.1%} of its speed (1 sd "
+        "along the lines: the larger of its predictive sd, what a new measurement would differ by, and its "
+        f"blocked-CV RMSE); with the current scaled by twice that: {sens}. A map from another day (other discharge) "
         "can be wrong by far more than that: see docs/PLAN.md.</p>",
         *[f"<p class=small>note: {html.escape(n)}</p>" for n in plan.get("notes", [])],
         *(replan_section(replans) if replans else []),

@@ -105,10 +105,108 @@ class CVResult:
 
     @property
     def coverage95(self) -> float:
+        """The share of held-out samples inside the model's own predictive 95 % band."""
+        return float(np.mean(self.band_ratio <= 1.0))
+
+    @property
+    def band_ratio(self) -> np.ndarray:
+        """Each held-out error over the band's half-width on its side: at most 1 inside the band."""
+        e = self.error
         if self.circular:
             half = (self.upper - self.lower) / 2
-            return float(np.mean(np.abs(self.error) <= half))
-        return float(np.mean((self.measured >= self.lower) & (self.measured <= self.upper)))
+        else:
+            half = np.where(e >= 0, self.upper - self.predicted, self.predicted - self.lower)
+        half = np.maximum(half, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.abs(e) / half
+        return np.where(np.isfinite(r), r, np.where(np.abs(e) > 0, np.inf, 0.0))
+
+
+# the predictive sd of a map is widened where its band covers less than 95 % of held-out samples, and narrowed
+# only where it covers more than OVER_COVERAGE (a factor below 1 from some folds' luck would narrow a band that
+# the other folds need wide); by at most this much either way (a wildly wrong model must not be made to look
+# calibrated by one factor)
+MAX_SD_SCALE = 10.0
+OVER_COVERAGE = 0.98
+# cells farther from every sample than the distance within which this share of the CV's held-out samples lay
+# from their training samples are an extrapolation the CV did not test
+REACH_QUANTILE = 0.9
+
+
+@dataclass
+class Calibration:
+    """How far the model's predictive band is from its nominal 95 % on held-out data, and the factor that
+    brings it there.
+
+    `model_coverage`: the share of blocked-CV held-out samples inside the model's own predictive 95 % band
+    (latent plus noise variance). `sd_scale`: the factor on the band's half-widths (the maps' sd) that puts
+    95 % of the held-out samples inside it (at least 1 unless the model's own band covers more than
+    OVER_COVERAGE). `coverage`: the coverage of the scaled band, cross-fitted: each
+    fold's samples are judged by the factor the other folds' samples give (so it is not 95 % by
+    construction). `reach_m`: how far from their training samples the CV's held-out samples lay (the
+    REACH_QUANTILE quantile): where a map is farther from the track, the CV has not tested it."""
+
+    sd_scale: float
+    model_coverage: float
+    coverage: float
+    reach_m: float
+
+    @classmethod
+    def of(cls, cv: CVResult, folds: np.ndarray, xy: np.ndarray) -> Calibration:
+        r = cv.band_ratio
+        floor = 1.0 / MAX_SD_SCALE if cv.coverage95 > OVER_COVERAGE else 1.0
+        scale = _scale(r, floor)
+        covered = np.empty(len(r), bool)
+        for f in np.unique(folds):
+            test = folds == f
+            k = _scale(r[~test], floor) if (~test).any() else scale
+            covered[test] = r[test] <= k
+        return cls(scale, cv.coverage95, float(covered.mean()), cv_reach(xy, folds))
+
+    def to_json(self) -> dict:
+        return {
+            k: float(getattr(self, k))
+            for k in ("sd_scale", "model_coverage", "coverage", "reach_m")
+        }
+
+    @classmethod
+    def from_json(cls, d) -> Calibration | None:
+        """A saved calibration, or None if it is not one (an older or hand-edited file)."""
+        try:
+            c = cls(*(float(d[k]) for k in ("sd_scale", "model_coverage", "coverage", "reach_m")))
+        except (KeyError, TypeError, ValueError):
+            return None
+        ok = np.isfinite([c.sd_scale, c.coverage, c.reach_m]).all() and c.sd_scale > 0
+        return c if ok else None
+
+    def line(self) -> str:
+        """One line for a map: the band's held-out coverage, and by how much it is off 95 %."""
+        text = (
+            f"the predictive 95 % band covers {self.coverage:.1%} of blocked-CV held-out samples (the "
+            f"model's own band {self.model_coverage:.1%}; its sd x {self.sd_scale:.2f} from the CV)"
+        )
+        if not 0.90 <= self.coverage <= 0.98:
+            text += f": {abs(self.coverage - 0.95):.1%} {'under' if self.coverage < 0.95 else 'over'} 95 %"
+        return text
+
+
+def _scale(ratio: np.ndarray, floor: float) -> float:
+    if not len(ratio):
+        return 1.0
+    q = float(np.quantile(ratio, 0.95))
+    return float(np.clip(q, floor, MAX_SD_SCALE)) if np.isfinite(q) else MAX_SD_SCALE
+
+
+def cv_reach(xy: np.ndarray, folds: np.ndarray, quantile: float = REACH_QUANTILE) -> float:
+    """How far (m) the held-out samples of `folds` lay from their nearest training sample (the quantile)."""
+    from scipy.spatial import cKDTree
+
+    d = np.zeros(len(xy))
+    for f in np.unique(folds):
+        test = folds == f
+        if (~test).any():
+            d[test] = cKDTree(xy[~test]).query(xy[test])[0]
+    return float(np.quantile(d, quantile)) if len(d) else 0.0
 
 
 def paired_test(

@@ -135,6 +135,9 @@ def spikes(survey: Survey, targets: list[str]) -> list[DataFinding]:
     return out
 
 
+CLOCK_HINT = "meanwhile the model term clock_offset undoes it"
+
+
 def latency(survey: Survey, targets: list[str], inst: Instruments) -> list[DataFinding]:
     out, seen = [], set()
     for target in targets:
@@ -167,7 +170,7 @@ def latency(survey: Survey, targets: list[str], inst: Instruments) -> list[DataF
                 "latency",
                 text,
                 "fix the time stamp at the source (stamp at measurement, not on arrival; a shorter "
-                "buffer); meanwhile the model term clock_offset undoes it",
+                f"buffer); {CLOCK_HINT}",
             )
         )
     return out

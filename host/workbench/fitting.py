@@ -9,13 +9,19 @@ from pathlib import Path
 import numpy as np
 from forcemap.host.progress import note
 from forcemap.host.workbench import clock_offset
-from forcemap.host.workbench.cv import DEFAULT_FOLDS, CVResult, blocked_folds, random_folds
+from forcemap.host.workbench.cv import (
+    DEFAULT_FOLDS,
+    Calibration,
+    CVResult,
+    blocked_folds,
+    random_folds,
+)
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
 from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import survey_fits
-from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.table import Survey, unit_of
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
 from forcemap.host.workbench.water_level import crossline_rmse
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
@@ -55,24 +61,26 @@ class FitResult:
             "cv_rmse": self.cv.rmse,
             "cv_mae": self.cv.mae,
             "coverage95": self.cv.coverage95,
+            "calibration": cal.to_json() if (cal := self.model.calibration) else None,
             "spikes": self.model.spikes.to_json() if self.model.spikes else None,
         }
         return out | (self.crossline or {})
 
     def summary(self) -> str:
         m = self.model
-        unit = " deg" if m.circular else ""
+        unit = f" {u}" if (u := unit_of(m.target)) else ""
         lines = [
             f"target {m.target} ({m.survey.n} samples{', modelled through its east/north components' if m.secondary is not None else ''})",
             f"model  {' + '.join(m.terms)}",
-            f"{self.folds} {DEFAULT_FOLDS}-fold CV: RMSE {self.cv.rmse:.4g}{unit}, MAE {self.cv.mae:.4g}{unit}, "
-            f"95 % interval coverage {self.cv.coverage95:.1%}",
+            f"{fold_words(self.folds)}: RMSE {self.cv.rmse:.4g}{unit}, MAE {self.cv.mae:.4g}{unit}",
         ]
         if self.crossline is not None:
             lines.append(
                 f"where the track revisits itself ({self.crossline['crossline_samples']} samples, each "
-                f"time stretch held out): RMSE {self.crossline['crossline_rmse']:.4g}"
+                f"time stretch held out): RMSE {self.crossline['crossline_rmse']:.4g}{unit}"
             )
+        if m.calibration is not None:
+            lines.append(m.calibration.line())
         if self.model.spikes is not None:
             lines += [f"spikes: {t}" for t in self.model.spikes.lines()] or [
                 "spikes: none flagged along the track"
@@ -83,10 +91,40 @@ class FitResult:
             )
         lines.append("fitted parameters:")
         for term, params in m.primary.params_.items():
-            lines.append(f"  {term}: " + ", ".join(f"{k}={v:.4g}" for k, v in params.items()))
+            lines.append(f"  {term}: " + ", ".join(with_units(term, params, m.target)))
         lines.append("where the model fails most (held-out residuals):")
         lines += [f"  {s}" for s in self.failures]
         return "\n".join(lines)
+
+
+def fold_words(kind: str) -> str:
+    """Which folds a CV used, in words (fit's and diagnose's errors differ by their folds; both say so)."""
+    if kind == "random":
+        return f"random {DEFAULT_FOLDS}-fold CV (seed 0)"
+    return f"blocked {DEFAULT_FOLDS}-fold CV (one assignment of the spatial blocks, seed 0)"
+
+
+def with_units(term: str, params: dict[str, float], target: str) -> list[str]:
+    """`name=value unit` for a term's fitted parameters: spreads, levels and amplitudes in the target's
+    unit, a GP's lengthscale in its inputs' (m for position), a slope in target unit per input unit."""
+    tu = unit_of(target)
+    inputs = term[term.find("(") + 1 : term.find(")")].split(",") if "(" in term else []
+    kernels = {"linear", "rbf", "matern12", "matern32", "matern52", "periodic"}
+    iu = {unit_of(i.strip()) for i in inputs if i.strip() and i.strip() not in kernels}
+    iu.discard("")
+    out = []
+    for k, v in params.items():
+        if k in ("std", "value", "amplitude"):
+            u = tu
+        elif k == "lengthscale":
+            u = next(iter(iu)) if len(iu) == 1 else ""
+        elif k.startswith("slope_"):
+            iun = unit_of(k[len("slope_") :])
+            u = f"{tu or '1'}/{iun}" if iun else tu
+        else:
+            u = ""
+        out.append(f"{k}={v:.4g}{' ' + u if u else ''}")
+    return out
 
 
 def fit_target(
@@ -110,7 +148,9 @@ def fit_target(
     sm = SurveyModel(survey, target, terms, max_basis=max_basis).fit()
     note(f"cross-validating ({folds} folds) ...", progress)
     cv = sm.cv(fold_ids)
-    unit = " deg" if sm.circular else ""
+    if folds == "blocked":  # the maps' band is calibrated on blocked folds only
+        sm.calibrate(fold_ids, cv)
+    unit = f" {u}" if (u := unit_of(target)) else ""
     # depth is read from the moving surface: what blocked CV cannot see shows where the track crosses itself
     crossline = crossline_rmse(sm) if target == "depth" else None
     return FitResult(sm, cv, folds, failure_summary(sm.survey, cv.error, unit), crossline)
@@ -128,8 +168,10 @@ def record(table: Path, result: FitResult) -> dict:
         "n": m.survey.n,
         # the flow frame and the other component of a vector: a map rebuilt later needs no optimiser
         "shared": survey_fits(m.survey).shared_hypers(),
+        # the predictive band's held-out coverage: a map rebuilt later needs no CV
+        "calibration": m.calibration.to_json() if m.calibration else None,
     }
-    entry = {k: v for k, v in result.to_json().items() if k != "spikes"}
+    entry = {k: v for k, v in result.to_json().items() if k not in ("spikes", "calibration")}
     entry.update(folds=result.folds, n=m.survey.n)
     if m.spikes is not None:
         entry["spikes_flagged"] = m.spikes.count
@@ -164,10 +206,19 @@ def refit_or_restore(
         try:
             sm = SurveyModel(survey, target, model["terms"])
             survey_fits(sm.survey).saved.update(_shared_entries(model.get("shared")))
-            return sm.fit(theta=np.asarray(model["theta"], float), n_basis=model["n_basis"])
+            sm.fit(theta=np.asarray(model["theta"], float), n_basis=model["n_basis"])
+            sm.calibration = Calibration.from_json(model.get("calibration"))
+            return sm
         except WorkbenchError:
             break
     return SurveyModel(survey, target, terms).fit()
+
+
+def calibrated(sm: SurveyModel) -> SurveyModel:
+    """`sm` with the calibration of its predictive band (from blocked CV, unless it has one)."""
+    if sm.calibration is None:
+        sm.calibrate(make_folds(sm.survey, "blocked"))
+    return sm
 
 
 def _shared_entries(shared) -> dict[str, dict]:

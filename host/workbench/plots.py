@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.table import NOT_COVARIATES, Survey, family, is_circular
+from forcemap.host.workbench.table import NOT_COVARIATES, Survey, family, is_circular, unit_of
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -121,8 +121,9 @@ def residual_panels(
         ]
         ax.plot(0.5 * (edges[1:] + edges[:-1]), med, color="tab:red", lw=2)
         ax.axhline(0, color="k", lw=0.5)
-        ax.set_xlabel("t (min)" if name == "t" else name, fontsize=9)
-        ax.set_ylabel("residual", fontsize=9)
+        u = unit_of(name)
+        ax.set_xlabel("t (min)" if name == "t" else (f"{name} ({u})" if u else name), fontsize=9)
+        ax.set_ylabel(f"residual ({tu})" if (tu := unit_of(target)) else "residual", fontsize=9)
     for ax in axes.ravel()[len(names) :]:
         ax.axis("off")
     if title:
@@ -132,14 +133,23 @@ def residual_panels(
 
 
 def history_figure(history: list[dict]):
-    """CV RMSE of every fit, one line per target, labelled with the terms added."""
+    """CV RMSE of every fit as a separate point at its fit number (the order the fits were made; no line:
+    fits are not a series in between), one colour per target, labelled with the terms added."""
+    from matplotlib.ticker import MaxNLocator
+
     fig = new_figure((9, 3.8))
     ax = fig.subplots()
     targets = list(dict.fromkeys(h["target"] for h in history))
     for target in targets:
         rows = [h for h in history if h["target"] == target]
         rmse0 = rows[0]["cv_rmse"] or 1.0
-        ax.plot([h["fit"] for h in rows], [h["cv_rmse"] / rmse0 for h in rows], "o-", label=target)
+        ax.plot(
+            [h["fit"] for h in rows],
+            [h["cv_rmse"] / rmse0 for h in rows],
+            "o",
+            ls="none",
+            label=target,
+        )
         for h in rows:
             extra = [t for t in h["terms"] if t not in ("const", "gp(position, matern32)")]
             ax.annotate(
@@ -149,8 +159,11 @@ def history_figure(history: list[dict]):
                 xytext=(3, 3),
                 textcoords="offset points",
             )
-    ax.set_xlabel("fit number")
-    ax.set_ylabel("CV RMSE / first fit's")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    fits = [h["fit"] for h in history]
+    ax.set_xlim(min(fits) - 0.5, max(fits) + 0.5)
+    ax.set_xlabel("fit number (in the order made)")
+    ax.set_ylabel("CV RMSE / the target's first fit's (ratio, 1 = unchanged)")
     ax.set_title("error history: CV RMSE as effects are added", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

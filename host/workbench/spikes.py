@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from forcemap.host.workbench.bottom_lost import LostStretch, lost_mask, lost_stretches
 from forcemap.host.workbench.seabed import reference_on, seabed_path
-from forcemap.host.workbench.table import FLAG_PREFIX, NOT_COVARIATES, Survey, family
+from forcemap.host.workbench.table import FLAG_PREFIX, NOT_COVARIATES, Survey, family, unit_of
 
 WINDOW = 9  # along-track neighbours of the running median (odd: the reading in the middle)
 SCALE_WINDOW = 61  # neighbours of the running spread
@@ -101,7 +101,9 @@ class Spikes:
                 f"; they read {np.min(read):.3g} to {np.max(read):.3g} m where the track around "
                 f"reads {around[0]:.3g} to {around[1]:.3g} m"
                 if read is not None
-                else f"; median departure {np.median(np.abs(self.departure[idx])):.3g} from the track around"
+                else f"; median departure {np.median(np.abs(self.departure[idx])):.3g}"
+                f"{' ' + u if (u := unit_of(self.name) or unit_of(self.name + '_speed')) else ''} from the "
+                "track around"
             )
             fate = (
                 "kept in the fit (--keep-outliers)"

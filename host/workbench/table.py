@@ -37,6 +37,24 @@ def is_circular(name: str) -> bool:
     )
 
 
+def unit_of(name: str) -> str:
+    """The unit of a column or model input as printed (docs/CONVENTIONS.md): "m/s", "m", "deg", ... ("" if
+    it has none that forcemap knows)."""
+    if is_circular(name):
+        return "deg"
+    if name in ("position", "x", "y", "depth") or name.endswith("_m"):
+        return "m"
+    if name == "t":
+        return "s"
+    if name == "yaw_rate":
+        return "deg/s"
+    if name == "water_temp":
+        return "degC"
+    if name in ("sog", "stw") or re.search(r"_(speed|east|north)(_\w+)?$", name):
+        return "m/s"
+    return ""
+
+
 def family(name: str) -> str | None:
     """The column family of CONVENTIONS.md: wind, current, depth, or None."""
     if name.startswith("wind_") or name.startswith("app_wind_"):

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 from forcemap.host.vessel.geodesy import wrap_from_minus180
 from forcemap.host.workbench import clock_offset
-from forcemap.host.workbench.cv import CVResult
+from forcemap.host.workbench.cv import Calibration, CVResult
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
 from forcemap.host.workbench.spec import BASELINE, parse_terms
@@ -58,6 +58,9 @@ class SurveyModel:
                 survey, self.vector, self.clock_offset
             )
         self.survey = survey
+        # the predictive band's held-out coverage and the factor on the maps' sd (`calibrate`)
+        self.calibration: Calibration | None = None
+        self.cv_: CVResult | None = None  # the blocked CV `calibrate` ran, if it ran one
 
     def _check_target(self, survey: Survey) -> None:
         target = self.target
@@ -178,14 +181,16 @@ class SurveyModel:
         ue=None,
         un=None,
         interval: bool = True,
+        spread: bool = False,
     ) -> tuple:
         """(mean, lower95, upper95) of the target from latent means/stds of the flow-frame components; without
-        `interval` the bounds are NaN (for a vector the quantiles over the draws are most of the cost)."""
+        `interval` the bounds are NaN (for a vector the quantiles over the draws are most of the cost). With
+        `spread`, a fourth: the sd of the mean alone (of the latent draws, about their mean)."""
         if self.secondary is None:
             if not interval:
                 return mu_p, np.full_like(mu_p, np.nan), np.full_like(mu_p, np.nan)
             half = 1.96 * np.sqrt(sd_p**2 + noise_p**2)
-            return mu_p, mu_p - half, mu_p + half
+            return (mu_p, mu_p - half, mu_p + half) + ((sd_p,) if spread else ())
         rng = np.random.default_rng(12345)
         z1, z2 = rng.standard_normal((2, N_DRAWS))
         if self.primary_is_along:
@@ -193,6 +198,7 @@ class SurveyModel:
         else:
             (ma, sa, na), (mc, sc, nc) = (mu_s, sd_s, noise_s), (mu_p, sd_p, noise_p)
         out_mean, out_lo, out_hi = np.empty(len(mu_p)), np.empty(len(mu_p)), np.empty(len(mu_p))
+        out_sd = np.empty(len(mu_p))
         ue = self.ue if ue is None else ue
         un = self.un if un is None else un
         for a0 in range(0, len(mu_p), 4096):
@@ -205,7 +211,10 @@ class SurveyModel:
             else:
                 out_lo[sl] = out_hi[sl] = np.nan
             if self.vector.aspect == "speed":
-                out_mean[sl] = np.hypot(a_lat, c_lat).mean(axis=1)
+                lat_speed = np.hypot(a_lat, c_lat)
+                out_mean[sl] = lat_speed.mean(axis=1)
+                if spread:
+                    out_sd[sl] = lat_speed.std(axis=1)
                 if not interval:
                     continue
                 obs = np.hypot(a_obs, c_obs)
@@ -217,18 +226,22 @@ class SurveyModel:
                     n = a * un[sl, None] + c * ue[sl, None]
                     return self.vector.direction(e, n)
 
-                lat = np.radians(direction(a_lat, c_lat))
+                lat_deg = direction(a_lat, c_lat)
+                lat = np.radians(lat_deg)
                 mean = (
                     np.degrees(np.arctan2(np.sin(lat).mean(axis=1), np.cos(lat).mean(axis=1)))
                     % 360.0
                 )
+                if spread:
+                    dev = wrap_from_minus180(lat_deg - mean[:, None])
+                    out_sd[sl] = np.sqrt((dev**2).mean(axis=1))
                 if not interval:
                     out_mean[sl] = mean
                     continue
                 dev = np.abs(wrap_from_minus180(direction(a_obs, c_obs) - mean[:, None]))
                 half = np.quantile(dev, 0.95, axis=1)
                 out_mean[sl], out_lo[sl], out_hi[sl] = mean, mean - half, mean + half
-        return out_mean, out_lo, out_hi
+        return (out_mean, out_lo, out_hi) + ((out_sd,) if spread else ())
 
     def cv(
         self,
@@ -267,34 +280,69 @@ class SurveyModel:
             )
         return CVResult(self.measured, mean, lo, hi, circular=self.circular)
 
+    def calibrate(self, folds: np.ndarray, cv: CVResult | None = None) -> CVResult:
+        """Cross-validate on `folds` (or take `cv`, done on them) and keep the `Calibration` of the predictive
+        band: the maps' sd is then the predictive sd times its factor. Returns the CV."""
+        cv = self.cv(folds) if cv is None else cv
+        self.calibration = Calibration.of(cv, folds, self.survey.xy)
+        self.cv_ = cv
+        return cv
+
+    @property
+    def sd_scale(self) -> float:
+        return self.calibration.sd_scale if self.calibration is not None else 1.0
+
+    @property
+    def signal_sd(self) -> float:
+        """The measured target's own spread (deg about its circular mean for a direction)."""
+        if not hasattr(self, "measured"):
+            self._prepare_y()
+        m = self.measured
+        if self.circular:
+            r = np.radians(m)
+            mean = np.degrees(np.arctan2(np.sin(r).mean(), np.cos(r).mean()))
+            return float(np.sqrt(np.mean(wrap_from_minus180(m - mean) ** 2)))
+        return float(np.std(m))
+
     def _frame_cv(self, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The flow frame at each held-out sample from the frame models refitted without its fold: the
         full-data frame has seen the held-out vectors, and a direction target would be predicted by them."""
         return survey_fits(self.survey).frame_cv(self.vector, folds)
 
     def predict_grid(self, xy: np.ndarray) -> dict[str, np.ndarray]:
-        """Mean and std of the target on map positions; for vectors also the east/north components."""
+        """Mean and predictive std of the target on map positions (what a new measurement there would differ
+        from the mean by: latent plus noise variance, times the calibration's `sd_scale`), and `mean_std`, the
+        sd of the mean alone; for vectors also the east/north components and their predictive stds."""
         names = {i for s in self.term_specs for i in s.inputs}
         X = grid_inputs(self.survey, names, xy)
+        k = self.sd_scale
         mu_p, sd_p = self.primary.predict(X, return_std=True)
+        noise_p = self.primary.noise_std_
         if self.secondary is None:
-            return {"mean": mu_p, "std": sd_p}
+            return {"mean": mu_p, "std": k * np.hypot(sd_p, noise_p), "mean_std": sd_p}
         mu_s, sd_s = self.secondary.predict({"position": xy}, return_std=True)
+        noise_s = self.secondary.noise_std_
         ue, un = frame_direction(self.survey, self.vector, xy)
-        mean, lo, hi = self.combine(mu_p, sd_p, 0.0, mu_s, sd_s, 0.0, ue=ue, un=un)
-        (ma, sa), (mc, sc) = (
-            ((mu_p, sd_p), (mu_s, sd_s)) if self.primary_is_along else ((mu_s, sd_s), (mu_p, sd_p))
+        mean, lo, hi, mean_std = self.combine(
+            mu_p, sd_p, noise_p, mu_s, sd_s, noise_s, ue=ue, un=un, spread=True
         )
+        (ma, sa, na), (mc, sc, nc) = (
+            ((mu_p, sd_p, noise_p), (mu_s, sd_s, noise_s))
+            if self.primary_is_along
+            else ((mu_s, sd_s, noise_s), (mu_p, sd_p, noise_p))
+        )
+        pa, pc = np.hypot(sa, na), np.hypot(sc, nc)  # a new measurement's along and across spread
         east, north = ma * ue - mc * un, ma * un + mc * ue
         spread = (hi - lo) / 3.92 if self.vector.aspect == "speed" else (hi - lo) / 2 / 1.96
         return {
             "mean": mean,
-            "std": spread,
+            "std": k * spread,
+            "mean_std": mean_std,
             "east": east,
             "north": north,
             "speed": np.hypot(east, north),
-            "speed_std": np.sqrt(sa**2 + sc**2),
+            "speed_std": k * np.hypot(pa, pc),
             # the along and across components are independent: rotate their variances
-            "east_std": np.sqrt((sa * ue) ** 2 + (sc * un) ** 2),
-            "north_std": np.sqrt((sa * un) ** 2 + (sc * ue) ** 2),
+            "east_std": k * np.hypot(pa * ue, pc * un),
+            "north_std": k * np.hypot(pa * un, pc * ue),
         }

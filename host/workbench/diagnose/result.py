@@ -5,10 +5,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.data_quality import DataFinding
 from forcemap.host.workbench.diagnose.catalogue import explain
+from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, REPEATS
 from forcemap.host.workbench.diagnose.null import NULL_MARGIN
 from forcemap.host.workbench.instruments import Instruments
+from forcemap.host.workbench.table import unit_of
+
+# which folds the diagnosis's errors come from
+FOLD_WORDS = (
+    f"blocked {DEFAULT_FOLDS}-fold CV pooled over {REPEATS} assignments of the spatial blocks to folds "
+    f"(seeds 0-{REPEATS - 1}), a GP basis of at most {DIAGNOSE_MAX_BASIS} functions"
+)
 
 
 @dataclass
@@ -78,8 +87,11 @@ class Round:
         }
 
     def lines(self) -> list[str]:
+        unit = f" {u}" if (u := unit_of(self.target)) else ""
         out = [
-            f"target {self.target}: current model {' + '.join(self.terms)}, blocked-CV RMSE {self.cv_rmse:.4g}"
+            f"target {self.target}: current model {' + '.join(self.terms)}, blocked-CV RMSE "
+            f"{self.cv_rmse:.4g}{unit}",
+            f"  ({FOLD_WORDS}; `fit` uses one assignment, seed 0, and a larger GP basis: its RMSE differs)",
         ]
         for name in self.time_proxies:
             out.append(
@@ -97,7 +109,8 @@ class Round:
             out.append(f"  survey advice: {self.advice}")
         out += [
             "",
-            f"{'rank':>4}  {'covariate':<22} {'cv_rmse':>9} {'gain':>7} {'null max':>8} {'p':>8}  note",
+            f"{'rank':>4}  {'covariate':<22} {'cv_rmse':>9} {'gain':>7} {'null max':>8} {'p':>8}  note"
+            + (f"  (cv_rmse in {u})" if u else ""),
         ]
         for i, c in enumerate(self.candidates, 1):
             notes = []
@@ -242,6 +255,8 @@ def explain_candidate(
         else f"not significant (needs a gain >= {floor:.0%}, an error {NULL_MARGIN:.0%} below its best null's, and a small p-value)"
     )
     extra = f" ({c.note})" if c.note else ""
+    if c.improvement < 0:  # never suggest a term the table ranks as making the model worse
+        return f"{head}; p = {c.p_value:.1e}, {verdict}{extra}."
     return f"{head}; p = {c.p_value:.1e}, {verdict}{extra}. Likely cause: {cause}. Suggested term: {term}."
 
 
@@ -252,13 +267,14 @@ def round_steps(diagnosis_json: dict) -> list[str]:
         {**diagnosis_json, "added": None, "cv_rmse_after": diagnosis_json["baseline"]["cv_rmse"]}
     ]
     out = []
+    unit = f" {u}" if (u := unit_of(diagnosis_json.get("target", ""))) else ""
     for i, r in enumerate(rounds, 1):
         before = r["baseline"]["cv_rmse"]
-        step = f"round {i}: blocked-CV RMSE {before:.4g}"
+        step = f"round {i}: blocked-CV RMSE {before:.4g}{unit}"
         if r.get("added"):
             after = r["cv_rmse_after"]
             fall = 1.0 - after / before if before > 0 else 0.0
-            step += f" -> {after:.4g} with {r['added']} ({fall:.0%} lower)"
+            step += f" -> {after:.4g}{unit} with {r['added']} ({fall:.0%} lower)"
         else:
             step += ": nothing more found" + (
                 f"; survey advice: {r['advice']}" if r.get("advice") else ""

@@ -20,6 +20,7 @@ survey diagnosed again, up to `rounds` times.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import time
 
@@ -119,7 +120,26 @@ def diagnose(
         if r.added is None:
             break
         terms = terms + [r.added.term]
-    return Diagnosis(target, done, data_quality.findings(survey, [target]))
+    return Diagnosis(target, done, consistent(data_quality.findings(survey, [target]), done[0]))
+
+
+def consistent(data: list, first: Round) -> list:
+    """The data findings, their advice never pointing to a model term that the diagnosis's own table ranks
+    as making the model worse (a latency the clock_offset term does not undo on this survey)."""
+    worse = {c.covariate: c for c in first.candidates if c.improvement < 0}
+    c = worse.get(clock_offset.NAME)
+    if c is None:
+        return data
+    instead = (
+        f"the model term clock_offset does not undo it on this survey (the table below ranks it "
+        f"{c.improvement:+.0%}: the map gets worse), so fix it at the source"
+    )
+    return [
+        dataclasses.replace(f, advice=f.advice.replace(data_quality.CLOCK_HINT, instead))
+        if f.kind == "latency"
+        else f
+        for f in data
+    ]
 
 
 def diagnose_round(
