@@ -114,6 +114,8 @@ def transpose_products(term, Z: np.ndarray, W: np.ndarray, rows: int = 4096) -> 
     constant, Phi'r); for many, the features are cheaper."""
     W = np.asarray(W, float).reshape(len(Z), -1)
     J = term.J - 1
+    if W.shape[1] == 0:  # a model of this one term: nothing to cross it with
+        return np.zeros((len(J), 0))
     tables = None
     for a in range(0, len(Z), rows):
         S = waves(term, Z[a : a + rows], cosines=False)[1]
