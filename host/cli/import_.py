@@ -119,8 +119,10 @@ def _output(args: argparse.Namespace, path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host.convert.importers import ImportFailed, check_importable, import_to_mcap
+    from forcemap.host.convert.importers import ImportFailed, check_importable
+    from forcemap.host.convert.self_calibration import import_calibrated
     from forcemap.host.fuse.calibration import ConfigError, load
+    from forcemap.host.qa.report import summary as qa_summary
 
     path = Path(args.file)
     try:
@@ -132,12 +134,14 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     out = check_output(_output(args, path), [path], args.force)
     try:
-        res = import_to_mcap(
+        res, findings = import_calibrated(
             path, out, fmt, cal, args.sync, check=check_found, sample_rate_hz=sample_rate(args)
         )
     except ImportFailed as e:
         raise CliError(str(e)) from None
     for line in summary(res):
         print(line)
+    for line in qa_summary(findings):  # `forcemap check` gives the whole report
+        print("  " + line)
     print(f"  -> {out}")
     return 0

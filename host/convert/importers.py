@@ -324,11 +324,13 @@ def import_to_mcap(
     sync: str | None = None,
     check: Callable[[ImportResult], None] | None = None,
     sample_rate_hz: float | None = None,
+    metadata: dict[str, dict[str, str]] | None = None,
 ) -> ImportResult:
     """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
 
     ImportFailed (and no file) when the log cannot give samples; the message says why. ``check``
-    may refuse the result first (by raising), with the same effect.
+    may refuse the result first (by raising), with the same effect. ``metadata``: more records to
+    write (the ``qa.*`` findings of forcemap.host.convert.self_calibration).
     """
     fmt = check_importable(path, fmt)
     with atomic_path(out) as tmp:
@@ -337,6 +339,8 @@ def import_to_mcap(
         )
         try:
             res = import_file(path, log, fmt, calibration, sync, sample_rate_hz)
+            for name, data in (metadata or {}).items():
+                log.metadata(name, data)
         finally:
             log.close()
         if check is not None:
