@@ -180,6 +180,7 @@ class Simulation(MissionLink):
             dgps = next((f for f in self.faults if f.kind == "dgps_gnss"), None)
             lost = (dgps.start(0.0), dgps.dur) if dgps is not None and dgps.dur > 0 else None
             self.bus = NmeaBus(self.geo, self.seed * 1000 + 13, var, self.bus_faults, lost)
+            self.bus.calibration_faults(self.faults)
         self.uart_nmea = Uart(BUS_BYTES_PER_S, chunk=64)
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)

@@ -12,7 +12,9 @@ import numpy as np
 SOURCES = ("bridge", "depth", "mavlink", "nmea")
 # faults that are instruments: they put the NMEA bus (nmea_bus.py) on the "nmea" port
 SOURCE_KINDS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
-BUS_KINDS = SOURCE_KINDS + ("poor_gnss", "dgps_gnss")
+# faults of the bus's own instruments with a known truth (issue 28): the estimators must find them
+CAL_KINDS = ("speed_log", "dead_log", "rot_deg_s")
+BUS_KINDS = SOURCE_KINDS + ("poor_gnss", "dgps_gnss") + CAL_KINDS
 
 KINDS: dict[str, str] = {
     "corrupt": "bytes replaced by random values at `rate` per byte (source=all|bridge|depth|mavlink)",
@@ -31,6 +33,10 @@ KINDS: dict[str, str] = {
     "wanders in seconds",
     "dgps_gnss": "NMEA bus: a second receiver, GN, 4 decimals, DGPS with HDOP 0.9 and a 0.3 m error; "
     "it loses its corrections (autonomous, HDOP 4.5, 3 m error) from `at` for `for` s",
+    "speed_log": "NMEA bus: the speed log reads STW / `gain` (default 1.06) and its axis is turned "
+    "`misalign` deg (default 2) clockwise from the compass's: HCHDG reads heading - misalign",
+    "dead_log": "NMEA bus: the speed log reads 0.00 kn from `at` for `for` s",
+    "rot_deg_s": "NMEA bus: a rate gyro's TIROT at 2 Hz in deg/s, where NMEA 0183 says deg/min",
     "false_echoes": "the sounder returns 3-20 m at `rate` per sounding in water deeper than 70 m "
     "(a share of it from 40 m)",
 }
@@ -124,6 +130,8 @@ def parse_one(spec: str) -> Fault:
             f.dur = float(v)
         elif k == "cause":
             f.cause = int(v)
+        elif k in ("gain", "misalign") and kind == "speed_log":
+            f.params[k] = float(v)
         else:
             raise ValueError(f"fault {kind} has no parameter {k!r}")
     if kind == "pull" and f.source == "all":

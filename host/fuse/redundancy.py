@@ -248,32 +248,26 @@ def dead_stretches(
     window_s: float = DEAD_WINDOW_S,
     min_partner: float = DEAD_MIN_PARTNER,
 ) -> DeadStretches:
-    """Windows where ``reading`` is flat and ``partner`` (e.g. SOG) is above ``min_partner``, merged."""
-    ok = np.isfinite(t) & np.isfinite(partner)
+    """Runs of at least ``window_s`` where ``reading`` stays constant while ``partner`` (e.g. SOG)
+    shows the boat moving (median over ``min_partner``)."""
+    ok = np.isfinite(t) & np.isfinite(partner) & np.isfinite(reading)
     t, x, p = t[ok], reading[ok], partner[ok]
     if len(t) < 2:
         return DeadStretches((), 0.0, 0.0, math.nan)
-    win = np.floor((t - t[0]) / window_s).astype(int)
-    out: list[list[float]] = []
-    moving_s = 0.0
+    moving = p >= min_partner
+    dt = np.diff(t)
+    moving_s = float(np.sum(np.where(moving[1:] & (dt < 5.0), dt, 0.0)))
+    same = np.abs(np.diff(x)) < DEAD_FLAT
+    out: list[tuple[float, float]] = []
     value = math.nan
-    for k in np.unique(win):
-        sel = win == k
-        tt, xx, pp = t[sel], x[sel], p[sel]
-        if len(tt) < 5 or tt[-1] - tt[0] < 0.5 * window_s or np.median(pp) < min_partner:
+    start = 0
+    for k in range(1, len(t) + 1):
+        if k < len(t) and same[k - 1]:
             continue
-        moving_s += tt[-1] - tt[0]
-        xf = xx[np.isfinite(xx)]
-        flat = len(xf) >= 0.8 * len(xx) and float(np.ptp(xf)) < DEAD_FLAT
-        if not flat:
-            continue
-        if math.isnan(value):
-            value = float(xf[0])
-        if out and tt[0] - out[-1][1] <= window_s:
-            out[-1][1] = float(tt[-1])
-        else:
-            out.append([float(tt[0]), float(tt[-1])])
+        a, b = start, k - 1  # a run of equal readings, rows a..b
+        if t[b] - t[a] >= window_s and np.median(p[a : b + 1]) >= min_partner:
+            out.append((float(t[a]), float(t[b])))
+            value = float(x[a]) if math.isnan(value) else value
+        start = k
     secs = sum(b - a for a, b in out)
-    return DeadStretches(
-        tuple((a, b) for a, b in out), secs, secs / moving_s if moving_s else 0.0, value
-    )
+    return DeadStretches(tuple(out), secs, secs / moving_s if moving_s else 0.0, value)
