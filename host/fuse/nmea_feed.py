@@ -151,9 +151,7 @@ class NmeaDecoder:
             self._heading(t, s.data["heading"], s)
         stw = s.data["stw"]
         if stw is not None:
-            cal = self.pipe.cal
-            if not any(a <= t <= b for a, b in cal.stw_dead):  # dead: logged raw, never used
-                self._reading("stw", t, (stw * (cal.stw_gain or 1.0),), s)
+            self._reading("stw", t, (stw * (self.pipe.cal.stw_gain or 1.0),), s)
             self.pipe.write("/water/speed", t, WaterSpeed(self.pipe.utc_s(t), stw, s.type, "nmea"))
 
     def _mwv(self, s: Sentence, t: float) -> None:
