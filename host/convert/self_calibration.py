@@ -34,7 +34,7 @@ GAIN_RANGE = (0.7, 1.4)  # outside: a broken log, not a calibration
 DEAD_RED = 0.0  # any dead stretch while moving is red
 THRESH_GAIN = "|A-1| <= 2 %, |beta| <= 2 deg green; applied when sd(A) <= 1 %, sd(beta) <= 1 deg, headings spread >= 45 deg (Pollard & Read 1989)"
 THRESH_ROT = "heading change / integrated rate within 0.5-2 (same unit); ~60: deg/s sent as deg/min (NMEA 0183 ROT)"
-THRESH_DEAD = "constant (range < 0.001 m/s) over 60 s while SOG >= 1 m/s: red, dropped"
+THRESH_DEAD = "constant (range < 0.001 m/s) over 60 s while SOG >= 1 m/s, and zero or SOG varying by >= 0.5 m/s: red, dropped"
 
 
 class SamplesSink:

@@ -28,6 +28,8 @@ ROT_MIN_CHANGE = 5.0  # deg of heading change over a window for it to inform the
 DEAD_WINDOW_S = 60.0
 DEAD_MIN_PARTNER = 1.0  # m/s: the partner must show the boat moving
 DEAD_FLAT = 1e-3  # a reading whose range over a window is below this is constant
+DEAD_PARTNER_VARIES = 0.5  # m/s: the partner's range over the stretch shows it alive
+DEAD_ZERO = 0.05  # m/s: a log reading zero while the boat moves is dead whatever the partner does
 
 
 def wrap180(a: np.ndarray) -> np.ndarray:
@@ -265,7 +267,11 @@ def dead_stretches(
         if k < len(t) and same[k - 1]:
             continue
         a, b = start, k - 1  # a run of equal readings, rows a..b
-        if t[b] - t[a] >= window_s and np.median(p[a : b + 1]) >= min_partner:
+        pp = p[a : b + 1]
+        # zero while moving, or a constant while the partner varies (a damped log holds a steady
+        # speed for a minute; a frozen bus repeats every sentence)
+        varies = abs(float(x[a])) < DEAD_ZERO or float(np.ptp(pp)) >= DEAD_PARTNER_VARIES
+        if t[b] - t[a] >= window_s and np.median(pp) >= min_partner and varies:
             out.append((float(t[a]), float(t[b])))
             value = float(x[a]) if math.isnan(value) else value
         start = k

@@ -150,7 +150,12 @@ def check_path(path: str | Path, calibration: Any = None) -> CheckReport:
         return check_table(p)  # a table with another suffix: read_raw says what is wrong
     with tempfile.TemporaryDirectory(prefix="forcemap-check-") as tmp:
         out = Path(tmp) / (p.stem + ".mcap")
-        res, _ = sc.import_calibrated(p, out, fmt, calibration)
+        try:
+            res, _ = sc.import_calibrated(p, out, fmt, calibration)
+        except ImportFailed as e:  # a log that gives no samples is graded, not refused
+            why = QaFinding("time", "samples", "red", str(e), value=0.0,
+                            fix="nothing to map from this log")  # fmt: skip
+            return CheckReport(str(path), 0, [why], [f"not importable as {fmt}"])
         rep = check_table(out)
     rep.path = str(path)
     rep.notes.insert(0, f"imported as {res.format} ({res.records} records) to a temporary log")
