@@ -128,16 +128,18 @@ def _gain_finding(
         f"{'low' if fit.gain > 1 else 'high'}), misalignment {fit.misalignment_deg:+.1f} ± "
         f"{fit.misalignment_sd:.1f}°"
     )
-    if pin:
-        fix = f"pinned in boat.toml: gain {pinned.stw_gain}, misalignment {pinned.stw_misalignment_deg}"
-    elif safe and plausible:
-        fix = f"applied: STW x {fit.gain:.3f}, heading {fit.misalignment_deg:+.1f}° for the current"
-        upd["stw_gain"], upd["stw_misalignment_deg"] = fit.gain, fit.misalignment_deg
+    if not safe:  # one course, or too short: the gain is not told apart from the current
+        verdict = "green" if small else "yellow"
+        fix = "not applied: too uncertain (sail more headings); pin it in boat.toml [speed_log]"
     elif not plausible:
         fix = "not applied: outside any speed log's calibration; check the log's unit and paddle"
+    elif pin:
+        fix = f"pinned in boat.toml: gain {pinned.stw_gain}, misalignment {pinned.stw_misalignment_deg}"
     else:
-        fix = "not applied: too uncertain (sail more headings); pin it in boat.toml [speed_log]"
-        verdict = "yellow"
+        fix = f"applied: STW x {fit.gain:.3f}, heading {fit.misalignment_deg:+.1f}° for the current"
+        upd["stw_gain"], upd["stw_misalignment_deg"] = fit.gain, fit.misalignment_deg
+    if pin and not fix.startswith("pinned"):
+        fix += f" (pinned in boat.toml: gain {pinned.stw_gain}, misalignment {pinned.stw_misalignment_deg})"
     ev = (
         f"v_ground = A R(beta) v_water + c on {fit.rows} rows, {fit.windows} windows of 10 min, "
         f"headings spread {fit.heading_spread_deg:.0f}°, rms {fit.rms_residual:.2f} m/s"
@@ -246,4 +248,6 @@ def import_calibrated(
     res = import_to_mcap(
         path, out, fmt, est.calibration, sync, check, sample_rate_hz, metadata=meta
     )
+    # the calibration changes values, never which rows there are
+    res.counters["self_calibration"] = {"first_pass_samples": len(first.rows)}
     return res, est.findings

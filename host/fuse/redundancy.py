@@ -270,7 +270,8 @@ def dead_stretches(
         pp = p[a : b + 1]
         # zero while moving, or a constant while the partner varies (a damped log holds a steady
         # speed for a minute; a frozen bus repeats every sentence)
-        varies = abs(float(x[a])) < DEAD_ZERO or float(np.ptp(pp)) >= DEAD_PARTNER_VARIES
+        spread = float(np.percentile(pp, 95) - np.percentile(pp, 5))
+        varies = abs(float(x[a])) < DEAD_ZERO or spread >= DEAD_PARTNER_VARIES
         if t[b] - t[a] >= window_s and np.median(pp) >= min_partner and varies:
             out.append((float(t[a]), float(t[b])))
             value = float(x[a]) if math.isnan(value) else value

@@ -46,7 +46,8 @@ def time_finding(c: Mapping[str, np.ndarray]) -> QaFinding:
     span = float(t[-1] - t[0])
     dt = np.diff(t)
     back = int(np.sum(dt < 0))
-    gaps = dt[dt > GAP_S]
+    gap_s = max(GAP_S, 2.5 * float(np.median(dt)))  # a log paced every 2 s has no 2 s gaps
+    gaps = dt[dt > gap_s]
     longest = float(gaps.max()) if len(gaps) else 0.0
     total = float(gaps.sum())
     v1 = _grade(longest / span, ONE_GAP)
@@ -54,7 +55,7 @@ def time_finding(c: Mapping[str, np.ndarray]) -> QaFinding:
     verdict = "red" if back else max(v1, v2, key=VERDICT_ORDER.index)
     msg = (
         f"{len(t)} samples over {span / 60:.1f} min; longest gap {longest:.1f} s "
-        f"({100 * longest / span:.1f} %), gaps over {GAP_S:g} s {100 * total / span:.1f} % in all"
+        f"({100 * longest / span:.1f} %), gaps over {gap_s:.3g} s {100 * total / span:.1f} % in all"
     )
     if back:
         msg += f"; time goes backwards {back} times"
@@ -123,7 +124,8 @@ def heading_findings(c: Mapping[str, np.ndarray], source: str) -> list[QaFinding
         return [
             QaFinding(
                 "heading", "present", verdict,
-                "no heading in any sample: no true wind and no current from the speed log",
+                "no heading in any sample: no true wind and no current from the speed log "
+                "(no heading sentence with a value, or a magnetic one without variation)",
                 value=0.0, unit="%", threshold="a heading in the samples where wind or STW is logged",
                 fix="a magnetic heading without variation is dropped: give [compass] variation_deg "
                 "in boat.toml (or a log with HDT, or HDG/RMC with variation)",
