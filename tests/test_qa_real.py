@@ -152,6 +152,9 @@ def test_mavlink_attitude_yaw_change_agrees_with_its_yaw_rate(log):
         yaw.append(math.degrees(m.yaw) % 360)
         rate.append(math.degrees(m.yawspeed))
     fit = rd.fit_rate_scale(np.array(t), np.array(yaw), np.array(rate))
+    if "bluerov" in log:  # the ROVs held their heading (48 and 21 deg in all over 4-5 min, by hand)
+        assert fit is None and np.ptp(np.unwrap(np.radians(yaw))) < math.radians(60)
+        return
     assert fit is not None and fit.windows >= 5
     assert 0.5 < fit.scale < 2.0 and fit.correlation > 0.8, fit
 

@@ -108,3 +108,31 @@ def test_after_calibration_the_rate_agrees_and_no_current_comes_from_the_dead_lo
     inside = [r for r in rows if a + 2 < r["t"] < b - 2]
     assert inside and all(r.get("current_speed_stw") is None for r in inside)
     assert len(rows) >= DURATION_S  # no row is lost
+
+
+def test_a_boat_file_pins_the_speed_log_and_the_estimate_is_only_reported(lake):
+    from forcemap.host.fuse import calibration
+
+    _, (paths, _), *_ = lake
+    rows = [m.message for m in read_messages(paths, "/samples")]
+    pinned = calibration.loads("[speed_log]\ngain = 1.0\n[rate_of_turn]\nunit = 'deg/min'\n")
+    est = estimate(rows, mcap_provenance(paths[-1]), pinned)
+    f = next(f for f in est.findings if f.check == "gain")
+    assert abs(f.value / GAIN - 1) < 0.01 and not f.applied and f.fix.startswith("pinned")
+    assert est.calibration.stw_gain == 1.0 and est.calibration.rot_unit == "deg/min"
+
+
+@pytest.mark.parametrize(
+    "toml, key",
+    [
+        ("[speed_log]\ngain = 6.0\n", "speed_log.gain"),
+        ("[speed_log]\nmisalignment_deg = 90\n", "speed_log.misalignment_deg"),
+        ("[rate_of_turn]\nunit = 'rad/s'\n", "rate_of_turn.unit"),
+        ("[speed_log]\nscale = 1.0\n", "speed_log.scale"),
+    ],
+)
+def test_a_wrong_pin_is_one_clear_error(toml, key):
+    from forcemap.host.fuse import calibration
+
+    with pytest.raises(calibration.ConfigError, match=key.replace(".", r"\.")):
+        calibration.loads(toml)
