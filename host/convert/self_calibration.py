@@ -154,7 +154,7 @@ def _gain_finding(
     }
     return QaFinding(
         "speed_through_water", "gain", verdict, msg, source, fit.gain, fit.gain_sd, "1",
-        THRESH_GAIN, ev, fix, "applied" in fix, extra,
+        THRESH_GAIN, ev, fix, fix.startswith("applied"), extra,
     )  # fmt: skip
 
 

@@ -25,6 +25,7 @@ DEPTH_SLOPE = 0.5  # a seabed rises or falls less than 1 in 2 along the track
 DEPTH_BAD = (0.01, 0.05)
 LAKE_CURRENT = 0.1  # m/s
 HDG_COG_OK = 5.0
+COMPASS_OFFSET = (2.0, 5.0)  # deg between two compasses: green, yellow
 EARTH_R = 6_371_000.0
 VERDICT_ORDER = ("green", "yellow", "red")
 DEPTH_REL = 0.1  # a sounder's scatter grows with depth: 10 % of it is not a jump
@@ -215,3 +216,29 @@ def current_finding(c: Mapping[str, np.ndarray], source: str) -> QaFinding | Non
         "keel), a compass offset (see heading vs COG) or an uncalibrated speed log",
         extra={"east": repr(me), "north": repr(mn)},
     )  # fmt: skip
+
+
+def compass_offsets(sources: Mapping[str, Mapping]) -> list[QaFinding]:
+    """Every other compass against the one used: the median of their difference is its offset."""
+    h = sources.get("heading")
+    if not h:
+        return []
+    out = []
+    for name, row in h.get("sources", {}).items():
+        med = row.get("diff_median")
+        if name == h.get("chosen") or med is None:
+            continue
+        p95 = row.get("diff_p95")
+        verdict = _grade(abs(med), COMPASS_OFFSET)
+        out.append(
+            QaFinding(
+                "heading", "offset", verdict,
+                f"{name} reads {med:+.1f}° from {h['chosen']} (median; 95 % within {p95}°)", name,
+                float(med), unit="deg",
+                threshold=f"|median| <= {COMPASS_OFFSET[0]:g}° ({COMPASS_OFFSET[1]:g}°)",
+                evidence="the two compasses at the same instants over the whole log",
+                fix="" if verdict == "green" else "swing the compass (deviation) or check its "
+                "variation; the heading used is the chosen one's",
+            )
+        )  # fmt: skip
+    return out

@@ -42,8 +42,8 @@ class CheckReport:
         return worst([f.verdict for f in self.findings])
 
 
-def log_findings(path: str | Path) -> list[QaFinding]:
-    """Every ``qa.*`` metadata record of an MCAP log (the last of each name)."""
+def _metadata(path: str | Path, keep) -> dict[str, dict[str, str]]:
+    """The last metadata record of each name ``keep(name)`` accepts, of an MCAP log."""
     from forcemap.host.log.mcap import FileScan, iter_records
     from mcap.reader import make_reader
     from mcap.records import Metadata
@@ -52,19 +52,38 @@ def log_findings(path: str | Path) -> list[QaFinding]:
     try:
         with open(path, "rb") as f:
             for m in make_reader(f).iter_metadata():
-                if is_finding(m.name):
+                if keep(m.name):
                     found[m.name] = dict(m.metadata)
     except Exception:  # no summary (a killed log): read the records themselves
         for record in iter_records(path, FileScan(path)):
-            if isinstance(record, Metadata) and is_finding(record.name):
+            if isinstance(record, Metadata) and keep(record.name):
                 found[record.name] = dict(record.metadata)
+    return found
+
+
+def log_findings(path: str | Path) -> list[QaFinding]:
+    """Every ``qa.*`` metadata record of an MCAP log (the last of each name)."""
     out = []
-    for data in found.values():
+    for data in _metadata(path, is_finding).values():
         try:
             out.append(QaFinding.from_metadata(data))
         except (TypeError, ValueError):  # a record of another shape: shown as is
             msg = "; ".join(f"{k}={v}" for k, v in data.items())[:200]
             out.append(QaFinding("other", "unreadable", "yellow", msg))
+    return out
+
+
+def sources_report(path: str | Path) -> dict[str, dict[str, Any]]:
+    """The log's last ``sources`` record: per quantity, every source against the chosen one."""
+    import json
+
+    rec = _metadata(path, lambda n: n == "sources").get("sources", {})
+    out = {}
+    for q, text in rec.items():
+        try:
+            out[q] = json.loads(text)
+        except ValueError:
+            continue
     return out
 
 
@@ -102,7 +121,7 @@ def _not_applied(f: QaFinding) -> QaFinding:
     """An estimate made on a table: it says how to apply it, never that it was."""
     if not f.applied:
         return f
-    fix = f.fix.replace("applied:", "to apply (import the raw log again, or pin in boat.toml):")
+    fix = "to apply (import the raw log again, or pin in boat.toml):" + f.fix.removeprefix("applied:")
     return QaFinding(**{**asdict(f), "fix": fix, "applied": False})
 
 
@@ -126,6 +145,8 @@ def check_table(path: str | Path) -> CheckReport:
         rep.findings += [_not_applied(f) for f in est.findings]
         rep.notes.append("no estimates recorded in this file: estimated now, not applied")
     rep.findings += computed_findings(c, columns)
+    if is_mcap:
+        rep.findings += checks.compass_offsets(sources_report(p))
     return rep
 
 
