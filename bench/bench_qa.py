@@ -41,8 +41,9 @@ def props(path: Path) -> dict[str, str]:
         "rows": str(rep.rows),
         "pos/sog": val(("position", "vs_sog"), ".3f"),
         "hdg/rate": val(("rate_of_turn", "unit"), ".2f"),
-        "gain": "-" if gain is None or gain.value != gain.value else f"{gain.value:.3f}"
-        + (" (applied)" if gain.applied else ""),
+        "gain": "-"
+        if gain is None or gain.value != gain.value
+        else f"{gain.value:.3f}" + (" (applied)" if gain.applied else ""),
         "current": val(("speed_through_water", "current_mean"), ".3f"),
         "depth jumps %": val(("depth", "continuity"), ".1f"),
         "verdict": rep.verdict,

@@ -121,7 +121,9 @@ def _not_applied(f: QaFinding) -> QaFinding:
     """An estimate made on a table: it says how to apply it, never that it was."""
     if not f.applied:
         return f
-    fix = "to apply (import the raw log again, or pin in boat.toml):" + f.fix.removeprefix("applied:")
+    fix = "to apply (import the raw log again, or pin in boat.toml):" + f.fix.removeprefix(
+        "applied:"
+    )
     return QaFinding(**{**asdict(f), "fix": fix, "applied": False})
 
 
