@@ -6,7 +6,8 @@
 is ``forcemap import``'s (``import_calibrated``: the first pass estimates, the second applies what is
 safe). Each property is what `forcemap check` computes on the log: the fixes' displacement over SOG x
 time (median), the heading's change over the integrated rate of turn, the speed log's gain estimated on
-the log (1 after calibration means it was applied), the mean current from the speed log (m/s), the share
+the log (recorded at import, else estimated now), the gain estimated on the samples themselves (1
+after calibration when it was applied), the mean current from the speed log (m/s), the share
 of depth changes steeper than a seabed (%), and the samples.
 """
 
@@ -22,7 +23,9 @@ sys.path.insert(0, str(ROOT))
 
 from forcemap.host.convert.importers import ImportFailed, import_to_mcap  # noqa: E402
 from forcemap.host.convert.self_calibration import import_calibrated  # noqa: E402
-from forcemap.host.qa.report import check_table  # noqa: E402
+from forcemap.host.fuse import redundancy as rd  # noqa: E402
+from forcemap.host.qa.report import arrays, check_table  # noqa: E402
+from forcemap.host.workbench.table_files import read_raw  # noqa: E402
 
 REAL = ROOT / "tests" / "data" / "real"
 GLOBS = ("nmea/*.log", "nmea/*.txt", "nmea/irene/*.nmea", "mavlink/*.tlog", "mavlink/*.BIN")
@@ -37,6 +40,8 @@ def props(path: Path) -> dict[str, str]:
         return "-" if f is None or f.value != f.value else format(f.value, fmt)
 
     gain = got.get(("speed_through_water", "gain"))
+    c = arrays(read_raw(path))
+    fit = rd.fit_speed_log(c["t"], c["heading"], c["stw"], c["sog"], c["cog"], c["yaw_rate"])
     return {
         "rows": str(rep.rows),
         "pos/sog": val(("position", "vs_sog"), ".3f"),
@@ -44,6 +49,7 @@ def props(path: Path) -> dict[str, str]:
         "gain": "-"
         if gain is None or gain.value != gain.value
         else f"{gain.value:.3f}" + (" (applied)" if gain.applied else ""),
+        "gain on samples": "-" if fit is None else f"{fit.gain:.3f} ± {fit.gain_sd:.3f}",
         "current": val(("speed_through_water", "current_mean"), ".3f"),
         "depth jumps %": val(("depth", "continuity"), ".1f"),
         "verdict": rep.verdict,
@@ -52,7 +58,8 @@ def props(path: Path) -> dict[str, str]:
 
 def main() -> None:
     logs = sorted(p for g in GLOBS for p in REAL.glob(g))
-    keys = ("rows", "pos/sog", "hdg/rate", "gain", "current", "depth jumps %", "verdict")
+    keys = ("rows", "pos/sog", "hdg/rate", "gain", "gain on samples", "current", "depth jumps %")
+    keys += ("verdict",)
     print("| log | " + " | ".join(f"{k} before / after" for k in keys) + " | import s |")
     print("|---|" + "---|" * (len(keys) + 1))
     for log in logs:

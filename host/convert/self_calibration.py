@@ -25,14 +25,14 @@ from forcemap.host.log.messages import Record, as_json
 from forcemap.host.log.qa_records import QaFinding
 
 # docs/QA.md: when an estimate is trusted enough to be applied
-GAIN_SD_MAX = 0.01
-BETA_SD_MAX = 1.0  # deg
+GAIN_SD_MAX = 0.03  # the correction must be surer than the error it removes (docs/QA.md)
+BETA_SD_MAX = 2.0  # deg
 SPREAD_MIN = 45.0  # deg of heading spread: one course cannot tell the gain from the current
 GAIN_OK = 0.02  # |A - 1| within 2 % and |beta| within 2 deg: green
 BETA_OK = 2.0
 GAIN_RANGE = (0.7, 1.4)  # outside: a broken log, not a calibration
 DEAD_RED = 0.0  # any dead stretch while moving is red
-THRESH_GAIN = "|A-1| <= 2 %, |beta| <= 2 deg green; applied when sd(A) <= 1 %, sd(beta) <= 1 deg, headings spread >= 45 deg (Pollard & Read 1989)"
+THRESH_GAIN = "|A-1| <= 2 %, |beta| <= 2 deg green; applied when sd(A) <= 3 %, sd(beta) <= 2 deg, headings spread >= 45 deg (Pollard & Read 1989)"
 THRESH_ROT = "heading change / integrated rate within 0.5-2 (same unit); ~60: deg/s sent as deg/min (NMEA 0183 ROT)"
 THRESH_DEAD = "constant (range < 0.001 m/s) over 60 s while SOG >= 1 m/s, and zero or SOG varying by >= 0.5 m/s: red, dropped"
 

@@ -23,6 +23,7 @@ PR_WINDOW_S = 600.0  # the current is taken constant over 10 min windows (a slow
 PR_MIN_SPEED = 1.0  # m/s through water and over ground: paddle-wheel logs are non-linear below
 PR_MAX_TURN = 3.0  # deg/s: turning rows carry leeway and lag, left out
 HUBER_K = 1.5  # Huber's constant, in robust standard deviations
+JACK_GROUPS = 10  # contiguous stretches of the log for the jackknife's uncertainty
 ROT_WINDOW_S = 10.0
 ROT_MIN_CHANGE = 5.0  # deg of heading change over a window for it to inform the scale
 DEAD_WINDOW_S = 60.0
@@ -64,6 +65,26 @@ def _huber_lstsq(a: np.ndarray, b: np.ndarray, iters: int = 8) -> tuple[np.ndarr
         u = np.abs(r) / (HUBER_K * s)
         w = np.where(u <= 1, 1.0, 1.0 / np.maximum(u, 1e-12))
     return x, w
+
+
+def _jackknife(a: np.ndarray, b: np.ndarray, n: int) -> tuple[float, float]:
+    """Delete-a-group jackknife sd of (gain, misalignment deg) over JACK_GROUPS stretches of the log:
+    a current that drifts within a window, or a speed log that changes, shows here and not in the
+    residuals' formula."""
+    idx = np.array_split(np.arange(n), JACK_GROUPS)
+    est = []
+    for g in idx:
+        keep = np.ones(n, bool)
+        keep[g] = False
+        rows = np.concatenate([keep, keep])
+        sub = a[rows]
+        used = np.abs(sub).sum(axis=0) > 0  # a window left with no rows drops its current
+        x, _ = _huber_lstsq(sub[:, used], b[rows])
+        est.append((math.hypot(x[0], x[1]), math.degrees(math.atan2(x[1], x[0]))))
+    e = np.array(est)
+    k = len(e)
+    sd = np.sqrt((k - 1) / k * np.sum((e - e.mean(axis=0)) ** 2, axis=0))
+    return float(sd[0]), float(sd[1])
 
 
 @dataclass(frozen=True)
@@ -126,6 +147,7 @@ def fit_speed_log(
     # the Jacobian of (gain, beta) in (a, b)
     j = np.array([[ac / gain, bs / gain], [-bs / gain**2, ac / gain**2]])
     cg = j @ cov[:2, :2] @ j.T
+    jg, jb = _jackknife(a, b, n)
     hr = np.radians(h)
     spread = math.degrees(
         math.sqrt(max(-2 * math.log(max(abs(np.mean(np.exp(1j * hr))), 1e-12)), 0))
@@ -134,9 +156,9 @@ def fit_speed_log(
     cw = x[2:].reshape(m, 2)
     return SpeedLogFit(
         gain=gain,
-        gain_sd=math.sqrt(max(cg[0, 0], 0.0)),
+        gain_sd=max(math.sqrt(max(cg[0, 0], 0.0)), jg),
         misalignment_deg=math.degrees(beta),
-        misalignment_sd=math.degrees(math.sqrt(max(cg[1, 1], 0.0))),
+        misalignment_sd=max(math.degrees(math.sqrt(max(cg[1, 1], 0.0))), jb),
         rows=n,
         windows=m,
         heading_spread_deg=spread,

@@ -87,7 +87,9 @@ def sources_report(path: str | Path) -> dict[str, dict[str, Any]]:
     return out
 
 
-def _arrays(raw: Mapping[str, list]) -> dict[str, np.ndarray]:
+def arrays(raw: Mapping[str, list]) -> dict[str, np.ndarray]:
+    """The checked columns of a table as float arrays (NaN where empty or not a number)."""
+
     def num(v: Any) -> float:
         try:
             x = float(v)
@@ -136,7 +138,7 @@ def check_table(path: str | Path) -> CheckReport:
     is_mcap = p.suffix.lower() == ".mcap"
     columns = mcap_provenance(p) if is_mcap else {}
     recorded = log_findings(p) if is_mcap else []
-    c = _arrays(raw)
+    c = arrays(raw)
     rep = CheckReport(str(path), len(c["t"]), recorded)
     done = {(f.category, f.check) for f in recorded}
     if not any(k in done for k in (("speed_through_water", "gain"), ("rate_of_turn", "unit"))):
