@@ -185,6 +185,7 @@ class Simulation(MissionLink):
         self.bus: NmeaBus | None = None
         if self.nmea_bus:
             self.bus = make_bus(self.geo, self.seed * 1000 + 13, self.scenario, self.faults)
+            self.bus.calibration_faults(self.faults)
         self.uart_nmea = Uart(BUS_BYTES_PER_S, chunk=64)
         self.garble_rng = random.Random(self.seed * 1000 + 9)
         self.uart_depth = Uart(BAUD_BYTES_PER_S)

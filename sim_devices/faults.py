@@ -12,12 +12,18 @@ import numpy as np
 SOURCES = ("bridge", "depth", "mavlink", "nmea")
 # faults that are instruments: they put the NMEA bus (nmea_bus.py) on the "nmea" port
 SOURCE_KINDS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
-BUS_KINDS = SOURCE_KINDS + (
-    "poor_gnss",
-    "dgps_gnss",
-    "no_variation",
-    "checksum_variant",
-    "position_jump",
+# faults of the bus's own instruments with a known truth (issue 28): the estimators must find them
+CAL_KINDS = ("speed_log", "dead_log", "rot_deg_s")
+BUS_KINDS = (
+    SOURCE_KINDS
+    + (
+        "poor_gnss",
+        "dgps_gnss",
+        "no_variation",
+        "checksum_variant",
+        "position_jump",
+    )
+    + CAL_KINDS
 )
 
 KINDS: dict[str, str] = {
@@ -43,6 +49,10 @@ KINDS: dict[str, str] = {
     "position_jump": "NMEA bus: the GNSS's fixes are 500 km north of the boat from `at` for `for` s",
     "bottom_lost": "the sounder loses the bottom from `at` for `for` s: its returns scatter "
     "from 3 to 70 m",
+    "speed_log": "NMEA bus: the speed log reads STW / `gain` (default 1.06) and its axis is turned "
+    "`misalign` deg (default 2) clockwise from the compass's: HCHDG reads heading - misalign",
+    "dead_log": "NMEA bus: the speed log reads 0.00 kn from `at` for `for` s",
+    "rot_deg_s": "NMEA bus: a rate gyro's TIROT at 2 Hz in deg/s, where NMEA 0183 says deg/min",
     "false_echoes": "the sounder returns 3-20 m at `rate` per sounding in water deeper than 70 m "
     "(a share of it from 40 m)",
 }
@@ -137,6 +147,8 @@ def parse_one(spec: str) -> Fault:
             f.dur = float(v)
         elif k == "cause":
             f.cause = int(v)
+        elif k in ("gain", "misalign") and kind == "speed_log":
+            f.params[k] = float(v)
         else:
             raise ValueError(f"fault {kind} has no parameter {k!r}")
     if kind == "pull" and f.source == "all":

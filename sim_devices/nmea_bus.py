@@ -24,6 +24,10 @@ The log faults of issue 28 (real logs that break the rules):
 - ``position_jump``: for ``jump`` = (start s, duration s) the GNSS's fixes are JUMP_KM north of the
   boat (a stale fix replayed at the start of a log); ``jumped`` counts the fix sentences sent so.
 
+The instrument faults of issue 28, with a known truth: ``speed_log`` (the log reads STW / gain, its
+axis turned ``misalign`` degrees from the compass's), ``dead_log`` (0.00 kn for a while) and
+``rot_deg_s`` (the gyro's ``TIROT`` in deg/s where NMEA 0183 says deg/min).
+
 Every device's readings are the boat's true motion at the moment they describe (the truth table).
 """
 
@@ -52,6 +56,9 @@ FAULTS = (
     "no_variation",
     "checksum_variant",
     "position_jump",
+    "speed_log",
+    "dead_log",
+    "rot_deg_s",
 )
 JUMP_KM = 500.0
 
@@ -250,6 +257,17 @@ class NmeaBus:
         self.damped: float | None = None
         self.t_prev: float | None = None
         self.last_fix: tuple[Motion, tuple[float, float, float, float]] | None = None
+        self.gain, self.misalign = 1.0, 0.0  # the speed log's fault (calibration_faults)
+        self.dead: tuple[float, float] | None = None
+
+    def calibration_faults(self, faults: list) -> None:
+        """The speed log's gain and misalignment and its dead stretch (s from the first step)."""
+        for f in faults:
+            if f.kind == "speed_log":
+                self.gain = f.params.get("gain", 1.06)
+                self.misalign = f.params.get("misalign", 2.0)
+            elif f.kind == "dead_log":
+                self.dead = (f.start(0.0), f.dur)
 
     def _due(self, key: str, t: float) -> bool:
         if t + 1e-9 < self.next[key]:
@@ -295,19 +313,26 @@ class NmeaBus:
             past = next((h for h in reversed(self.history) if h.t <= t - self.gnss2.late), None)
             if past is not None:
                 out += self.gnss2.sentences(past, self.gnss2.fix(past))
+        self.t_first = t if self.t_first is None else self.t_first
         if self._due("hdg", t):
-            mag = (m.heading - self.variation + self.rng["hdg"].gauss(0.0, 1.0)) % 360.0
+            hdg = m.heading - self.misalign
+            mag = (hdg - self.variation + self.rng["hdg"].gauss(0.0, 1.0)) % 360.0
             var = f"{abs(self.variation):.1f}", "E" if self.variation >= 0 else "W"
             if "no_variation" in self.faults:
                 var = ("", "")
             out.append(sentence("HC", "HDG", (f"{mag:.1f}", "", "", *var)))
         if "second_compass" in self.faults and self._due("hdt", t):
             out.append(sentence("II", "HDT", (f"{self.damped:.1f}", "T")))
-        if "rate_of_turn" in self.faults and self._due("rot", t):
-            rot = m.yaw_rate * 60.0 + self.rng["rot"].gauss(0.0, 3.0)
-            out.append(sentence("TI", "ROT", (f"{rot:.1f}", "A")))
+        gyro = self.faults & {"rate_of_turn", "rot_deg_s"}
+        if gyro and self._due("rot", t):
+            per_s = "rot_deg_s" in self.faults
+            rot = m.yaw_rate * (1.0 if per_s else 60.0) + self.rng["rot"].gauss(0.0, 3.0)
+            out.append(sentence("TI", "ROT", (f"{rot:.2f}" if per_s else f"{rot:.1f}", "A")))
         if self._due("vhw", t):
-            stw = max(m.stw + self.rng["vhw"].gauss(0.0, 0.02), 0.0) / KNOT
+            stw = max(m.stw + self.rng["vhw"].gauss(0.0, 0.02), 0.0) / KNOT / self.gain
+            dead = self.dead
+            if dead is not None and dead[0] <= t - self.t_first < dead[0] + dead[1]:
+                stw = 0.0
             out.append(sentence("VW", "VHW", ("", "T", "", "M", f"{stw:.2f}", "N", "", "K")))
         if "checksum_variant" in self.faults:
             out = [address_checksum(x) for x in out]

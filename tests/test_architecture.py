@@ -27,7 +27,8 @@ PACKAGES = (
 SIM_COMMANDS = {"forcemap.host.cli.sim", "forcemap.host.cli.demo"}
 # host's rooms in import order (docs/ARCHITECTURE.md): "host" is its top-level modules
 ROOMS = [
-    "host", "vessel", "log", "acquire", "decode", "fuse", "convert", "workbench", "plan", "gis", "report",
+    "host", "vessel", "log", "acquire", "decode", "fuse", "convert", "workbench", "qa", "plan", "gis",
+    "report",
     "season",
     "live", "api", "cli",
 ]  # fmt: skip

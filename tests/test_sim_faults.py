@@ -103,13 +103,16 @@ def test_default_set_and_parsing() -> None:
     d = fl.parse("default")
     kinds = {f.kind for f in d}
     # the default set has every kind but the sources' (issue 20), which are the `sources` set, and
-    # the two receivers of different fix quality, which are in no set
+    # the two receivers of different fix quality and the instrument faults of issue 28 (with a known
+    # truth for the estimators), which are in no set
     sources = {f.kind for f in fl.parse("sources")}
-    quality = {"poor_gnss", "dgps_gnss"}
+    quality = {"poor_gnss", "dgps_gnss"} | set(fl.CAL_KINDS)
     # the faults of real logs (issue 28), in no set either
     logs = {"no_variation", "checksum_variant", "position_jump", "bottom_lost"}
     assert kinds | sources | quality | logs == set(fl.KINDS)
     assert not kinds & (sources | quality | logs)
+    f = fl.parse_one("speed_log:gain=1.1:misalign=-3")
+    assert (f.source, f.params) == ("nmea", {"gain": 1.1, "misalign": -3.0})
     f = fl.parse_one("pull:source=mavlink:at=12.5:for=3")
     assert (f.kind, f.source, f.start(100), f.end(100)) == ("pull", "mavlink", 12.5, 15.5)
     assert fl.parse("none") == [] and fl.parse(None) == []

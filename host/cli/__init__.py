@@ -61,6 +61,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "forcemap.host.cli.import_",
         "read an existing NMEA 0183 capture or MAVLink tlog into an MCAP log",
     ),
+    "check": (
+        "forcemap.host.cli.check",
+        "grade a log or samples table per category (QRev's form): green, yellow, red, number, fix",
+    ),
     "fit": (
         "forcemap.host.cli.fit",
         "fit a map model to a samples table and report its cross-validated error",

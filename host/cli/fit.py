@@ -91,6 +91,10 @@ def run(args: argparse.Namespace) -> int:
     print_notes(survey.table)
     write_json(args.json, result.to_json())
     out = human(args)
+    from forcemap.host.qa.report import check_table, summary
+
+    for line in summary(check_table(args.table).findings):  # `forcemap check` has the whole report
+        print(line, file=out)
     print(result.summary(), file=out)
     if not args.no_plots:
         for p in save_residual_plots(args.table, result, entry["fit"]):

@@ -136,8 +136,10 @@ def _output(args: argparse.Namespace, path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from forcemap.host.convert.importers import ImportFailed, check_importable, import_to_mcap
+    from forcemap.host.convert.importers import ImportFailed, check_importable
+    from forcemap.host.convert.self_calibration import import_calibrated
     from forcemap.host.fuse.calibration import ConfigError, load
+    from forcemap.host.qa.report import summary as qa_summary
 
     path = Path(args.file)
     try:
@@ -151,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
     if fmt == "adcp":
         return _run_adcp(args, path, out)
     try:
-        res = import_to_mcap(
+        res, findings = import_calibrated(
             path,
             out,
             fmt,
@@ -165,6 +167,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     for line in summary(res):
         print(line)
+    for line in qa_summary(findings):  # `forcemap check` gives the whole report
+        print("  " + line)
     print(f"  -> {out}")
     return 0
 

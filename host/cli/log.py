@@ -142,10 +142,17 @@ def info_cmd(args: argparse.Namespace) -> int:
         except OSError as exc:
             print(f"forcemap log info: {exc}", file=sys.stderr)
             status = 1
+    from forcemap.host.qa.report import log_findings, summary
+
+    found = {i.path: log_findings(i.path) for i in infos}
     if args.json != "-":
         for info in infos:
             print_info(info)
-    write_json(args.json, [info_json(i) for i in infos], indent=1)
+            for line in summary(found[info.path]):  # the whole report: `forcemap check`
+                print("  " + line)
+    js = [info_json(i) | {"qa": [f.to_metadata() | {"name": f.name} for f in found[i.path]]}
+          for i in infos]  # fmt: skip
+    write_json(args.json, js, indent=1)
     return status
 
 

@@ -342,11 +342,13 @@ def import_to_mcap(
     check: Callable[[ImportResult], None] | None = None,
     sample_rate_hz: float | None = None,
     nmea_checksum: str = "strict",
+    metadata: dict[str, dict[str, str]] | None = None,
 ) -> ImportResult:
     """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
 
     ImportFailed (and no file) when the log cannot give samples; the message says why. ``check``
-    may refuse the result first (by raising), with the same effect.
+    may refuse the result first (by raising), with the same effect. ``metadata``: more records to
+    write (the ``qa.*`` findings of forcemap.host.convert.self_calibration).
     """
     fmt = check_importable(path, fmt)
     with atomic_path(out) as tmp:
@@ -355,6 +357,8 @@ def import_to_mcap(
         )
         try:
             res = import_file(path, log, fmt, calibration, sync, sample_rate_hz, nmea_checksum)
+            for name, data in (metadata or {}).items():
+                log.metadata(name, data)
         finally:
             log.close()
         if check is not None:

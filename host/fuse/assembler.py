@@ -213,7 +213,12 @@ class SampleAssembler:
     def _stw_current(self, row: Sample, t: float, st: Any, labels: dict[str, str]) -> None:
         if row.stw is None:
             return
-        ce, cn = comp.current_from_stw(row.stw, st.heading, st.v_east, st.v_north)
+        if any(a <= t <= b for a, b in self.cal.stw_dead):  # a dead log: the row stays, no STW
+            row.stw = None
+            return
+        # a calibrated misalignment: the water passes the hull at heading + beta
+        beta = self.cal.stw_misalignment_deg or 0.0
+        ce, cn = comp.current_from_stw(row.stw, st.heading + beta, st.v_east, st.v_north)
         row.current_speed_stw, row.current_dir_stw = math.hypot(ce, cn), comp.to_direction(ce, cn)
         msg = SetAndDrift(
             row.t,

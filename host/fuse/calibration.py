@@ -12,6 +12,8 @@ from forcemap.host.decode.vane import DEFAULT_TABLE
 from forcemap.host.errors import CliError
 
 SYNC_MODES = ("interpolate", "approximate")
+ROT_UNITS = ("deg/min", "deg/s")
+STW_GAIN = (0.5, 2.0)  # a speed log off by more than a factor 2 is broken, not miscalibrated
 CURRENT_ESTIMATORS = ("lsq", "paper")
 # 20 000 pulses per nautical mile (Airmar paddle-wheel format) = 10.8 pulses per metre
 DEFAULT_WHEEL_PPM = 10.8
@@ -60,6 +62,11 @@ class Calibration:
     # [sources]: per quantity, substrings of source names in order of preference; silence timeouts
     source_priorities: dict[str, list[str]] = field(default_factory=dict)
     source_timeouts: dict[str, float] = field(default_factory=dict)
+    # the speed log and rate of turn: pinned in boat.toml, or estimated at import (None: not known)
+    stw_gain: float | None = None
+    stw_misalignment_deg: float | None = None
+    rot_unit: str | None = None  # "deg/min" (NMEA 0183) or "deg/s" (a vendor's)
+    stw_dead: tuple[tuple[float, float], ...] = ()  # UNIX-second stretches the speed log was dead
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def as_metadata(self) -> dict[str, str]:
@@ -262,11 +269,32 @@ def _sources(t: dict) -> dict[str, Any]:
     return {"source_priorities": prio, "source_timeouts": timeouts}
 
 
+def _speed_log_rot(s: dict, r: dict) -> dict[str, Any]:
+    """``[speed_log] gain, misalignment_deg`` and ``[rate_of_turn] unit``: pinned, never estimated."""
+    _known(s, "speed_log.", {"gain", "misalignment_deg"})
+    _known(r, "rate_of_turn.", {"unit"})
+    kw: dict[str, Any] = {}
+    if "gain" in s:
+        kw["stw_gain"] = _num(s["gain"], "speed_log.gain", plausible=STW_GAIN)
+    if "misalignment_deg" in s:
+        kw["stw_misalignment_deg"] = _num(
+            s["misalignment_deg"], "speed_log.misalignment_deg", lo=-45, hi=45
+        )
+    if "unit" in r:
+        if r["unit"] not in ROT_UNITS:
+            raise ConfigError(
+                f"rate_of_turn.unit: expected one of {ROT_UNITS}, got {_show(r['unit'])}"
+            )
+        kw["rot_unit"] = r["unit"]
+    return kw
+
+
 def from_dict(doc: dict) -> Calibration:
     """Validate a parsed ``boat.toml`` document and build the Calibration."""
     if not isinstance(doc, dict):
         raise ConfigError("boat.toml: expected a table at the top level")
     top = {"boat", "anemometer", "vane", "wheels", "current", "depth", "compass", "sync", "sources"}
+    top |= {"speed_log", "rate_of_turn"}
     _known(doc, "", top)
     kw: dict[str, Any] = {}
     kw.update(_anemometer(_table(doc, "anemometer")))
@@ -278,6 +306,7 @@ def from_dict(doc: dict) -> Calibration:
         _depth_compass_sync(_table(doc, "depth"), _table(doc, "compass"), _table(doc, "sync"))
     )
     kw.update(_sources(_table(doc, "sources")))
+    kw.update(_speed_log_rot(_table(doc, "speed_log"), _table(doc, "rate_of_turn")))
     kw["extra"] = {"boat": dict(_table(doc, "boat"))}
     return Calibration(**kw)
 

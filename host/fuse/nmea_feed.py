@@ -172,7 +172,7 @@ class NmeaDecoder:
             self._heading(t, s.data["heading"], s)
         stw = s.data["stw"]
         if stw is not None:
-            self._reading("stw", t, (stw,), s)
+            self._reading("stw", t, (stw * (self.pipe.cal.stw_gain or 1.0),), s)
             self.pipe.write("/water/speed", t, WaterSpeed(self.pipe.utc_s(t), stw, s.type, "nmea"))
 
     def _mwv(self, s: Sentence, t: float) -> None:
@@ -324,8 +324,9 @@ class NmeaDecoder:
         if not self._nav_ok(s) or d["yaw_rate"] is None or d["status"] == "V":
             return
         name = self.name(s)
-        if self.pipe.source_reading("yaw_rate", name, t, (d["yaw_rate"],)):
-            self.pipe.assembler.state.add_yaw_rate(t, d["yaw_rate"])
+        rate = d["yaw_rate"] * (60.0 if self.pipe.cal.rot_unit == "deg/s" else 1.0)
+        if self.pipe.source_reading("yaw_rate", name, t, (rate,)):
+            self.pipe.assembler.state.add_yaw_rate(t, rate)
             self.pipe.assembler.nav["yaw_rate"] = name
 
     def _heading(self, t: float, heading: float, s: Sentence, suffix: str = "") -> None:

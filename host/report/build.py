@@ -126,6 +126,27 @@ def data_quality_section(ctx: ReportContext) -> list[str]:
     return parts
 
 
+def qa_section(ctx: ReportContext) -> list[str]:
+    """`forcemap check`'s grades of the log (host/qa/): per category the verdict, number and fix."""
+    from forcemap.host.qa.report import check_table
+
+    rep = check_table(ctx.table)
+    parts = [
+        f"<h2>Quality: {rep.verdict}</h2>",
+        "<p>Each category graded as USGS QRev grades a discharge measurement (docs/QA.md); the "
+        "estimates applied at import are marked.</p>",
+        "<table><tr><th>category</th><th>verdict</th><th>finding</th><th>fix</th></tr>",
+    ]
+    for cat, fs in rep.by_category().items():
+        for f in fs:
+            mark = " (applied)" if f.applied else ""
+            parts.append(
+                f"<tr><td>{html.escape(cat.replace('_', ' '))}</td><td>{f.verdict}</td>"
+                f"<td>{html.escape(f.message)}</td><td class=small>{html.escape(f.fix)}{mark}</td></tr>"
+            )
+    return parts + ["</table>"]
+
+
 def measurements_section(ctx: ReportContext) -> list[str]:
     parts = ["<h2>Measurements</h2>"]
     grid, track, _ = ctx.frame
@@ -310,6 +331,7 @@ Section = Callable[[ReportContext], list[str]]
 
 SECTIONS: list[Section] = [
     header_section,
+    qa_section,
     data_quality_section,
     measurements_section,
     maps_section,
