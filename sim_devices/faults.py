@@ -12,7 +12,7 @@ import numpy as np
 SOURCES = ("bridge", "depth", "mavlink", "nmea")
 # faults that are instruments: they put the NMEA bus (nmea_bus.py) on the "nmea" port
 SOURCE_KINDS = ("second_gnss", "relay_position", "second_compass", "rate_of_turn")
-BUS_KINDS = SOURCE_KINDS + ("poor_gnss", "dgps_gnss")
+BUS_KINDS = SOURCE_KINDS + ("poor_gnss", "dgps_gnss", "nav_receivers", "late_compass")
 
 KINDS: dict[str, str] = {
     "corrupt": "bytes replaced by random values at `rate` per byte (source=all|bridge|depth|mavlink)",
@@ -31,6 +31,9 @@ KINDS: dict[str, str] = {
     "wanders in seconds",
     "dgps_gnss": "NMEA bus: a second receiver, GN, 4 decimals, DGPS with HDOP 0.9 and a 0.3 m error; "
     "it loses its corrections (autonomous, HDOP 4.5, 3 m error) from `at` for `for` s",
+    "nav_receivers": "NMEA bus: a coarse GP receiver (1 Hz, 1 m error) and a precise GN one (every 4 s, "
+    "0.1 m error), each sending RMC, GGA and GLL at their own instants and UTC stamps",
+    "late_compass": "NMEA bus: a HEHDT gyro compass at 2 Hz, 5 s late, beside the on-time HCHDG fluxgate",
     "false_echoes": "the sounder returns 3-20 m at `rate` per sounding in water deeper than 70 m "
     "(a share of it from 40 m)",
 }
@@ -108,6 +111,9 @@ def parse_one(spec: str) -> Fault:
             "gps_loss": "mavlink",
             "clock_jump": "mavlink",
             "nmea_garbage": "depth",
+            "nav_receivers": "NMEA bus: a coarse GP receiver (1 Hz, 1 m error) and a precise GN one (every 4 s, "
+            "0.1 m error), each sending RMC, GGA and GLL at their own instants and UTC stamps",
+            "late_compass": "NMEA bus: a HEHDT gyro compass at 2 Hz, 5 s late, beside the on-time HCHDG fluxgate",
             "false_echoes": "depth",
             **dict.fromkeys(BUS_KINDS, "nmea"),
         }.get(kind, "all"),

@@ -66,8 +66,17 @@ def check_logs(paths: Sequence[str | os.PathLike[str]]) -> None:
             )
 
 
-def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
+def samples_table(
+    paths: Sequence[str | os.PathLike[str]],
+    navigation: str | None = None,
+    remove_latency: bool | None = None,
+) -> Table:
     """Every ``/samples`` row of the given files, ordered by ``t``, duplicates (same ``t``) dropped.
+
+    ``navigation``: "smoothed" (each row's navigation estimated from every source at its own time,
+    and its compensation done again: forcemap.host.convert.navigation_table) or "logged" (the rows
+    as the pipeline made them); None follows the log's boat file (``[sync] navigation``), and so
+    does ``remove_latency`` (``[sync] latency``).
 
     Columns are the conventions' columns first, then any other numeric field in order of first
     appearance. A column that is empty in every row is left out (``t`` always stays).
@@ -94,7 +103,19 @@ def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
     candidates = list(COLUMNS) + list(extra)
     keep = [c for c in candidates if c == "t" or any(_number(r.get(c)) is not None for r in unique)]
     rows = [[_number(r.get(c)) for c in keep] for r in unique]
-    return Table(keep, rows)
+    return _navigation(Table(keep, rows), paths, navigation, remove_latency)
+
+
+def _navigation(
+    table: Table, paths: Sequence[str | os.PathLike[str]], mode: str | None, remove: bool | None
+) -> Table:
+    """The table with its navigation smoothed (issue 29), unless the log or the caller says logged."""
+    from forcemap.host.convert import navigation_table as nt
+
+    if not len(table) or (mode or nt.settings(paths)[0]) == "logged":
+        return table
+    columns, rows, _ = nt.smooth(table.columns, table.rows, paths, remove_latency=remove)
+    return Table(columns, rows)
 
 
 def _cell(value: float | None) -> str:

@@ -10,7 +10,11 @@ import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame, wrap_from_minus180
 from forcemap.host.workbench.cleaning import check_positions, to_numeric
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table_files import mcap_provenance, read_raw  # noqa: F401 - part of this API
+from forcemap.host.workbench.table_files import (  # noqa: F401 - part of this API
+    mcap_latencies,
+    mcap_provenance,
+    read_raw,
+)
 
 MIN_ROWS = 30
 MAX_MISSING_FRACTION = 0.05
@@ -98,6 +102,8 @@ class Survey:
     spikes_removed: set[str] = field(default_factory=set)
     # who fed each column (the MCAP's `columns` metadata; empty for a CSV): host/workbench/sources.py
     provenance: dict[str, str] = field(default_factory=dict)
+    # each navigation source's measured latency (host/convert/navigation_table.latencies; MCAP only)
+    latencies: dict[str, dict] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -129,6 +135,7 @@ class Survey:
             keep_outliers=self.keep_outliers,
             spikes_removed=set(self.spikes_removed),
             provenance=dict(self.provenance),
+            latencies=dict(self.latencies),
         )
 
     def column(self, name: str) -> np.ndarray:
@@ -248,6 +255,7 @@ def load_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
     survey.keep_outliers = keep_outliers
     if path.suffix.lower() == ".mcap":
         survey.provenance = mcap_provenance(path)
+        survey.latencies = mcap_latencies(path)
     return survey
 
 

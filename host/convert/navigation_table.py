@@ -1,0 +1,194 @@
+"""The samples table with every row at its own time: smoothed navigation, compensation done again.
+
+Each row keeps its time and every measurement; its position, ground velocity, heading and yaw rate
+become the smoothed state at that time (forcemap.host.convert.navigation), where a reading is near.
+The speed through water is taken at the row's time plus the speed log's latency, and the true wind
+and the current from the speed through water are computed again from them (the computed route of
+the wind only; the paddle wheels' current is left as logged). Nothing is dropped: a row the smoother
+has nothing for keeps its logged values. The log's boat file decides (``[sync] navigation`` and
+``latency``), as logged in its ``calibration`` metadata.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from forcemap.host.convert import nav_readings
+from forcemap.host.convert.navigation import Navigation
+from forcemap.host.fuse import compensation as comp
+from forcemap.host.log.mcap import FileScan, iter_records
+from forcemap.host.log.messages import SAMPLE_COLUMNS
+
+
+def log_metadata(paths: Sequence[str | os.PathLike[str]], name: str) -> dict[str, str]:
+    """The last metadata record ``name`` of the logs (empty if none)."""
+    from mcap.records import Metadata
+
+    found: dict[str, str] = {}
+    for path in paths:
+        for record in iter_records(path, FileScan(path)):
+            if isinstance(record, Metadata) and record.name == name:
+                found = dict(record.metadata)
+    return found
+
+
+def settings(paths: Sequence[str | os.PathLike[str]]) -> tuple[str, str]:
+    """(navigation, latency) of the logs' boat file: ``smoothed``/``logged``, ``remove``/``keep``."""
+    cal = log_metadata(paths, "calibration")
+    return cal.get("navigation", "smoothed"), cal.get("latency", "remove")
+
+
+_CACHE: dict[tuple, Navigation | None] = {}  # the last smoothing of each log, for its findings
+
+
+def _key(paths: Sequence[str | os.PathLike[str]]) -> tuple:
+    out = []
+    for p in paths:
+        try:
+            st = os.stat(p)
+            out.append((os.path.abspath(p), st.st_mtime_ns, st.st_size))
+        except OSError:
+            out.append((str(p), 0, 0))
+    return tuple(out)
+
+
+def fitted(paths: Sequence[str | os.PathLike[str]]) -> Navigation | None:
+    """The smoothing of these logs as their table was made (done again if it was not)."""
+    key = _key(paths)
+    if key not in _CACHE:
+        from forcemap.host.convert.export import samples_table
+
+        table = samples_table(paths)  # a smoothed table leaves its smoothing here
+        if key not in _CACHE:  # navigation = "logged": the latencies, none of them removed
+            readings = nav_readings.read(paths)
+            t = np.array(table.column("t"), float) if len(table) else np.zeros(0)
+            nav = None
+            if "position" in readings and len(t):
+                nav = Navigation(remove_latency=False).fit(readings, t)
+            _CACHE[key] = nav
+    return _CACHE.get(key)
+
+
+def latencies(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[str, Any]]:
+    """Per source: quantity, latency (s or None), whether it was removed, and the note."""
+    nav = fitted(paths)
+    if nav is None:
+        return {}
+    return {
+        f.source: {
+            "quantity": f.quantity,
+            "latency": f.latency,
+            "removed": f.applied,
+            "note": f.latency_note,
+            "against": [a for a, _ in f.pairs],
+        }
+        for f in nav.fits_
+        if f.quantity in ("heading", "yaw_rate", "stw")
+    }
+
+
+def _col(columns: list[str], rows: list[list[float | None]], name: str) -> np.ndarray:
+    if name not in columns:
+        return np.full(len(rows), np.nan)
+    i = columns.index(name)
+    return np.array([np.nan if r[i] is None else r[i] for r in rows], float)
+
+
+def _stw(nav: Navigation, readings: dict, t: np.ndarray, stw: np.ndarray) -> np.ndarray:
+    """The speed through water at each row's time plus the speed log's latency (its used source)."""
+    lat = nav.stw_latency_
+    used = [s for s in readings.get("stw", {}).values() if s.used]
+    if lat is None or not nav.remove_latency or not used:
+        return stw
+    ts, vs = max(used, key=lambda s: s.used).arrays()
+    ok = np.isfinite(vs[:, 0])
+    if ok.sum() < 2:
+        return stw
+    out = np.interp(t + lat, ts[ok], vs[ok, 0], left=np.nan, right=np.nan)
+    return np.where(np.isfinite(stw) & np.isfinite(out), out, stw)
+
+
+def _compensate(cols: dict[str, np.ndarray], n: int) -> None:
+    """True wind (from the apparent wind) and the current from the speed through water, again."""
+    h, ve, vn = cols["heading"], cols["v_east"], cols["v_north"]
+    for name in ("wind_east", "wind_north", "wind_speed", "wind_dir"):
+        cols.setdefault(name, np.full(n, np.nan))
+    for name in ("current_speed_stw", "current_dir_stw", "current_east", "current_north"):
+        cols.setdefault(name, np.full(n, np.nan))
+    for name in ("current_speed", "current_dir"):
+        cols.setdefault(name, np.full(n, np.nan))
+    wheels = np.isfinite(cols.get("wheel1_speed", np.full(n, np.nan)))
+    aws, awa, stw = cols.get("app_wind_speed"), cols.get("app_wind_angle"), cols.get("stw")
+    for i in range(n):
+        if not (math.isfinite(h[i]) and math.isfinite(ve[i]) and math.isfinite(vn[i])):
+            continue
+        if aws is not None and awa is not None and math.isfinite(aws[i]) and math.isfinite(awa[i]):
+            we, wn = comp.true_wind(aws[i], awa[i], h[i], ve[i], vn[i])
+            cols["wind_east"][i], cols["wind_north"][i] = we, wn
+            cols["wind_speed"][i], cols["wind_dir"][i] = (
+                math.hypot(we, wn),
+                comp.from_direction(we, wn),
+            )
+        if stw is not None and math.isfinite(stw[i]):
+            ce, cn = comp.current_from_stw(stw[i], h[i], ve[i], vn[i])
+            speed, direction = math.hypot(ce, cn), comp.to_direction(ce, cn)
+            cols["current_speed_stw"][i], cols["current_dir_stw"][i] = speed, direction
+            if not wheels[i]:
+                cols["current_east"][i], cols["current_north"][i] = ce, cn
+                cols["current_speed"][i], cols["current_dir"][i] = speed, direction
+
+
+def smooth(
+    columns: list[str],
+    rows: list[list[float | None]],
+    paths: Sequence[str | os.PathLike[str]],
+    *,
+    remove_latency: bool | None = None,
+) -> tuple[list[str], list[list[float | None]], Navigation | None]:
+    """``columns`` and ``rows`` (``t`` first) with the smoothed navigation; unchanged when the log
+    has no navigation reading. ``remove_latency``: None follows the log's boat file."""
+    if remove_latency is None:
+        remove_latency = settings(paths)[1] != "keep"
+    readings = nav_readings.read(paths)
+    if "position" not in readings or not rows:
+        _CACHE[_key(paths)] = None
+        return columns, rows, None
+    n = len(rows)
+    t = _col(columns, rows, "t")
+    nav = Navigation(remove_latency=remove_latency).fit(readings, t)
+    if len(_CACHE) > 8:
+        _CACHE.clear()
+    _CACHE[_key(paths)] = nav
+    st = nav.state(t)
+    cols: dict[str, Any] = {c: _col(columns, rows, c) for c in columns}
+    for c in ("lat", "lon", "heading", "yaw_rate"):
+        cols[c] = np.where(np.isfinite(st[c]), st[c], cols.get(c, np.full(n, np.nan)))
+    logged_v = comp_velocity(cols.get("sog"), cols.get("cog"), n)
+    ve = np.where(np.isfinite(st["v_east"]), st["v_east"], logged_v[0])
+    vn = np.where(np.isfinite(st["v_north"]), st["v_north"], logged_v[1])
+    cols["v_east"], cols["v_north"] = ve, vn
+    cols["sog"] = np.hypot(ve, vn)
+    cols["cog"] = np.degrees(np.arctan2(ve, vn)) % 360.0
+    if "stw" in cols:
+        cols["stw"] = _stw(nav, readings, t, cols["stw"])
+    _compensate(cols, n)
+    order = [c for c in SAMPLE_COLUMNS if c in cols]
+    order += [c for c in cols if c not in order and c not in ("v_east", "v_north")]
+    keep = [c for c in order if c == "t" or np.isfinite(cols[c]).any()]
+    out = [
+        [None if not math.isfinite(v) else float(v) for v in vals]
+        for vals in zip(*(cols[c] for c in keep), strict=True)
+    ]
+    return keep, out, nav
+
+
+def comp_velocity(sog: Any, cog: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The logged ground velocity (east, north) of the rows, NaN where it is missing."""
+    if sog is None or cog is None:
+        return np.full(n, np.nan), np.full(n, np.nan)
+    c = np.radians(cog)
+    return sog * np.sin(c), sog * np.cos(c)
