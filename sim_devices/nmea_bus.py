@@ -249,6 +249,7 @@ class NmeaBus:
                 self.next[f"gnss {kind}"] = self.next[f"gnss4 {kind}"] = off
                 self.period[f"gnss {kind}"] = self.gnss.period
                 self.period[f"gnss4 {kind}"] = self.gnss4.period
+        self.receivers_started = False
         self.next.setdefault("gyro", 0.0)
         self.period["gyro"] = 0.5
         self.damped: float | None = None
@@ -264,6 +265,11 @@ class NmeaBus:
     def _receivers(self, m: Motion) -> list[str]:
         """nav_receivers: each sentence of each receiver when due, at its own instant and stamp."""
         out: list[str] = []
+        if not self.receivers_started:
+            self.receivers_started = True
+            for key in ("gnss", "gnss4"):
+                for kind, off in SENTENCE_OFFSETS_S.items():
+                    self.next[f"{key} {kind}"] = m.t + off
         for key, gnss in (("gnss", self.gnss), ("gnss4", self.gnss4)):
             for kind in SENTENCE_OFFSETS_S:
                 if self._due(f"{key} {kind}", m.t):

@@ -81,10 +81,19 @@ def samples_table(
     Columns are the conventions' columns first, then any other numeric field in order of first
     appearance. A column that is empty in every row is left out (``t`` always stays).
     """
+    from forcemap.host.convert import navigation_table as nt
+
+    settings = nt.settings(paths)
+    smooth = (navigation or settings[0]) != "logged"
+    nav_messages: list[tuple[str, int, dict]] = []
     records: list[dict[str, Any]] = []
     extra: dict[str, None] = {}
     known = set(COLUMNS)
-    for m in read_messages(paths, "/samples"):
+    topics = ("/samples", *nt.READING_TOPICS) if smooth else "/samples"
+    for m in read_messages(paths, topics, accept=nt.wanted):
+        if m.topic != "/samples":
+            nav_messages.append((m.topic, m.log_time_ns, m.message))
+            continue
         row = m.message
         if not isinstance(row, dict):
             continue
@@ -103,18 +112,10 @@ def samples_table(
     candidates = list(COLUMNS) + list(extra)
     keep = [c for c in candidates if c == "t" or any(_number(r.get(c)) is not None for r in unique)]
     rows = [[_number(r.get(c)) for c in keep] for r in unique]
-    return _navigation(Table(keep, rows), paths, navigation, remove_latency)
-
-
-def _navigation(
-    table: Table, paths: Sequence[str | os.PathLike[str]], mode: str | None, remove: bool | None
-) -> Table:
-    """The table with its navigation smoothed (issue 29), unless the log or the caller says logged."""
-    from forcemap.host.convert import navigation_table as nt
-
-    if not len(table) or (mode or nt.settings(paths)[0]) == "logged":
-        return table
-    columns, rows, _ = nt.smooth(table.columns, table.rows, paths, remove_latency=remove)
+    if not smooth or not rows:
+        return Table(keep, rows)
+    remove = remove_latency if remove_latency is not None else settings[1] != "keep"
+    columns, rows, _ = nt.smooth(keep, rows, paths, nav_messages, remove_latency=remove)
     return Table(columns, rows)
 
 

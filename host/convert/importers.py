@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from forcemap.host.convert.dataflash import DataflashDecoder
+from forcemap.host.convert.nav_findings import Collector
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.fuse.pipeline import Pipeline, Sink
@@ -302,6 +303,15 @@ def import_file(
     raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
 
 
+def _navigation_findings(tee: Collector, cal: Calibration | None, res: ImportResult) -> None:
+    """Each navigation source's latency, noise, bias and outliers into the log (qa.* metadata);
+    the ones that are not green in the import's notes (issue 29, docs/NAVIGATION.md)."""
+    keep = cal is not None and cal.latency == "keep"
+    for f in tee.write_findings(remove_latency=not keep):
+        if f.verdict != "green":
+            res.notes.append(f"navigation: {f.message}")
+
+
 def why_no_samples(res: ImportResult) -> str:
     """One line on why an import gave no samples ('' if it gave some)."""
     c = res.counters
@@ -336,7 +346,9 @@ def import_to_mcap(
             Path(tmp).parent, first_path=tmp, rotate_bytes=1 << 62, rotate_seconds=float("inf")
         )
         try:
-            res = import_file(path, log, fmt, calibration, sync, sample_rate_hz)
+            tee = Collector(log)
+            res = import_file(path, tee, fmt, calibration, sync, sample_rate_hz)
+            _navigation_findings(tee, calibration, res)
         finally:
             log.close()
         if check is not None:

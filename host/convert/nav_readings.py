@@ -10,7 +10,8 @@ logged just before the reading) where it carries one that agrees with the log ti
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+import re
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,8 +21,18 @@ from forcemap.host.log.mcap import read_messages
 
 DAY = 86400.0
 MAX_UTC_SKEW_S = 30.0
+MOVED_DEG = 1.5e-5  # about 1.5 m: one stamp on positions this far apart is not one fix
 TIME_FIELD = {"RMC": 1, "GGA": 1, "GLL": 5, "GNS": 1}
-QUANTITIES = ("position", "velocity", "heading", "yaw_rate", "stw", "wind")
+QUANTITIES = ("position", "velocity", "heading", "yaw_rate", "stw")
+TOPICS = ("/source/reading", "/nmea/sentence")
+_WANTED = re.compile(
+    rb'"quantity":"(?:%s)"|"type":"(?:RMC|GGA|GLL|GNS)"' % "|".join(QUANTITIES).encode()
+)
+
+
+def wanted(topic: str, data: bytes) -> bool:
+    """Whether a message of TOPICS is one the smoother reads (decoding the others is spared)."""
+    return topic not in TOPICS or _WANTED.search(data) is not None
 
 
 @dataclass
@@ -36,6 +47,20 @@ class SourceData:
     fixes: list[int] = field(default_factory=list)  # fix classes its sentences stated
     hdops: list[float] = field(default_factory=list)
     decimals: int = 0  # of a position's minutes
+    log_t: list[float] = field(default_factory=list)  # the log times, where ``t`` is a UTC stamp
+    coarse_stamps: bool = False  # its stamps are coarser than its fixes: the log times are used
+
+    def check_stamps(self) -> None:
+        """A receiver whose stamps repeat for different positions (a stamp every 10 s on fixes
+        every 2 s) is not timed by them: its readings go back to their log times."""
+        if not self.stamped or len(self.t) < 3:
+            return
+        t = np.asarray(self.t)
+        v = np.array([x[:2] for x in self.v], dtype=float)
+        same_t = np.diff(t) == 0
+        moved = np.any(np.abs(np.diff(v, axis=0)) > MOVED_DEG, axis=1)
+        if (same_t & moved).sum() > 0.1 * len(t):
+            self.t, self.coarse_stamps, self.stamped = list(self.log_t), True, 0
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         t = np.asarray(self.t, float)
@@ -98,13 +123,18 @@ def group_of(name: str) -> str:
 
 
 def read(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[str, SourceData]]:
-    """Per quantity, per source (positions: per receiver), every reading of the log."""
+    """Per quantity, per source (positions: per receiver), every reading of the logs."""
+    messages = read_messages(paths, TOPICS, accept=wanted)
+    return collect((m.topic, m.log_time_ns, m.message) for m in messages)
+
+
+def collect(messages: Iterable[tuple[str, int, dict]]) -> dict[str, dict[str, SourceData]]:
+    """``read`` of (topic, log time ns, message) in the order they were logged."""
     out: dict[str, dict[str, SourceData]] = {q: {} for q in QUANTITIES}
     last_tod: dict[str, float | None] = {}  # talker+type -> the time field of its last sentence
     last_fix: dict[str, tuple[int | None, float | None, int]] = {}
-    for m in read_messages(paths, ("/source/reading", "/nmea/sentence")):
-        msg = m.message
-        if m.topic == "/nmea/sentence":
+    for topic, log_ns, msg in messages:
+        if topic == "/nmea/sentence":
             stype = msg.get("type", "")
             if stype in TIME_FIELD and msg.get("valid"):
                 key = f"{msg.get('source')} {msg.get('talker')}{stype}"
@@ -115,7 +145,7 @@ def read(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[str, SourceD
         if q not in out:
             continue
         name = str(msg.get("source", ""))
-        t = m.log_time_ns * 1e-9
+        t = log_ns * 1e-9
         key = name
         stamped = False
         fix = None
@@ -137,7 +167,10 @@ def read(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[str, SourceD
                 src.hdops.append(fix[1])
             src.decimals = max(src.decimals, fix[2])
         src.t.append(t)
+        src.log_t.append(log_ns * 1e-9)
         src.v.append(list(msg.get("value") or []))
         src.used += bool(msg.get("used"))
         src.stamped += stamped
+    for src in out["position"].values():
+        src.check_stamps()
     return {q: s for q, s in out.items() if s}

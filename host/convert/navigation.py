@@ -27,7 +27,7 @@ from forcemap.host.fuse.latency import heading_latencies
 from forcemap.host.fuse.smoother import Channel, CvSmoother
 from forcemap.host.vessel.geodesy import LocalFrame
 
-Q_POSITION = 0.5  # m^2/s^3: a survey boat's accelerations (turning at 3 m/s: 0.5 m/s^2)
+Q_POSITION = 0.5  # m^2/s^3 without ground velocity readings (turning at 3 m/s: 0.5 m/s^2)
 Q_HEADING = 50.0  # deg^2/s^3
 POSITION_GAP_S = 12.0  # a row further than this from any position reading keeps its own
 HEADING_GAP_S = 5.0
@@ -35,6 +35,12 @@ HEADING_GAP_S = 5.0
 # user-equivalent range errors of each kind of fix; the data decide where a receiver states nothing
 UERE_M = {1: 10.0, 2: 4.0, 3: 2.0, 4: 0.5, 5: 0.2, 6: 0.02}
 JUMP_M = 200.0
+Q_CANDIDATES = (0.02, 0.1, 0.5, 2.0)  # m^2/s^3: from a drifting sailing boat to a jet boat's turn
+CV_BLOCK_S = 20.0
+VELOCITY_FLOOR = 0.03  # m/s: no SOG is better than this, whatever its decimals say
+MIN_VELOCITY_LAG_S = 0.5  # a smaller lag of a ground velocity is not told from its noise
+MIN_VELOCITY_R = 0.7  # a velocity source's lag is taken from a clear correlation peak only
+GRID = source_stats.GRID_S
 # the speed log against the speed over ground: their accelerations differ by the current's change
 # along the track, so a lag is taken only from a clear correlation peak
 MIN_STW_R = 0.5  # a position this far from its neighbours' median is an outlier from the start
@@ -70,6 +76,34 @@ def stated_noise(s: SourceData) -> float | None:
     hdop = float(np.median(s.hdops)) if s.hdops else 1.0
     step = 1852.0 * 10.0**-s.decimals if s.decimals else 0.0
     return max(uere * max(hdop, 0.5), step / math.sqrt(12.0))
+
+
+def acceleration_density(channels: list[Channel], query: np.ndarray) -> float:
+    """The white acceleration's spectral density (m^2/s^3) that predicts held-out positions best:
+    every fifth block of CV_BLOCK_S of position readings is left out, the track is fitted with each
+    of Q_CANDIDATES, and the one whose track passes closest to the held-out readings (each in its
+    source's noise; the median) is kept. Blocks, not single readings: a receiver's error wanders, and
+    the question is how well the track bridges a gap, as between a slow receiver's fixes."""
+    values = [c for c in channels if c.kind == "value" and c.n]
+    if not values or sum(c.n for c in values) < 50:
+        return Q_POSITION
+    t0 = min(float(c.t.min()) for c in values)
+    scores = {}
+    for q in Q_CANDIDATES:
+        for c in values:
+            c.active = (np.floor((c.t - t0) / CV_BLOCK_S) % 5) != 2
+        fit = CvSmoother(q, iterations=3).fit(channels, query)
+        u = []
+        for c in values:
+            held = ~c.active & (c.weights_ > 0)  # type: ignore[operator]
+            if held.any():
+                r = fit.residuals(c)[held]
+                sigma = c.prior_sigma or c.sigma_
+                u.append(np.sqrt((r**2).sum(axis=1)) / sigma)
+        scores[q] = float(np.median(np.concatenate(u))) if u else math.inf
+    for c in values:
+        c.active, c.weights_ = None, np.where(_screen(c.z), 0.0, 1.0)
+    return min(scores, key=scores.__getitem__)
 
 
 def _screen(xy: np.ndarray) -> np.ndarray:
@@ -112,7 +146,7 @@ class Navigation:
     def __init__(
         self,
         remove_latency: bool = True,
-        q_position: float = Q_POSITION,
+        q_position: float | None = None,
         q_heading: float = Q_HEADING,
     ) -> None:
         self.remove_latency = remove_latency
@@ -159,14 +193,20 @@ class Navigation:
                 okv = ok & np.isfinite(v[:, 2]) & np.isfinite(v[:, 3])
                 if okv.sum() > 2:
                     vel = _velocity(v[okv, 2], v[okv, 3])
-                    channels.append(Channel(name, "rate", t[okv], vel, sigma0=0.3, floor=0.02))
+                    channels.append(
+                        Channel(name, "rate", t[okv], vel, sigma0=0.3, floor=VELOCITY_FLOOR)
+                    )
         for name, s in readings.get("velocity", {}).items():
             t, v = s.arrays()
             okv = np.isfinite(v[:, 0]) & np.isfinite(v[:, 1]) if v.shape[1] >= 2 else []
             if len(t) and np.sum(okv) > 2:
                 vel = _velocity(v[okv, 0], v[okv, 1])
-                channels.append(Channel(name, "rate", t[okv], vel, sigma0=0.3, floor=0.02))
-        self.pos_ = CvSmoother(self.q_position).fit(channels, query)
+                channels.append(
+                    Channel(name, "rate", t[okv], vel, sigma0=0.3, floor=VELOCITY_FLOOR)
+                )
+        lags = self._velocity_latencies(channels)
+        self.q_position_ = Q_POSITION if self.q_position is None else self.q_position
+        self.pos_ = CvSmoother(self.q_position_).fit(channels, query)
         self.pos_t_ = np.concatenate(times) if times else np.zeros(0)
         for c in channels:
             q = "position" if c.kind == "value" else "velocity"
@@ -174,15 +214,57 @@ class Navigation:
             if q == "velocity":
                 fit.unit, fit.bias = "m/s", math.nan
             fit.outliers, fit.latency = c.outliers_, 0.0
-            fit.latency_note = "the time reference (UTC)" if q == "position" else ""
+            fit.latency_note = "the time reference" if q == "position" else ""
+            if q == "velocity":
+                fit.latency, fit.latency_note = lags.get(id(c), (None, ""))
+                fit.applied = fit.latency is not None and c.latency == fit.latency != 0.0
+                fit.pairs = [("position", fit.latency)] if fit.latency is not None else []
             self.fits_.append(fit)
+
+    def _velocity_latencies(self, channels: list[Channel]) -> dict[int, tuple[float | None, str]]:
+        """Each ground-velocity source's lag behind the positions (the velocity vector against the
+        positions' change, source_stats.best_lag); removed where clear (a filtered or relayed SOG)."""
+        values = [c for c in channels if c.kind == "value" and c.n > 10]
+        if not values:
+            return {}
+        ref_c = max(values, key=lambda c: c.n)
+        ok = ref_c.weights_ > 0
+        pos = source_stats.Track("p", ref_c.t[ok], ref_c.z[ok])
+        out: dict[int, tuple[float | None, str]] = {}
+        for c in channels:
+            if c.kind != "rate" or c.n < 10:
+                continue
+            vel = source_stats.Track("v", c.t, c.z)
+            grid = source_stats._grid(pos, vel)
+            if not len(grid):
+                continue
+            ref = np.stack(
+                [
+                    np.gradient(source_stats._on_grid(pos.t, pos.v[:, j], grid), GRID)
+                    for j in (0, 1)
+                ],
+                axis=1,
+            )
+            sig = np.stack(
+                [source_stats._on_grid(vel.t, vel.v[:, j], grid) for j in (0, 1)], axis=1
+            )
+            lag, peak = source_stats.best_lag(ref, sig, 15.0)
+            if lag is None or peak is None or peak < MIN_VELOCITY_R:
+                r = "" if peak is None else f" (r = {peak:.2f})"
+                out[id(c)] = (None, f"no clear lag against the positions{r}")
+                continue
+            small = abs(lag) < MIN_VELOCITY_LAG_S
+            out[id(c)] = (float(lag), "within the estimate's noise: not removed" if small else "")
+            if self.remove_latency and not small:
+                c.latency = float(lag)
+        return out
 
     # --- heading ----------------------------------------------------------------------------------
 
     def _velocity_track(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         if self.pos_ is None or len(self.pos_t_) < 3:
             return None
-        t = np.arange(self.pos_t_.min(), self.pos_t_.max(), 0.5)
+        t = np.arange(self.pos_t_.min(), self.pos_t_.max(), 1.0)
         _, v = self.pos_.at(t)
         return t, v[:, 0], v[:, 1]
 

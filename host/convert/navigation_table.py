@@ -25,11 +25,21 @@ from forcemap.host.log.messages import SAMPLE_COLUMNS
 
 
 def log_metadata(paths: Sequence[str | os.PathLike[str]], name: str) -> dict[str, str]:
-    """The last metadata record ``name`` of the logs (empty if none)."""
+    """The last metadata record ``name`` of the logs (empty if none): from a complete file's
+    summary, else by reading the file through."""
+    from mcap.reader import make_reader
     from mcap.records import Metadata
 
     found: dict[str, str] = {}
     for path in paths:
+        try:
+            with open(path, "rb") as f:
+                for m in make_reader(f).iter_metadata():
+                    if m.name == name:
+                        found = dict(m.metadata)
+            continue
+        except Exception:  # no summary (a killed or truncated log): read the records themselves
+            pass
         for record in iter_records(path, FileScan(path)):
             if isinstance(record, Metadata) and record.name == name:
                 found = dict(record.metadata)
@@ -42,6 +52,8 @@ def settings(paths: Sequence[str | os.PathLike[str]]) -> tuple[str, str]:
     return cal.get("navigation", "smoothed"), cal.get("latency", "remove")
 
 
+READING_TOPICS = nav_readings.TOPICS
+wanted = nav_readings.wanted
 _CACHE: dict[tuple, Navigation | None] = {}  # the last smoothing of each log, for its findings
 
 
@@ -146,14 +158,16 @@ def smooth(
     columns: list[str],
     rows: list[list[float | None]],
     paths: Sequence[str | os.PathLike[str]],
+    messages: list[tuple[str, int, dict]] | None = None,
     *,
     remove_latency: bool | None = None,
 ) -> tuple[list[str], list[list[float | None]], Navigation | None]:
     """``columns`` and ``rows`` (``t`` first) with the smoothed navigation; unchanged when the log
-    has no navigation reading. ``remove_latency``: None follows the log's boat file."""
+    has no navigation reading. ``messages``: the logs' READING_TOPICS messages (read here if None);
+    ``remove_latency``: None follows the log's boat file."""
     if remove_latency is None:
         remove_latency = settings(paths)[1] != "keep"
-    readings = nav_readings.read(paths)
+    readings = nav_readings.read(paths) if messages is None else nav_readings.collect(messages)
     if "position" not in readings or not rows:
         _CACHE[_key(paths)] = None
         return columns, rows, None

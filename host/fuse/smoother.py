@@ -43,6 +43,7 @@ class Channel:
     floor: float = 0.0  # the least noise a source is granted
     bias_free: bool = False  # rates: no bias estimated
     prior_sigma: float | None = None  # the noise the source states (a fix's HDOP): weights by it
+    active: np.ndarray | None = None  # readings the fit may use (a cross-validation holds some out)
     # fitted
     sigma_: float = math.nan
     bias_: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -123,6 +124,8 @@ class CvSmoother:
                 z = ref + _wrap(z - ref, self.wrap)
             sigma = c.prior_sigma if c.prior_sigma else c.sigma_
             w = c.weights_ / max(sigma, 1e-9) ** 2
+            if c.active is not None:
+                w = w * c.active
             np.add.at(ab[3], col, w)
             np.add.at(rhs, col, w[:, None] * z)
         return solveh_banded(ab, rhs, check_finite=False)
@@ -166,6 +169,11 @@ class CvSmoother:
         self.channels_ = channels
         return self
 
+    def residuals(self, c: Channel) -> np.ndarray:
+        """``c``'s readings less the fitted state (its bias removed), shape (n, d)."""
+        r = self._residuals(self.t_, c, self.x_) - (c.bias_ if c.bias_.size else 0.0)
+        return _wrap(r, self.wrap) if self.wrap and c.kind == "value" else r
+
     def _residuals(self, t: np.ndarray, c: Channel, est: np.ndarray) -> np.ndarray:
         col = 2 * self._index(t, c) + (0 if c.kind == "value" else 1)
         r = c.z - est[col]
@@ -180,6 +188,8 @@ class CvSmoother:
         for c in channels:
             r = self._residuals(t, c, est)
             ok = c.weights_ > 0
+            if c.active is not None:
+                ok &= c.active
             if ok.sum() < 3:
                 continue
             if not c.bias_free and c is not ref and c.kind == "value":
