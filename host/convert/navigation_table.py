@@ -57,8 +57,8 @@ wanted = nav_readings.wanted
 _CACHE: dict[tuple, Navigation | None] = {}  # the last smoothing of each log, for its findings
 
 
-def _key(paths: Sequence[str | os.PathLike[str]]) -> tuple:
-    out = []
+def _key(paths: Sequence[str | os.PathLike[str]], remove: bool) -> tuple:
+    out: list[Any] = [remove]
     for p in paths:
         try:
             st = os.stat(p)
@@ -69,13 +69,14 @@ def _key(paths: Sequence[str | os.PathLike[str]]) -> tuple:
 
 
 def fitted(paths: Sequence[str | os.PathLike[str]]) -> Navigation | None:
-    """The smoothing of these logs as their table was made (done again if it was not)."""
-    key = _key(paths)
+    """The smoothing of these logs as their boat file asks (done again if it was not)."""
+    mode, latency = settings(paths)
+    key = _key(paths, mode != "logged" and latency != "keep")
     if key not in _CACHE:
         from forcemap.host.convert.export import samples_table
 
         table = samples_table(paths)  # a smoothed table leaves its smoothing here
-        if key not in _CACHE:  # navigation = "logged": the latencies, none of them removed
+        if mode == "logged":  # navigation = "logged": the latencies, none of them removed
             readings = nav_readings.read(paths)
             t = np.array(table.column("t"), float) if len(table) else np.zeros(0)
             nav = None
@@ -169,14 +170,14 @@ def smooth(
         remove_latency = settings(paths)[1] != "keep"
     readings = nav_readings.read(paths) if messages is None else nav_readings.collect(messages)
     if "position" not in readings or not rows:
-        _CACHE[_key(paths)] = None
+        _CACHE[_key(paths, remove_latency)] = None
         return columns, rows, None
     n = len(rows)
     t = _col(columns, rows, "t")
     nav = Navigation(remove_latency=remove_latency).fit(readings, t)
     if len(_CACHE) > 8:
         _CACHE.clear()
-    _CACHE[_key(paths)] = nav
+    _CACHE[_key(paths, remove_latency)] = nav
     st = nav.state(t)
     cols: dict[str, Any] = {c: _col(columns, rows, c) for c in columns}
     for c in ("lat", "lon", "heading", "yaw_rate"):
