@@ -20,7 +20,7 @@ import numpy as np
 from forcemap.host.convert import nav_readings
 from forcemap.host.convert.navigation import Navigation
 from forcemap.host.fuse import compensation as comp
-from forcemap.host.log.mcap import FileScan, iter_records
+from forcemap.host.log.mcap import FileScan, iter_records, read_messages
 from forcemap.host.log.messages import SAMPLE_COLUMNS
 
 
@@ -72,17 +72,19 @@ def fitted(paths: Sequence[str | os.PathLike[str]]) -> Navigation | None:
     """The smoothing of these logs as their boat file asks (done again if it was not)."""
     mode, latency = settings(paths)
     key = _key(paths, mode != "logged" and latency != "keep")
-    if key not in _CACHE:
-        from forcemap.host.convert.export import samples_table
-
-        table = samples_table(paths)  # a smoothed table leaves its smoothing here
-        if mode == "logged":  # navigation = "logged": the latencies, none of them removed
-            readings = nav_readings.read(paths)
-            t = np.array(table.column("t"), float) if len(table) else np.zeros(0)
-            nav = None
-            if "position" in readings and len(t):
-                nav = Navigation(remove_latency=False).fit(readings, t)
-            _CACHE[key] = nav
+    if key not in _CACHE:  # smoothed at the rows' times, as samples_table would
+        t = []
+        messages: list[tuple[str, int, dict]] = []
+        for m in read_messages(paths, ("/samples", *READING_TOPICS), accept=wanted):
+            if m.topic == "/samples":
+                t.append(float(m.message.get("t", m.log_time_ns * 1e-9)))
+            else:
+                messages.append((m.topic, m.log_time_ns, m.message))
+        readings = nav_readings.collect(messages)
+        nav = None
+        if "position" in readings and t:
+            nav = Navigation(remove_latency=key[0]).fit(readings, np.unique(np.asarray(t)))
+        _CACHE[key] = nav
     return _CACHE.get(key)
 
 
