@@ -11,6 +11,7 @@ has nothing for keeps its logged values. The log's boat file decides (``[sync] n
 
 from __future__ import annotations
 
+import ast
 import math
 import os
 from collections.abc import Sequence
@@ -20,6 +21,7 @@ import numpy as np
 from forcemap.host.convert import nav_readings
 from forcemap.host.convert.navigation import Navigation
 from forcemap.host.fuse import compensation as comp
+from forcemap.host.fuse.sources import AUTOPILOT_CONNECTIONS, split_name
 from forcemap.host.log.mcap import FileScan, iter_records, read_messages
 from forcemap.host.log.messages import SAMPLE_COLUMNS
 
@@ -52,7 +54,7 @@ def settings(paths: Sequence[str | os.PathLike[str]]) -> tuple[str, str]:
     return cal.get("navigation", "smoothed"), cal.get("latency", "remove")
 
 
-READING_TOPICS = nav_readings.TOPICS
+READING_TOPICS = (*nav_readings.TOPICS, "/current")
 wanted = nav_readings.wanted
 _CACHE: dict[tuple, Navigation | None] = {}  # the last smoothing of each log, for its findings
 
@@ -157,6 +159,52 @@ def _compensate(cols: dict[str, np.ndarray], n: int) -> None:
                 cols["current_speed"][i], cols["current_dir"][i] = speed, direction
 
 
+def _autopilot(readings: dict) -> bool:
+    """Whether the rows' position came from an autopilot (MAVLink, DataFlash): fused already."""
+    return any(
+        s.used and split_name(name)[0] in AUTOPILOT_CONNECTIONS
+        for name, s in readings.get("position", {}).items()
+    )
+
+
+def _wheels(cols: dict[str, Any], nav: Navigation, messages: list, cal: dict[str, str]) -> None:
+    """The paddle wheels' current again: each row's flows (its ``/current`` record) turned with the
+    smoothed heading and added to the smoothed ground velocity of half a rate window before (the
+    wheels' rates describe the flow then: host/fuse/assembler.py)."""
+    if "wheel1_speed" not in cols:
+        return
+    flows = {float(m["t"]): m for topic, _, m in messages if topic == "/current" and "t" in m}
+    if not flows:
+        return
+    try:
+        angles = [float(a) for _, a in ast.literal_eval(cal.get("wheels", "[]"))]
+        lag = float(cal.get("rate_window_s", "1.0")) / 2
+    except (ValueError, SyntaxError, TypeError):
+        return
+    t = cols["t"]
+    st = nav.state(t - lag)
+    for i in range(len(t)):
+        m = flows.get(float(t[i]))
+        h, ve, vn = st["heading"][i], st["v_east"][i], st["v_north"][i]
+        if m is None or not (math.isfinite(h) and math.isfinite(ve) and math.isfinite(vn)):
+            continue
+        out = {}
+        if m.get("flow_fwd") is not None and m.get("flow_stbd") is not None:
+            out["lsq"] = comp.current_over_ground(m["flow_fwd"], m["flow_stbd"], h, ve, vn)
+        wheels = m.get("wheels") or []
+        if len(wheels) == len(angles) and all(w is not None for w in wheels):
+            pf, ps = comp.current_paper(wheels, angles)
+            out["paper"] = comp.current_over_ground(pf, ps, h, ve, vn)
+        chosen = out.get(m.get("estimator", "lsq"))
+        if chosen is not None:
+            cols["current_east"][i], cols["current_north"][i] = chosen
+            cols["current_speed"][i] = math.hypot(*chosen)
+            cols["current_dir"][i] = comp.to_direction(*chosen)
+        if "paper" in out and "current_speed_paper" in cols:
+            cols["current_speed_paper"][i] = math.hypot(*out["paper"])
+            cols["current_dir_paper"][i] = comp.to_direction(*out["paper"])
+
+
 def smooth(
     columns: list[str],
     rows: list[list[float | None]],
@@ -176,6 +224,12 @@ def smooth(
         return columns, rows, None
     n = len(rows)
     t = _col(columns, rows, "t")
+    if _autopilot(readings):
+        # an autopilot's navigation is its EKF's, already fused from its own sensors at their
+        # times: the rows keep it; the sources' latencies are still measured, none removed
+        nav = Navigation(remove_latency=False).fit(readings, t)
+        _CACHE[_key(paths, remove_latency)] = nav
+        return columns, rows, nav
     nav = Navigation(remove_latency=remove_latency).fit(readings, t)
     if len(_CACHE) > 8:
         _CACHE.clear()
@@ -193,6 +247,8 @@ def smooth(
     if "stw" in cols:
         cols["stw"] = _stw(nav, readings, t, cols["stw"])
     _compensate(cols, n)
+    if messages is not None:
+        _wheels(cols, nav, messages, log_metadata(paths, "calibration"))
     order = [c for c in SAMPLE_COLUMNS if c in cols]
     order += [c for c in cols if c not in order and c not in ("v_east", "v_north")]
     keep = [c for c in order if c == "t" or np.isfinite(cols[c]).any()]
