@@ -164,3 +164,43 @@ def test_sim_bus_sends_each_sentence_at_its_own_stamp(run):
     phases = {k: float(np.median(v)) for k, v in stamps.items()}
     assert math.isclose(phases["GNGGA"] - phases["GNRMC"], 0.3, abs_tol=0.06), phases
     assert math.isclose(phases["GNGLL"] - phases["GNGGA"], 0.3, abs_tol=0.06), phases
+
+
+def test_an_import_writes_the_findings_into_the_log(run, tmp_path):
+    """The capture of the simulated bus, imported as a text file: its times are the sentences' UTC
+    spread between stamps, and the import writes each source's finding as a qa.* record."""
+    from forcemap.host.convert.importers import import_to_mcap
+    from forcemap.host.convert.navigation_table import log_metadata
+
+    paths, _ = run
+    capture = tmp_path / "bus.nmea"
+    with open(capture, "w") as f:
+        for m in read_messages(paths, "/nmea/sentence"):
+            f.write(m.message["text"] + "\n")
+    out = tmp_path / "bus.mcap"
+    res = import_to_mcap(capture, out)
+    record = log_metadata([out], f"qa.heading.latency.{LATE}")
+    assert record, "no latency finding for the late compass in the imported log"
+    late = QaFinding.from_metadata(record)
+    assert abs(late.value - 5.0) <= 0.3 and late.applied
+    assert any(n.startswith("navigation: nmea HEHDT") for n in res.notes)
+
+
+def test_log_info_lists_each_source(run, capsys):
+    from forcemap.host.cli import main
+
+    paths, _ = run
+    assert main(["log", "info", str(paths[0])]) == 0
+    out = capsys.readouterr().out
+    assert "navigation sources" in out
+    line = next(ln for ln in out.splitlines() if "nmea HEHDT:" in ln)
+    assert "latency +5.0" in line and "noise" in line and "outliers" in line
+
+
+def test_boat_file_sync_keys():
+    from forcemap.host.fuse import calibration
+
+    cal = calibration.loads('[sync]\nnavigation = "logged"\nlatency = "keep"\n')
+    assert (cal.navigation, cal.latency) == ("logged", "keep")
+    with pytest.raises(calibration.ConfigError, match="sync.latency"):
+        calibration.loads('[sync]\nlatency = "later"\n')

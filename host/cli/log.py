@@ -110,7 +110,7 @@ def _navigation_lines(path: str) -> list[str]:
 
     try:
         return nav_findings.lines(nav_findings.log_findings([path]))
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError) as exc:  # a truncated file read up to its damage, or worse
         return ["", f"  navigation sources: not smoothed ({exc})"]
 
 

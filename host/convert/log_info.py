@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from forcemap.host.acquire.status import flatten
+from forcemap.host.convert.nav_findings import navigation_json
 from forcemap.host.convert.sources_info import SourceCollector
 from forcemap.host.log.mcap import CHUNK_SIZE, LIBRARY, FileScan, iter_records
 from forcemap.host.vessel.geodesy import wrap_from_minus180
@@ -250,6 +251,7 @@ def info_json(info: LogInfo) -> dict[str, Any]:
         "true_wind_routes": wind_routes(info),
         "sources": info.sources.result(),
         "replans": info.replans,
+        "navigation": navigation_json(info.path),
     }
 
 

@@ -78,7 +78,9 @@ def _num(x: float | None, fmt: str) -> str:
 def finding(f: SourceFit) -> QaFinding:
     """One source's fit as a finding: the latency its value, noise, bias, outliers in its text."""
     source = f.source + (" (velocity)" if f.quantity == "velocity" else "")
-    if f.latency is None:
+    if f.quantity == "position":
+        lat = "the time reference"
+    elif f.latency is None:
         lat = f"latency not measured: {f.latency_note or 'nothing in the log can tell'}"
     else:
         sd = f" +- {f.latency_sd:.2f}" if f.latency_sd is not None else ""
@@ -144,11 +146,26 @@ def log_findings(paths: Sequence[str | os.PathLike[str]]) -> list[QaFinding]:
     return findings(nav) if nav is not None else []
 
 
+def not_smoothed_line() -> list[str]:
+    return [
+        "",
+        "  navigation sources: none smoothed (no position reading, or a log it cannot solve)",
+    ]
+
+
 def lines(found: list[QaFinding]) -> list[str]:
     """`log info`'s navigation section: one line per source."""
     if not found:
-        return []
+        return not_smoothed_line()
     out = ["", "  navigation sources (smoothed from every source; latency, noise, bias, outliers):"]
     for f in found:
         out.append(f"    [{f.verdict:<6}] {f.message}")
     return out
+
+
+def navigation_json(path: str) -> list[dict[str, str]]:
+    """`log info --json`'s navigation: each source's finding as its metadata record."""
+    try:
+        return [f.to_metadata() for f in log_findings([path])]
+    except (OSError, ValueError):
+        return []

@@ -222,6 +222,23 @@ def smooth(
     if "position" not in readings or not rows:
         _CACHE[_key(paths, remove_latency)] = None
         return columns, rows, None
+    try:
+        return _smooth(columns, rows, paths, readings, messages, remove_latency)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        # a log the smoother cannot solve keeps the rows the pipeline made (counted nowhere else:
+        # `log info` says the navigation was not smoothed)
+        _CACHE[_key(paths, remove_latency)] = None
+        return columns, rows, None
+
+
+def _smooth(
+    columns: list[str],
+    rows: list[list[float | None]],
+    paths: Sequence[str | os.PathLike[str]],
+    readings: dict,
+    messages: list[tuple[str, int, dict]] | None,
+    remove_latency: bool,
+) -> tuple[list[str], list[list[float | None]], Navigation | None]:
     n = len(rows)
     t = _col(columns, rows, "t")
     if _autopilot(readings):
