@@ -85,13 +85,17 @@ def fitted(paths: Sequence[str | os.PathLike[str]]) -> Navigation | None:
         readings = nav_readings.collect(messages)
         nav = None
         if "position" in readings and t:
-            nav = Navigation(remove_latency=key[0]).fit(readings, np.unique(np.asarray(t)))
+            remove = key[0] and not _autopilot(readings)
+            nav = Navigation(remove_latency=remove).fit(readings, np.unique(np.asarray(t)))
         _CACHE[key] = nav
     return _CACHE.get(key)
 
 
 def latencies(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[str, Any]]:
     """Per source: quantity, latency (s or None), whether it was removed, and the note."""
+    cols = log_metadata(paths, "columns")
+    if cols.get("lat", "").split(" ", 1)[0] in AUTOPILOT_CONNECTIONS:
+        return {}  # the rows keep the autopilot's fused navigation: no latency was removed or kept
     nav = fitted(paths)
     if nav is None:
         return {}
@@ -243,10 +247,8 @@ def _smooth(
     t = _col(columns, rows, "t")
     if _autopilot(readings):
         # an autopilot's navigation is its EKF's, already fused from its own sensors at their
-        # times: the rows keep it; the sources' latencies are still measured, none removed
-        nav = Navigation(remove_latency=False).fit(readings, t)
-        _CACHE[_key(paths, remove_latency)] = nav
-        return columns, rows, nav
+        # times: the rows keep it (`log info` still measures the sources: fitted)
+        return columns, rows, None
     nav = Navigation(remove_latency=remove_latency).fit(readings, t)
     if len(_CACHE) > 8:
         _CACHE.clear()
