@@ -204,3 +204,15 @@ def test_boat_file_sync_keys():
     assert (cal.navigation, cal.latency) == ("logged", "keep")
     with pytest.raises(calibration.ConfigError, match="sync.latency"):
         calibration.loads('[sync]\nlatency = "later"\n')
+
+
+def test_diagnose_explains_a_clock_offset_by_the_late_compass(run):
+    """diagnose's clock-offset explanation names the source the measured latencies show late."""
+    from forcemap.host.workbench.diagnose.result import Candidate, explain_candidate
+    from forcemap.host.workbench.instruments import Instruments
+
+    paths, _ = run
+    inst = Instruments.of(load_survey(paths[0]))
+    c = Candidate("clock_offset", "clock_offset(-5.00 s)", 1.0, 0.2, 1e-4, 0.2, None, False)
+    text = explain_candidate(c, "", "current", 0.1, [], inst)
+    assert "the measured latencies name the compass (HE HDT), +5.0 s late" in text
