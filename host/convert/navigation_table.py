@@ -79,7 +79,8 @@ def fitted(paths: Sequence[str | os.PathLike[str]]) -> Navigation | None:
         messages: list[tuple[str, int, dict]] = []
         for m in read_messages(paths, ("/samples", *READING_TOPICS), accept=wanted):
             if m.topic == "/samples":
-                t.append(float(m.message.get("t", m.log_time_ns * 1e-9)))
+                tt = m.message.get("t")
+                t.append(float(tt) if isinstance(tt, int | float) else m.log_time_ns * 1e-9)
             else:
                 messages.append((m.topic, m.log_time_ns, m.message))
         readings = nav_readings.collect(messages)
