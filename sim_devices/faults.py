@@ -22,6 +22,8 @@ BUS_KINDS = (
         "no_variation",
         "checksum_variant",
         "position_jump",
+        "nav_receivers",
+        "late_compass",
     )
     + CAL_KINDS
 )
@@ -53,6 +55,9 @@ KINDS: dict[str, str] = {
     "`misalign` deg (default 2) clockwise from the compass's: HCHDG reads heading - misalign",
     "dead_log": "NMEA bus: the speed log reads 0.00 kn from `at` for `for` s",
     "rot_deg_s": "NMEA bus: a rate gyro's TIROT at 2 Hz in deg/s, where NMEA 0183 says deg/min",
+    "nav_receivers": "NMEA bus: a coarse GP receiver (1 Hz, 1 m error) and a precise GN one (every 4 s, "
+    "0.1 m error), each sending RMC, GGA and GLL at their own instants and UTC stamps",
+    "late_compass": "NMEA bus: a HEHDT gyro compass at 2 Hz, 5 s late, beside the on-time HCHDG fluxgate",
     "false_echoes": "the sounder returns 3-20 m at `rate` per sounding in water deeper than 70 m "
     "(a share of it from 40 m)",
 }

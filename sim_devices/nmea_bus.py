@@ -11,6 +11,13 @@ variation, 5 Hz, 1 deg noise) and a speed log (``VWVHW``, 1 Hz). The source faul
 - ``rate_of_turn``: a rate gyro's ``TIROT`` at 2 Hz;
 - ``poor_gnss``: the ``GP`` receiver is autonomous (GGA quality 1, HDOP 2.1), its error 2 m,
   wandering in seconds (10 s time constant);
+- ``nav_receivers`` (issue 29): the ``GP`` receiver becomes a coarse one (4-decimal minutes, a 1 m
+  error wandering in 10 s, 1 Hz) and a precise ``GN`` receiver (5 decimals, a 0.1 m error, every
+  4 s) joins it; each sends RMC, GGA and GLL, each sentence at its own instant and UTC stamp
+  (0, 0.3 and 0.6 s after its epoch);
+- ``late_compass`` (issue 29): a gyro compass ``HEHDT`` (2 Hz, 0.5 deg noise) whose headings are
+  5 s late joins the on-time ``HCHDG`` fluxgate; HDT ranks first by the default quality order, so
+  a pipeline that picks one source picks the late one;
 - ``dgps_gnss``: a second receiver, ``GNRMC`` and ``GNGGA`` at 4-decimal minutes, 1 Hz, DGPS (GGA
   quality 2, RMC mode D, HDOP 0.9), its error 0.3 m; for ``lost`` = (start s, duration s) it loses
   its corrections: autonomous, HDOP 4.5, a 3 m error wandering in seconds.
@@ -59,6 +66,8 @@ FAULTS = (
     "speed_log",
     "dead_log",
     "rot_deg_s",
+    "nav_receivers",
+    "late_compass",
 )
 JUMP_KM = 500.0
 
@@ -70,6 +79,12 @@ def address_checksum(line: str) -> str:
     for b in line[1 : line.index(",")].encode("ascii"):
         x ^= b
     return f"{line[:star]}*{x:02X}"
+
+
+# nav_receivers: each receiver sends RMC, GGA and GLL, each at its own instant and UTC stamp
+# (seconds after the receiver's epoch); issue 29
+SENTENCE_OFFSETS_S = {"RMC": 0.0, "GGA": 0.3, "GLL": 0.6}
+LATE_COMPASS_S = 5.0
 
 
 @dataclass
@@ -174,7 +189,10 @@ class Gnss:
             math.degrees(math.atan2(ve, vn)) % 360,
         )
 
-    def sentences(self, m: Motion, fix: tuple[float, float, float, float]) -> list[str]:
+    def sentences(
+        self, m: Motion, fix: tuple[float, float, float, float], kinds: tuple[str, ...] = ()
+    ) -> list[str]:
+        """RMC (and GGA) of ``fix`` stamped ``m.t``; ``kinds``: only these (RMC, GGA, GLL)."""
         lat, lon, sog, cog = fix
         q = self.q
         la, ns = _angle(lat, 2, self.md, "NS")
@@ -200,10 +218,14 @@ class Gnss:
                 ),
             )
         ]
-        if self.gga:
+        if self.gga and (not kinds or "GGA" in kinds):
             gga = (hms, la, ns, lo, ew, str(q.quality), "09", f"{q.hdop:.1f}", "12.0", "M")
             gga += ("0.0", "M", "", "")
             out.append(sentence(self.talker, "GGA", gga))
+        if kinds:
+            out = [x for x in out if x[3:6] in kinds]
+            if "GLL" in kinds:
+                out.append(sentence(self.talker, "GLL", (la, ns, lo, ew, hms, "A", q.mode)))
         return out
 
 
@@ -254,6 +276,17 @@ class NmeaBus:
             "rot": 0.5,
             "vhw": 1.0,
         }
+        if "nav_receivers" in self.faults:
+            self.gnss.md, self.gnss.q = 4, Fix(1, "A", 1.5, 1.0, 10.0)
+            self.gnss4 = Gnss(geo, random.Random(seed * 10 + 6), talker="GN", period_s=4.0)
+            self.gnss4.q = Fix(2, "D", 0.8, 0.1, 60.0)
+            for kind, off in SENTENCE_OFFSETS_S.items():
+                self.next[f"gnss {kind}"] = self.next[f"gnss4 {kind}"] = off
+                self.period[f"gnss {kind}"] = self.gnss.period
+                self.period[f"gnss4 {kind}"] = self.gnss4.period
+        self.receivers_started = False
+        self.next.setdefault("gyro", 0.0)
+        self.period["gyro"] = 0.5
         self.damped: float | None = None
         self.t_prev: float | None = None
         self.last_fix: tuple[Motion, tuple[float, float, float, float]] | None = None
@@ -275,6 +308,20 @@ class NmeaBus:
         self.next[key] = max(self.next[key] + self.period[key], t)
         return True
 
+    def _receivers(self, m: Motion) -> list[str]:
+        """nav_receivers: each sentence of each receiver when due, at its own instant and stamp."""
+        out: list[str] = []
+        if not self.receivers_started:
+            self.receivers_started = True
+            for key in ("gnss", "gnss4"):
+                for kind, off in SENTENCE_OFFSETS_S.items():
+                    self.next[f"{key} {kind}"] = m.t + off
+        for key, gnss in (("gnss", self.gnss), ("gnss4", self.gnss4)):
+            for kind in SENTENCE_OFFSETS_S:
+                if self._due(f"{key} {kind}", m.t):
+                    out += gnss.sentences(m, gnss.fix(m), (kind,))
+        return out
+
     def _damp(self, m: Motion) -> None:
         if self.damped is None or self.t_prev is None:
             self.damped = m.heading
@@ -291,7 +338,9 @@ class NmeaBus:
         out: list[str] = []
         t = m.t
         self.t_first = t if self.t_first is None else self.t_first
-        if self._due("gnss", t):
+        if "nav_receivers" in self.faults:
+            out += self._receivers(m)
+        elif self._due("gnss", t):
             fix = self.gnss.fix(m)
             if self._jumping(t):
                 fix = (fix[0] + JUMP_KM / 111.195, *fix[1:])
@@ -314,6 +363,10 @@ class NmeaBus:
             if past is not None:
                 out += self.gnss2.sentences(past, self.gnss2.fix(past))
         self.t_first = t if self.t_first is None else self.t_first
+        if "late_compass" in self.faults and self._due("gyro", t):
+            late = next((h for h in self.history if h.t >= t - LATE_COMPASS_S), m)
+            hdt = (late.heading + self.rng["rot"].gauss(0.0, 0.5)) % 360.0
+            out.append(sentence("HE", "HDT", (f"{hdt:.1f}", "T")))
         if self._due("hdg", t):
             hdg = m.heading - self.misalign
             mag = (hdg - self.variation + self.rng["hdg"].gauss(0.0, 1.0)) % 360.0

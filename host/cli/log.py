@@ -92,6 +92,8 @@ def print_info(info: LogInfo, out: TextIO | None = None) -> None:
     _print_columns_and_winds(info, w)
     for line in info.sources.lines():
         w(line + "\n")
+    for line in _navigation_lines(info.path):
+        w(line + "\n")
     if info.replans:
         _print_replans(info.replans, w)
     if info.findings:
@@ -104,6 +106,16 @@ def print_info(info: LogInfo, out: TextIO | None = None) -> None:
         for k in sorted(errors):
             w(f"    {k:<50} {errors[k]}\n")
     w("\n")
+
+
+def _navigation_lines(path: str) -> list[str]:
+    """Per navigation source: latency, noise, bias, outliers (host/convert/nav_findings.py)."""
+    from forcemap.host.convert import nav_findings
+
+    try:
+        return nav_findings.lines(nav_findings.log_findings([path]))
+    except (OSError, ValueError) as exc:  # a truncated file read up to its damage, or worse
+        return ["", f"  navigation sources: not smoothed ({exc})"]
 
 
 def _print_replans(replans: list[dict[str, Any]], w: Any) -> None:

@@ -103,19 +103,37 @@ def check_logs(paths: Sequence[str | os.PathLike[str]]) -> None:
             )
 
 
-def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
+def samples_table(
+    paths: Sequence[str | os.PathLike[str]],
+    navigation: str | None = None,
+    remove_latency: bool | None = None,
+) -> Table:
     """Every ``/samples`` row of the given files, ordered by ``t``, duplicates (same ``t``) dropped.
+
+    ``navigation``: "smoothed" (each row's navigation estimated from every source at its own time,
+    and its compensation done again: forcemap.host.convert.navigation_table) or "logged" (the rows
+    as the pipeline made them); None follows the log's boat file (``[sync] navigation``), and so
+    does ``remove_latency`` (``[sync] latency``).
 
     Columns are the conventions' columns first, then any other numeric field in order of first
     appearance. A column that is empty in every row is left out (``t`` always stays).
     """
+    from forcemap.host.convert import navigation_table as nt
+
+    settings = nt.settings(paths)
+    smooth = (navigation or settings[0]) != "logged"
+    nav_messages: list[tuple[str, int, dict]] = []
     records: list[dict[str, Any]] = []
     extra: dict[str, None] = {}
     known = set(COLUMNS)
     cuts: list[Cut] = []
+    topics = ("/samples", *nt.READING_TOPICS) if smooth else "/samples"
     for path in paths:
         scan, first = FileScan(Path(path)), len(records)
-        for m in read_messages(path, "/samples", scan=scan):
+        for m in read_messages(path, topics, scan=scan, accept=nt.wanted):
+            if m.topic != "/samples":
+                nav_messages.append((m.topic, m.log_time_ns, m.message))
+                continue
             row = m.message
             if not isinstance(row, dict):
                 continue
@@ -139,7 +157,11 @@ def samples_table(paths: Sequence[str | os.PathLike[str]]) -> Table:
     candidates = list(COLUMNS) + list(extra)
     keep = [c for c in candidates if c == "t" or any(_number(r.get(c)) is not None for r in unique)]
     rows = [[_number(r.get(c)) for c in keep] for r in unique]
-    return Table(keep, rows, cuts)
+    if not smooth or not rows:
+        return Table(keep, rows, cuts)
+    remove = remove_latency if remove_latency is not None else settings[1] != "keep"
+    columns, rows, _ = nt.smooth(keep, rows, paths, nav_messages, remove_latency=remove)
+    return Table(columns, rows, cuts)
 
 
 def _cell(value: float | None) -> str:

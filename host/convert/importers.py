@@ -23,6 +23,7 @@ from typing import Any
 
 from forcemap.host.convert.adcp_read import is_pd0
 from forcemap.host.convert.dataflash import DataflashDecoder
+from forcemap.host.convert.nav_findings import Collector
 from forcemap.host.convert.nmea_prepass import finding_notes, position_seed, why_no_time
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser
 from forcemap.host.fuse.calibration import Calibration
@@ -319,6 +320,15 @@ def import_file(
     raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
 
 
+def _navigation_findings(tee: Collector, cal: Calibration | None, res: ImportResult) -> None:
+    """Each navigation source's latency, noise, bias and outliers into the log (qa.* metadata);
+    the ones that are not green in the import's notes (issue 29, docs/NAVIGATION.md)."""
+    keep = cal is not None and cal.latency == "keep"
+    for f in tee.write_findings(remove_latency=not keep):
+        if f.verdict != "green":
+            res.notes.append(f"navigation: {f.message}")
+
+
 def why_no_samples(res: ImportResult) -> str:
     """One line on why an import gave no samples ('' if it gave some)."""
     c = res.counters
@@ -356,7 +366,9 @@ def import_to_mcap(
             Path(tmp).parent, first_path=tmp, rotate_bytes=1 << 62, rotate_seconds=float("inf")
         )
         try:
-            res = import_file(path, log, fmt, calibration, sync, sample_rate_hz, nmea_checksum)
+            tee = Collector(log)
+            res = import_file(path, tee, fmt, calibration, sync, sample_rate_hz, nmea_checksum)
+            _navigation_findings(tee, calibration, res)
             for name, data in (metadata or {}).items():
                 log.metadata(name, data)
         finally:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from forcemap.host.acquire.status import flatten
+from forcemap.host.convert.nav_findings import navigation_json
 from forcemap.host.convert.sources_info import SourceCollector
 from forcemap.host.log.mcap import CHUNK_SIZE, LIBRARY, FileScan, iter_records
 from forcemap.host.log.qa_records import QaFinding, is_finding
@@ -255,6 +256,7 @@ def info_json(info: LogInfo) -> dict[str, Any]:
         "sources": info.sources.result(),
         "replans": info.replans,
         "findings": {n: f.to_metadata() for n, f in info.findings.items()},
+        "navigation": navigation_json(info.path),
     }
 
 

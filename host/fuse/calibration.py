@@ -59,6 +59,11 @@ class Calibration:
     magnetic_variation_deg: float | None = None
     sync: str = "interpolate"
     max_state_gap_s: float = 2.0
+    # [sync] navigation: "smoothed" (every source, docs/NAVIGATION.md) or "logged" (the chosen
+    # source's, as the pipeline made the rows); latency: "remove" each source's measured latency
+    # before the compensation, or "keep" it
+    navigation: str = "smoothed"
+    latency: str = "remove"
     # [sources]: per quantity, substrings of source names in order of preference; silence timeouts
     source_priorities: dict[str, list[str]] = field(default_factory=dict)
     source_timeouts: dict[str, float] = field(default_factory=dict)
@@ -222,7 +227,7 @@ def _current(c: dict) -> dict[str, Any]:
 def _depth_compass_sync(d: dict, m: dict, s: dict) -> dict[str, Any]:
     _known(d, "depth.", {"offset_m"})
     _known(m, "compass.", {"variation_deg"})
-    _known(s, "sync.", {"mode", "max_gap_s"})
+    _known(s, "sync.", {"mode", "max_gap_s", "navigation", "latency"})
     kw: dict[str, Any] = {}
     if "offset_m" in d:
         kw["depth_offset_m"] = _num(d["offset_m"], "depth.offset_m", lo=-10, hi=10)
@@ -234,6 +239,11 @@ def _depth_compass_sync(d: dict, m: dict, s: dict) -> dict[str, Any]:
         if s["mode"] not in SYNC_MODES:
             raise ConfigError(f"sync.mode: expected one of {SYNC_MODES}, got {_show(s['mode'])}")
         kw["sync"] = s["mode"]
+    for key, choices in (("navigation", ("smoothed", "logged")), ("latency", ("remove", "keep"))):
+        if key in s:
+            if s[key] not in choices:
+                raise ConfigError(f"sync.{key}: expected one of {choices}, got {_show(s[key])}")
+            kw[key] = s[key]
     if "max_gap_s" in s:
         kw["max_state_gap_s"] = _num(s["max_gap_s"], "sync.max_gap_s", positive=True)
     return kw

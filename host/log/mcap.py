@@ -337,11 +337,13 @@ def read_messages(
     topics: Iterable[str] | str | None = None,
     *,
     scan: FileScan | None = None,
+    accept: Callable[[str, bytes], bool] | None = None,
 ) -> Iterator[LogMessage]:
     """Decoded JSON messages from complete or truncated files, in file order.
 
     A truncated file yields every message of its complete chunks and then stops without raising.
-    Messages that are not valid JSON are skipped.
+    Messages that are not valid JSON are skipped. ``accept(topic, data)``: decode only the
+    messages it accepts (a cheap test on the bytes spares decoding the rest).
     """
     if isinstance(paths, str | os.PathLike):
         paths = [paths]
@@ -353,6 +355,8 @@ def read_messages(
                 continue
             channel = file_scan.channels.get(record.channel_id)
             if channel is None or (wanted is not None and channel.topic not in wanted):
+                continue
+            if accept is not None and not accept(channel.topic, record.data):
                 continue
             try:
                 message = json.loads(record.data)

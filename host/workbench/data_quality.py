@@ -6,8 +6,10 @@ sources, false echoes or late time stamps explains the log, not the water. Four 
 - source conflict: a speed from successive positions far from SOG, or a heading that turns faster than a
   boat can: two sources feeding one column in turn (named from the log's ``columns`` metadata);
 - spikes: the target's readings flagged along the track (host/workbench/spikes.py);
-- latency: a wind or current vector steadiest in turns with the heading and ground velocity shifted
-  (host/workbench/clock_offset.py), with a note when the estimate is at the edge of the range searched;
+- latency: a source measured late against the position and the other sources whose latency stayed in
+  the rows, and a wind or current vector steadiest in turns with the heading and ground velocity
+  shifted (host/workbench/clock_offset.py), blamed on the source the measured latencies name, or said
+  to be undecidable where the log has none, with a note when the estimate is at the edge of the range;
 - quantisation: positions on a coarse grid (a 3-decimal-minute position moves in 1.85 m steps).
 """
 
@@ -20,7 +22,7 @@ import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.instruments import Instruments
+from forcemap.host.workbench.instruments import Instruments, source_name
 from forcemap.host.workbench.spikes import target_spikes, without_spikes
 from forcemap.host.workbench.table import Survey
 
@@ -153,15 +155,10 @@ def latency(survey: Survey, targets: list[str], inst: Instruments) -> list[DataF
         tau = scan.offset_s
         if abs(tau) < MIN_LATENCY_S or scan.reduction < MIN_LATENCY_GAIN:
             continue
-        late, early = (
-            (inst.navigation(), inst.boat_frame(vt.family))
-            if tau > 0
-            else (inst.boat_frame(vt.family), inst.navigation())
-        )
         text = (
             f"the {vt.prefix} vector is steadiest in turns with the heading and ground velocity taken "
-            f"{tau:+.2f} s later ({scan.reduction:.0%} of its swing removed): {late} is stamped "
-            f"about {abs(tau):.1f} s late against {early}"
+            f"{tau:+.2f} s later ({scan.reduction:.0%} of its swing removed): "
+            + _who_is_late(survey, inst, vt.family, tau)
         )
         if scan.at_edge:
             text += "; " + scan.edge_note()
@@ -171,6 +168,64 @@ def latency(survey: Survey, targets: list[str], inst: Instruments) -> list[DataF
                 text,
                 "fix the time stamp at the source (stamp at measurement, not on arrival; a shorter "
                 f"buffer); {CLOCK_HINT}",
+            )
+        )
+    return out
+
+
+def _late_sources(survey: Survey) -> list[tuple[str, dict]]:
+    """The navigation sources measured late (host/convert/navigation_table.latencies), latest first."""
+    found = [
+        (n, d)
+        for n, d in survey.latencies.items()
+        if d.get("latency") is not None and abs(d["latency"]) >= MIN_LATENCY_S
+    ]
+    return sorted(found, key=lambda x: -abs(x[1]["latency"]))
+
+
+def _against(d: dict) -> str:
+    named = {"position": "the course over ground", "speed over ground": "the speed over ground"}
+    names = [named.get(a) or source_name(a) for a in d["against"]]
+    return "measured against " + ", ".join(names) if names else "measured"
+
+
+def _who_is_late(survey: Survey, inst: Instruments, family: str, tau: float) -> str:
+    """Which source the evidence shows is late: the measured latencies where the log has them, else
+    the two sides the offset is between, and that nothing tells which."""
+    late = _late_sources(survey)
+    kept = [(n, d) for n, d in late if not d.get("removed")]
+    if kept:
+        n, d = kept[0]
+        return (
+            f"the measured latencies name {source_name(n)}, {d['latency']:+.1f} s late "
+            f"({_against(d)}), its latency not removed"
+        )
+    if late:
+        names = ", ".join(f"{source_name(n)} {d['latency']:+.1f} s" for n, d in late)
+        return f"left after the measured latencies were removed ({names}): not a source's latency"
+    a, b = inst.navigation(), inst.boat_frame(family)
+    if survey.latencies:
+        return (
+            f"no source's measured latency reaches {MIN_LATENCY_S:g} s, and nothing in the log tells "
+            f"which of {a} and {b} is late"
+        )
+    return f"nothing in the log tells which of {a} and {b} is late"
+
+
+def measured_latency(survey: Survey) -> list[DataFinding]:
+    """Sources measured late whose latency was kept in the rows ([sync] latency = "keep")."""
+    out = []
+    for n, d in _late_sources(survey):
+        if d.get("removed"):
+            continue
+        out.append(
+            DataFinding(
+                "latency",
+                f"{source_name(n)} is {d['latency']:+.1f} s late ({d['quantity']}; {_against(d)}); "
+                "its latency is not removed, so every vector it turns or subtracts is of another "
+                "moment",
+                'remove it: [sync] latency = "remove" in the boat TOML (the default), or fix the '
+                "time stamp at the source",
             )
         )
     return out
@@ -216,6 +271,7 @@ def findings(survey: Survey, targets: list[str]) -> list[DataFinding]:
     return (
         conflicts(survey, inst)
         + spikes(survey, targets)
+        + measured_latency(survey)
         + latency(survey, targets, inst)
         + quantisation(survey, inst)
     )

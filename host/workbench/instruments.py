@@ -66,10 +66,25 @@ class Instruments:
 
     columns: set[str]
     provenance: dict[str, str] = field(default_factory=dict)
+    # each navigation source's measured latency (Survey.latencies; docs/NAVIGATION.md)
+    latencies: dict[str, dict] = field(default_factory=dict)
 
     @classmethod
     def of(cls, survey: Survey) -> Instruments:
-        return cls(set(survey.columns), dict(survey.provenance))
+        return cls(set(survey.columns), dict(survey.provenance), dict(survey.latencies))
+
+    def late_source(self, min_s: float = 0.5) -> str:
+        """'the compass (HE HDT), +5.0 s late' for the latest source whose latency stayed in the
+        rows, or ''."""
+        kept = [
+            (n, d["latency"])
+            for n, d in self.latencies.items()
+            if d.get("latency") is not None and abs(d["latency"]) >= min_s and not d.get("removed")
+        ]
+        if not kept:
+            return ""
+        n, lat = max(kept, key=lambda x: abs(x[1]))
+        return f"{source_name(n)}, {lat:+.1f} s late"
 
     def sources(self, column: str) -> list[str]:
         """The labels of the sources that fed `column`: the parts of a derived column's label joined by

@@ -10,7 +10,11 @@ import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame, wrap_from_minus180
 from forcemap.host.workbench.cleaning import check_positions, to_numeric
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table_files import mcap_provenance, read_raw  # noqa: F401 - part of this API
+from forcemap.host.workbench.table_files import (  # noqa: F401 - part of this API
+    mcap_latencies,
+    mcap_provenance,
+    read_raw,
+)
 
 MIN_ROWS = 30
 MAX_MISSING_FRACTION = 0.05
@@ -119,6 +123,8 @@ class Survey:
     provenance: dict[str, str] = field(default_factory=dict)
     # what the depth column is measured from once reduced to a gauge (host/workbench/water_level.py)
     datum: str | None = None
+    # each navigation source's measured latency (host/convert/navigation_table.latencies; MCAP only)
+    latencies: dict[str, dict] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -151,6 +157,7 @@ class Survey:
             spikes_removed=set(self.spikes_removed),
             provenance=dict(self.provenance),
             datum=self.datum,
+            latencies=dict(self.latencies),
         )
 
     def column(self, name: str) -> np.ndarray:
@@ -271,6 +278,7 @@ def load_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
     survey.keep_outliers = keep_outliers
     if path.suffix.lower() == ".mcap":
         survey.provenance = mcap_provenance(path)
+        survey.latencies = mcap_latencies(path)
     return survey
 
 

@@ -110,6 +110,16 @@ def mcap_provenance(path: Path) -> dict[str, str]:
     return found
 
 
+def mcap_latencies(path: Path) -> dict[str, dict]:
+    """Each navigation source's measured latency in an MCAP log (docs/NAVIGATION.md)."""
+    from forcemap.host.convert.navigation_table import latencies
+
+    try:
+        return latencies([path])
+    except Exception:  # a log the smoother cannot read: no latencies, the table still loads
+        return {}
+
+
 def read_raw(path: str | Path) -> dict[str, list]:
     """The table's cells by column, from CSV, Parquet or MCAP (chosen by the file's extension)."""
     path = Path(path)

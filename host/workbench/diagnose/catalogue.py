@@ -21,8 +21,10 @@ def _either(*clauses: str | None) -> str:
 
 
 def _clock(i: Instruments, family: str) -> str:
+    late = i.late_source()
+    measured = f" (the measured latencies name {late})" if late else ""
     return (
-        f"a clock offset or latency between {i.boat_frame(family)} and {i.navigation()}: the "
+        f"a clock offset or latency between {i.boat_frame(family)} and {i.navigation()}{measured}: the "
         "boat-frame reading is turned by the heading of another moment, so the vector swings in every "
         "turn (a buffering link, a serial port read late, a source stamped on arrival instead of at "
         "measurement, an instrument bus that re-sends late)"
