@@ -22,18 +22,15 @@ variation, 5 Hz, 1 deg noise) and a speed log (``VWVHW``, 1 Hz). The source faul
   quality 2, RMC mode D, HDOP 0.9), its error 0.3 m; for ``lost`` = (start s, duration s) it loses
   its corrections: autonomous, HDOP 4.5, a 3 m error wandering in seconds.
 
-The log faults of issue 28 (real logs that break the rules):
+The faults of issue 28 (real logs that break the rules):
 
 - ``no_variation``: the compass's HDG has empty variation fields (and RMC has none): the bus's
   variation is the engine's, IGRF-14's at the scenario's origin and start, so that the truth is known;
 - ``checksum_variant``: every sentence's checksum is computed over its address only (``*4B`` on
   every ``HCHDG``...), as the Irene logs of 2013 do;
 - ``position_jump``: for ``jump`` = (start s, duration s) the GNSS's fixes are JUMP_KM north of the
-  boat (a stale fix replayed at the start of a log); ``jumped`` counts the fix sentences sent so.
-
-The instrument faults of issue 28, with a known truth: ``speed_log`` (the log reads STW / gain, its
-axis turned ``misalign`` degrees from the compass's), ``dead_log`` (0.00 kn for a while) and
-``rot_deg_s`` (the gyro's ``TIROT`` in deg/s where NMEA 0183 says deg/min).
+  boat (a stale fix replayed at the start of a log); ``jumped`` counts the fix sentences sent so;
+- ``speed_log`` (STW / gain, axis turned ``misalign`` deg), ``dead_log`` (0.00 kn), ``rot_deg_s``.
 
 Every device's readings are the boat's true motion at the moment they describe (the truth table).
 """
@@ -49,7 +46,7 @@ from dataclasses import dataclass
 from forcemap.host.fuse.declination import igrf_declination
 from forcemap.host.vessel.geodesy import LocalFrame
 
-from .nmea_sounder import sentence
+from .nmea_sounder import address_checksum, sentence
 
 BUS_BYTES_PER_S = 3840.0  # 38400 baud, NMEA 0183-HS
 KNOT = 1852.0 / 3600.0
@@ -70,15 +67,6 @@ FAULTS = (
     "late_compass",
 )
 JUMP_KM = 500.0
-
-
-def address_checksum(line: str) -> str:
-    """``line`` with its checksum computed over the address only (``$IIHDG,063,,,,*4B``)."""
-    star = line.rfind("*")
-    x = 0
-    for b in line[1 : line.index(",")].encode("ascii"):
-        x ^= b
-    return f"{line[:star]}*{x:02X}"
 
 
 # nav_receivers: each receiver sends RMC, GGA and GLL, each at its own instant and UTC stamp
@@ -362,7 +350,6 @@ class NmeaBus:
             past = next((h for h in reversed(self.history) if h.t <= t - self.gnss2.late), None)
             if past is not None:
                 out += self.gnss2.sentences(past, self.gnss2.fix(past))
-        self.t_first = t if self.t_first is None else self.t_first
         if "late_compass" in self.faults and self._due("gyro", t):
             late = next((h for h in self.history if h.t >= t - LATE_COMPASS_S), m)
             hdt = (late.heading + self.rng["rot"].gauss(0.0, 0.5)) % 360.0

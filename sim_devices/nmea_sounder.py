@@ -23,6 +23,15 @@ def sentence(talker: str, kind: str, fields: tuple[str, ...]) -> str:
     return pynmea2.TalkerSentence.sentence_types[kind](talker, kind, fields).render()
 
 
+def address_checksum(line: str) -> str:
+    """``line`` with its checksum computed over the address only (``$IIHDG,063,,,,*4B``)."""
+    star = line.rfind("*")
+    x = 0
+    for b in line[1 : line.index(",")].encode("ascii"):
+        x ^= b
+    return f"{line[:star]}*{x:02X}"
+
+
 class Sounder:
     """A single-beam sounder: depth below the transducer (DPT with offset, DBT) and water temperature."""
 
