@@ -109,8 +109,10 @@ def test_default_set_and_parsing() -> None:
     quality = {"poor_gnss", "dgps_gnss"} | set(fl.CAL_KINDS)
     # the faults of real logs (issue 28), in no set either
     logs = {"no_variation", "checksum_variant", "position_jump", "bottom_lost"}
-    assert kinds | sources | quality | logs == set(fl.KINDS)
-    assert not kinds & (sources | quality | logs)
+    # the navigation faults of issue 29 (two receivers of three sentences, a late compass): no set
+    nav = {"nav_receivers", "late_compass"}
+    assert kinds | sources | quality | logs | nav == set(fl.KINDS)
+    assert not kinds & (sources | quality | logs | nav)
     f = fl.parse_one("speed_log:gain=1.1:misalign=-3")
     assert (f.source, f.params) == ("nmea", {"gain": 1.1, "misalign": -3.0})
     f = fl.parse_one("pull:source=mavlink:at=12.5:for=3")

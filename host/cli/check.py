@@ -7,7 +7,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from forcemap.host.cli.common import add_boat, add_force, add_json, write_json
+from forcemap.host.cli.common import add_boat, add_force, add_json, add_nmea_checksum, write_json
 from forcemap.host.errors import CliError
 
 EPILOG = """\
@@ -36,6 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="an MCAP log, a samples table (.csv, .parquet), or an NMEA capture or tlog",
     )  # fmt: skip
     add_boat(parser, "calibration for a raw capture (pinned values are used, not estimated)", False)
+    add_nmea_checksum(parser)
     add_json(parser, "the report")
     add_force(parser)
 
@@ -56,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         check_output(args.json, [path], force=args.force)
     try:
         cal = load(args.boat)
-        rep = check_path(path, cal)
+        rep = check_path(path, cal, args.nmea_checksum)
     except (ConfigError, ImportFailed, WorkbenchError) as e:
         raise CliError(str(e)) from None
     out = sys.stderr if args.json == "-" else sys.stdout
