@@ -82,6 +82,9 @@ class VirtualClock:
     def wall_ns(self) -> int:
         return self.t
 
+    def note(self, source: str, what: str) -> None:
+        pass  # no lockstep simulator listens
+
 
 def _survey(out, live: LiveService | None = None) -> list:
     clock = VirtualClock()
