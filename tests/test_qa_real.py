@@ -178,7 +178,8 @@ def test_no_row_is_lost_to_calibration(log, tmp_path_factory):
     applied = [f for c in out["mcap"]["categories"].values() for f in c["findings"] if f["applied"]]
     if applied:  # the instruments as read give the same rows as the calibrated import
         raw = SamplesSink()
-        import_file(real_data() / log, raw)
+        lenient = "lenient" if log == CHECKSUMS else "strict"
+        import_file(real_data() / log, raw, nmea_checksum=lenient)
         assert len(raw.rows) == n
 
 
