@@ -15,7 +15,7 @@ from forcemap.host.extras import install_hint
 from forcemap.host.log.mcap import iter_records, read_messages
 from forcemap.host.log.qa_records import QaFinding, is_finding
 
-from tests.tools import IN_CI, real_data
+from tests.tools import IN_CI, real_data, validate_log_schemas
 
 try:
     import mhkit  # noqa: F401
@@ -235,23 +235,6 @@ def test_damaged_ensembles_are_left_out_and_counted(raws, tmp_path, capsys):
 
 
 def _every_message_matches_its_schema(mcap) -> None:
-    import json
-
-    import jsonschema
-    from forcemap.host.log.mcap import FileScan
-    from mcap.records import Message
-
-    scan = FileScan(mcap)
-    validators: dict[int, jsonschema.Validator] = {}
-    n = 0
-    for record in iter_records(mcap, scan):
-        if isinstance(record, Message):
-            ch = scan.channels[record.channel_id]
-            if ch.schema_id not in validators:
-                schema = json.loads(scan.schemas[ch.schema_id].data)
-                validators[ch.schema_id] = jsonschema.Draft202012Validator(schema)
-            validators[ch.schema_id].validate(json.loads(record.data))
-            n += 1
+    n, names = validate_log_schemas(mcap)
     assert n > 272
-    names = {s.name for s in scan.schemas.values()}
     assert {"forcemap.AdcpSample", "forcemap.AdcpProfile", "foxglove.LocationFix"} <= names

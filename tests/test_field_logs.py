@@ -8,12 +8,10 @@ independent script derived from the same capture.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import struct
 from pathlib import Path
 
-import jsonschema
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.convert.importers import import_file, import_nmea
@@ -21,9 +19,8 @@ from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse.pipeline import ListSink, Pipeline
 from forcemap.host.log.mcap import FileScan, iter_records, read_messages
 from forcemap.host.vessel.geodesy import to_direction, velocity, wrap_to_180
-from mcap.records import Message
 
-from tests.tools import REAL
+from tests.tools import REAL, validate_log_schemas
 
 KN = 1852.0 / 3600.0
 
@@ -71,20 +68,8 @@ def test_paccup_import_then_export_gives_samples(paccup):
 
 def test_every_logged_message_matches_the_schema_in_the_file(paccup):
     mcap, _ = paccup
-    scan = FileScan(mcap)
-    validators: dict[int, jsonschema.Validator] = {}
-    n = 0
-    for record in iter_records(mcap, scan):
-        if not isinstance(record, Message):
-            continue
-        ch = scan.channels[record.channel_id]
-        if ch.schema_id not in validators:
-            schema = json.loads(scan.schemas[ch.schema_id].data)
-            validators[ch.schema_id] = jsonschema.Draft202012Validator(schema)
-        validators[ch.schema_id].validate(json.loads(record.data))
-        n += 1
+    n, names = validate_log_schemas(mcap)
     assert n > 60000
-    names = {s.name for s in scan.schemas.values()}
     assert {"foxglove.LocationFix", "forcemap.Sample", "forcemap.SetAndDrift"} <= names
 
 

@@ -79,3 +79,27 @@ def write_csv_rows(path: Path, header: list[str], rows: list[list[str]]) -> Path
         w.writerow(header)
         w.writerows(rows)
     return path
+
+
+def validate_log_schemas(mcap: Path) -> tuple[int, set[str]]:
+    """Check every message of an MCAP log against the JSON schema its file holds for it; the number of
+    messages and the schema names."""
+    import json
+
+    import jsonschema
+    from forcemap.host.log.mcap import FileScan, iter_records
+    from mcap.records import Message
+
+    scan = FileScan(mcap)
+    validators: dict[int, jsonschema.Validator] = {}
+    n = 0
+    for record in iter_records(mcap, scan):
+        if not isinstance(record, Message):
+            continue
+        ch = scan.channels[record.channel_id]
+        if ch.schema_id not in validators:
+            schema = json.loads(scan.schemas[ch.schema_id].data)
+            validators[ch.schema_id] = jsonschema.Draft202012Validator(schema)
+        validators[ch.schema_id].validate(json.loads(record.data))
+        n += 1
+    return n, {s.name for s in scan.schemas.values()}
