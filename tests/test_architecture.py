@@ -207,3 +207,18 @@ if __name__ == "__main__":
     c = find_cycle(g)
     print("cycle:", " -> ".join(c) if c else "none")
     sys.exit(1 if c else 0)
+
+
+def test_every_package_folder_is_installed():
+    """A wheel holds only the packages pyproject lists: a folder with an `__init__.py` left out of
+    `[tool.setuptools] packages` works from the clone and is missing once installed."""
+    import tomllib
+
+    setup = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(setup["packages"])
+    wanted = set()
+    for pkg, folder in setup["package-dir"].items():
+        for init in (ROOT / folder).rglob("__init__.py"):
+            rel = init.parent.relative_to(ROOT / folder).parts
+            wanted.add(".".join((pkg, *rel)))
+    assert wanted - listed == set(), f"packages missing from pyproject: {sorted(wanted - listed)}"
