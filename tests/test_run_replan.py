@@ -81,7 +81,14 @@ def test_run_replan_on_ptys(tmp_path: Path, capsys, live: bool) -> None:  # type
     if client is not None:
         _live_shows_the_decisions(client, path, read_mission(wpl).lines_latlon)
     assert recs and recs[0]["line_done"] == 0 and recs[0]["mode"] == "AUTO"
-    assert recs[0]["reason"] and recs[0]["map_samples"] and recs[0]["old_remaining"]
+    first = recs[0]
+    assert first["reason"]
+    if live and first["reason"] == "no map yet":
+        # the map process had not finished its first fit by the turn (a loaded machine): the mission
+        # is kept as it was; the live board feeding the replanner is test_plan_inflight's
+        assert not first["uploaded"] and not first["map_samples"] and not first["new_remaining"]
+    else:
+        assert first["map_samples"] and first["old_remaining"]
     capsys.readouterr()
     assert main(["log", "info", str(path)]) == 0
     text = capsys.readouterr().out
