@@ -70,7 +70,12 @@ class _Source:
     def arrays(self, t0: float) -> tuple[np.ndarray, np.ndarray]:
         """Times (its stamps, or its arrival times when they are coarser than its fixes) from
         ``t0`` on, sorted, and the values (n, k)."""
-        rows = [r for r in self.rows if r[1] >= t0]
+        rows = []
+        for r in reversed(self.rows):  # newest first: the window is the deque's tail
+            if r[1] < t0:
+                break
+            rows.append(r)
+        rows.reverse()
         if not rows:
             return np.zeros(0), np.zeros((0, 1))
         col = 1 if self.coarse() else 0
