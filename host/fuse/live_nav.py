@@ -38,6 +38,7 @@ LATENCY_WINDOW_S = 600.0  # s of readings the latencies are measured on ...
 LATENCY_PERIOD_S = 60.0  # ... every this often
 MIN_LATENCY_SPAN_S = 120.0  # no latency is measured on less
 SOLVE_PERIOD_S = 1.0  # at most one solve this often, whatever the rows' rate
+FRAME_KM = 10.0
 MOVED_DEG = 1.5e-5  # one stamp on positions this far apart is not one fix (nav_readings)
 QUANTITIES = ("position", "velocity", "heading", "yaw_rate")
 _DP = re.compile(r"(\d+)dp")
@@ -53,6 +54,12 @@ class LiveState:
     v_north: float | None = None
     heading: float | None = None
     yaw_rate: float | None = None
+
+
+def _far(frame: LocalFrame, lat: float, lon: float) -> bool:
+    """Whether a fix is so far from the frame's origin that the tangent plane bends (10 km)."""
+    x, y = frame.to_local(np.array([lat]), np.array([lon]))
+    return bool(math.hypot(float(x[0]), float(y[0])) > FRAME_KM * 1000.0)
 
 
 class _Source:
@@ -144,8 +151,8 @@ class LiveNavigation:
         src = self.sources[quantity].setdefault(key, _Source())
         stamp = t_fix if t_fix is not None and math.isfinite(t_fix) else t
         if quantity == "position":
-            if self.frame is None:
-                self.frame = LocalFrame(vals[0], vals[1])
+            if self.frame is None or _far(self.frame, vals[0], vals[1]):
+                self.frame = LocalFrame(vals[0], vals[1])  # each solve is in one frame
             if src.rows and src.rows[-1][0] == stamp:
                 moved = max(abs(vals[0] - src.rows[-1][2][0]), abs(vals[1] - src.rows[-1][2][1]))
                 src.same_stamp += moved > MOVED_DEG
