@@ -8,6 +8,7 @@ twice: without the filter (the baseline: the chosen source's last fix) and with 
 never wall time; at 1x real time, a pipeline's CPU per simulated second is its share of one core.
 
     python bench/bench_live_filter.py [--minutes 10] [--bridge]
+    python bench/bench_live_filter.py --daemon 5m [--speed 1]   # two real daemons, real time
 
 ``--bridge`` adds the bridge (its 4-Hz SAMPLEs pace the rows; the autopilot is left out, so the
 navigation is the NMEA sources').
@@ -48,13 +49,103 @@ def feed(chunks: list[tuple[str, int, bytes]], live: bool) -> tuple[float, dict]
     return cpu, got
 
 
+def daemons(duration: str, speed: float) -> dict:
+    """Two `forcemap run` daemons at ``speed``, each on its own simulator (same seed and faults,
+    NMEA bus and sounder): one with the filter, one with ``[sync] navigation = "logged"`` (the
+    baseline). CPU: each process's user+system seconds (psutil), never wall time."""
+    import subprocess
+
+    from bench.bench_live import _cpu
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench_live_filter_"))
+    procs, sims = {}, {}
+    for name, boat in (("filter", ""), ("plain", '[sync]\nnavigation = "logged"\n')):
+        base = tmp / name
+        (base / "out").mkdir(parents=True)
+        (base / "boat.toml").write_text(boat)
+        ports = base / "ports"
+        procs[name] = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "forcemap.host.cli",
+                "run",
+                "--quiet",
+                "-o",
+                str(base / "out"),
+                "--nmea",
+                str(ports / "nmea"),
+                "--depth",
+                str(ports / "depth"),
+                "--boat",
+                str(base / "boat.toml"),
+                "--clock",
+                f"sim:{ports / 'clock'}",
+                "--clock-wait",
+                "60s",
+            ],  # fmt: skip
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        sims[name] = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "forcemap.host.cli",
+                "sim",
+                "--scenario",
+                "river",
+                "--faults",
+                FAULTS,
+                "--speed",
+                str(speed),
+                "--duration",
+                duration,
+                "--ports",
+                str(ports),
+                "-o",
+                str(base / "truth"),
+                "--seed",
+                "1",
+            ],  # fmt: skip
+            cwd=ROOT,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    t0 = time.monotonic()
+    peak = {n: 0.0 for n in procs}
+    while any(s.poll() is None for s in sims.values()):
+        for n, p in procs.items():
+            peak[n] = max(peak[n], _cpu(p))
+        time.sleep(2.0)
+    wall = time.monotonic() - t0
+    for n, p in procs.items():
+        peak[n] = max(peak[n], _cpu(p))
+        p.send_signal(15)
+    for p in procs.values():
+        p.wait(120)
+    return {"wall_s": wall, **{f"cpu_{n}_s": v for n, v in peak.items()}, "dir": str(tmp)}
+
+
 def main() -> None:
     from forcemap.sim_devices.engine import Simulation
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--bridge", action="store_true")
+    ap.add_argument("--daemon", metavar="DURATION", help="two real daemons at 1x, e.g. 5m")
+    ap.add_argument("--speed", type=float, default=1.0)
     args = ap.parse_args()
+    if args.daemon:
+        got = daemons(args.daemon, args.speed)
+        survey = got["wall_s"] * args.speed
+        for n in ("plain", "filter"):
+            cpu = got[f"cpu_{n}_s"]
+            print(f"daemon {n:6s}: {cpu:6.2f} s CPU over {got['wall_s']:.0f} s: "
+                  f"{100 * cpu / got['wall_s']:.2f} % of a core")  # fmt: skip
+        print(f"({survey:.0f} s simulated; logs in {got['dir']})")
+        return
     ports = {"nmea", "depth"} | ({"bridge"} if args.bridge else set())
     duration = args.minutes * 60
     with tempfile.TemporaryDirectory() as tmp:

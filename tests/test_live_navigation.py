@@ -36,7 +36,7 @@ FAULTS = "nav_receivers,late_compass,rate_of_turn"
 DURATION_S = 420.0
 WARM_UP_S = 180.0  # the latencies are first measured on 120 s of readings
 # docs/NAVIGATION.md, "Live": the live rows against the re-import's, after the warm-up (p95)
-LIVE_VS_IMPORT = {"position_m": 0.5, "sog_m_s": 0.1, "heading_deg": 3.0}
+LIVE_VS_IMPORT = {"position_m": 0.5, "sog_m_s": 0.1, "heading_deg": 3.0, "stw_m_s": 0.05}
 
 
 class Clock:
@@ -157,8 +157,10 @@ def test_live_rows_agree_with_the_reimport(run):
     dpos = np.hypot(x - x2, y - y2)
     dsog = np.abs(live["sog"] - again["sog"])
     dhdg = np.abs((live["heading"] - again["heading"] + 180) % 360 - 180)
-    for d in (dpos, dsog, dhdg):
+    dstw = np.abs(live["stw"] - again["stw"])
+    for d in (dpos, dsog, dhdg, dstw):
         assert np.isfinite(d).all()
+    assert np.percentile(dstw, 95) <= LIVE_VS_IMPORT["stw_m_s"]
     for rows in (late, np.ones(len(t), bool)):  # after the warm-up, and over every row
         assert np.percentile(dpos[rows], 95) <= LIVE_VS_IMPORT["position_m"]
         assert np.percentile(dsog[rows], 95) <= LIVE_VS_IMPORT["sog_m_s"]
