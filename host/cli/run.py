@@ -226,6 +226,7 @@ def _pipeline_factory(
             sample_rate_hz=sample_rate_hz,
             sources_period_s=SOURCES_PERIOD_S,
             nmea_checksum=nmea_checksum,
+            live_filter=True,  # the rows from every source, causally ([sync] live_lag_s)
         )
 
     return make

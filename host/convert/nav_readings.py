@@ -16,13 +16,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from forcemap.host.fuse import fix_quality as fq
+from forcemap.host.fuse import nav_model
 from forcemap.host.fuse.sources import receiver_name, split_name
 from forcemap.host.log.mcap import read_messages
 
-DAY = 86400.0
-MAX_UTC_SKEW_S = 30.0
+MAX_UTC_SKEW_S = nav_model.MAX_UTC_SKEW_S
 MOVED_DEG = 1.5e-5  # about 1.5 m: one stamp on positions this far apart is not one fix
-TIME_FIELD = {"RMC": 1, "GGA": 1, "GLL": 5, "GNS": 1}
+TIME_FIELD = nav_model.TIME_FIELD
 QUANTITIES = ("position", "velocity", "heading", "yaw_rate", "stw")
 TOPICS = ("/source/reading", "/nmea/sentence")
 _WANTED = re.compile(
@@ -55,11 +55,8 @@ class SourceData:
         every 2 s) is not timed by them: its readings go back to their log times."""
         if not self.stamped or len(self.t) < 3:
             return
-        t = np.asarray(self.t)
         v = np.array([x[:2] for x in self.v], dtype=float)
-        same_t = np.diff(t) == 0
-        moved = np.any(np.abs(np.diff(v, axis=0)) > MOVED_DEG, axis=1)
-        if (same_t & moved).sum() > 0.1 * len(t):
+        if nav_model.coarse_stamps(self.t, v, MOVED_DEG):
             self.t, self.coarse_stamps, self.stamped = list(self.log_t), True, 0
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
@@ -72,18 +69,7 @@ class SourceData:
         return t[order], v[order]
 
 
-def _tod(text: str, stype: str) -> float | None:
-    """The UTC time of day (s) of a position sentence, or None."""
-    star = text.rfind("*")
-    fields = text[1 : star if star > 0 else len(text)].split(",")
-    i = TIME_FIELD.get(stype)
-    if i is None or i >= len(fields):
-        return None
-    f = fields[i]
-    try:
-        return int(f[0:2]) * 3600 + int(f[2:4]) * 60 + float(f[4:])
-    except ValueError:
-        return None
+_tod, _on_day = nav_model.time_of_day, nav_model.on_day
 
 
 def _fix(text: str, stype: str) -> tuple[int | None, float | None, int]:
@@ -104,13 +90,6 @@ def _fix(text: str, stype: str) -> tuple[int | None, float | None, int]:
         return (fq.MODE.get(mode[:1]) if mode else None), None, dp
     except ValueError:
         return None, None, dp
-
-
-def _on_day(log_t: float, tod: float) -> float | None:
-    """The UTC instant of time of day ``tod`` nearest to ``log_t``, if within MAX_UTC_SKEW_S."""
-    day = np.floor(log_t / DAY) * DAY
-    best = min((day + k * DAY + tod for k in (-1, 0, 1)), key=lambda x: abs(x - log_t))
-    return float(best) if abs(best - log_t) <= MAX_UTC_SKEW_S else None
 
 
 def group_of(name: str) -> str:

@@ -22,28 +22,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from forcemap.host.convert.nav_readings import SourceData
-from forcemap.host.fuse import source_stats
+from forcemap.host.fuse import nav_model, source_stats
 from forcemap.host.fuse.latency import heading_latencies
 from forcemap.host.fuse.smoother import Channel, CvSmoother
 from forcemap.host.vessel.geodesy import LocalFrame
 
-Q_POSITION = 0.5  # m^2/s^3 without ground velocity readings (turning at 3 m/s: 0.5 m/s^2)
-Q_HEADING = 50.0  # deg^2/s^3
-POSITION_GAP_S = 12.0  # a row further than this from any position reading keeps its own
-HEADING_GAP_S = 5.0
-# a fix's stated noise (m, per axis, at HDOP 1) by its class (fix_quality.FIX_NAMES): the usual
-# user-equivalent range errors of each kind of fix; the data decide where a receiver states nothing
-UERE_M = {1: 10.0, 2: 4.0, 3: 2.0, 4: 0.5, 5: 0.2, 6: 0.02}
-JUMP_M = 200.0
+JUMP_M = nav_model.JUMP_M
+Q_POSITION, Q_HEADING = nav_model.Q_POSITION, nav_model.Q_HEADING
+POSITION_GAP_S, HEADING_GAP_S = nav_model.POSITION_GAP_S, nav_model.HEADING_GAP_S
+VELOCITY_FLOOR = nav_model.VELOCITY_FLOOR
 Q_CANDIDATES = (0.02, 0.1, 0.5, 2.0)  # m^2/s^3: from a drifting sailing boat to a jet boat's turn
 CV_BLOCK_S = 20.0
-VELOCITY_FLOOR = 0.03  # m/s: no SOG is better than this, whatever its decimals say
-MIN_VELOCITY_LAG_S = 0.5  # a smaller lag of a ground velocity is not told from its noise
-MIN_VELOCITY_R = 0.7  # a velocity source's lag is taken from a clear correlation peak only
 GRID = source_stats.GRID_S
 # the speed log against the speed over ground: their accelerations differ by the current's change
 # along the track, so a lag is taken only from a clear correlation peak
-MIN_STW_R = 0.5  # a position this far from its neighbours' median is an outlier from the start
+MIN_STW_R = 0.5
 
 
 @dataclass
@@ -66,16 +59,12 @@ class SourceFit:
 
 def stated_noise(s: SourceData) -> float | None:
     """The noise (m, per axis) a receiver's sentences state: its usual fix class and median HDOP
-    (UERE_M), never below its minutes' quantisation (a step over the square root of 12)."""
+    (nav_model.fix_noise)."""
     if not s.fixes:
         return None
-    classes = np.bincount(np.asarray(s.fixes, int))
-    uere = UERE_M.get(int(np.argmax(classes)))
-    if uere is None:
-        return None
-    hdop = float(np.median(s.hdops)) if s.hdops else 1.0
-    step = 1852.0 * 10.0**-s.decimals if s.decimals else 0.0
-    return max(uere * max(hdop, 0.5), step / math.sqrt(12.0))
+    fix_class = int(np.argmax(np.bincount(np.asarray(s.fixes, int))))
+    hdop = float(np.median(s.hdops)) if s.hdops else None
+    return nav_model.fix_noise(fix_class, hdop, s.decimals)
 
 
 def acceleration_density(channels: list[Channel], query: np.ndarray) -> float:
@@ -106,38 +95,7 @@ def acceleration_density(channels: list[Channel], query: np.ndarray) -> float:
     return min(scores, key=scores.__getitem__)
 
 
-def _screen(xy: np.ndarray) -> np.ndarray:
-    """Positions far from the running median of their neighbours (jumps): weight 0 from the start."""
-    n = len(xy)
-    bad = np.zeros(n, bool)
-    med = np.median(xy, axis=0)
-    far = np.hypot(*(xy - med).T)
-    bad |= far > max(50_000.0, 20 * float(np.median(far)))
-    k = min(31, n if n % 2 else n - 1)
-    if k >= 5:
-        from numpy.lib.stride_tricks import sliding_window_view
-
-        pad = np.pad(xy, ((k // 2, k // 2), (0, 0)), mode="edge")
-        mx = np.median(sliding_window_view(pad[:, 0], k), axis=1)
-        my = np.median(sliding_window_view(pad[:, 1], k), axis=1)
-        bad |= np.hypot(xy[:, 0] - mx, xy[:, 1] - my) > JUMP_M
-    return bad
-
-
-def _velocity(sog: np.ndarray, cog: np.ndarray) -> np.ndarray:
-    """(n, 2) east and north of speeds and courses (compass degrees)."""
-    c = np.radians(cog)
-    return np.column_stack([sog * np.sin(c), sog * np.cos(c)])
-
-
-def _near(t_read: np.ndarray, t: np.ndarray, gap: float) -> np.ndarray:
-    """Whether each of ``t`` has a reading within ``gap``."""
-    if not len(t_read):
-        return np.zeros(len(t), bool)
-    s = np.sort(t_read)
-    i = np.clip(np.searchsorted(s, t), 1, len(s) - 1) if len(s) > 1 else np.zeros(len(t), int)
-    d = np.minimum(np.abs(s[i] - t), np.abs(s[np.maximum(i - 1, 0)] - t))
-    return d <= gap
+_screen, _velocity, _near = nav_model.screen, nav_model.velocity, nav_model.near
 
 
 class Navigation:
@@ -184,25 +142,16 @@ class Navigation:
             ok = np.isfinite(v[:, 0]) & np.isfinite(v[:, 1])
             x, y = frame.to_local(v[ok, 0], v[ok, 1])
             xy = np.column_stack([x, y])
-            c = Channel(name, "value", t[ok], xy, sigma0=3.0, floor=0.05)
-            c.prior_sigma = stated_noise(sources[name])
-            c.weights_ = np.where(_screen(xy), 0.0, 1.0) if len(xy) else np.ones(0)
-            channels.append(c)
-            times.append(c.t[c.weights_ > 0])
-            if v.shape[1] >= 4:
-                okv = ok & np.isfinite(v[:, 2]) & np.isfinite(v[:, 3])
-                if okv.sum() > 2:
-                    vel = _velocity(v[okv, 2], v[okv, 3])
-                    channels.append(
-                        Channel(name, "rate", t[okv], vel, sigma0=0.3, floor=VELOCITY_FLOOR)
-                    )
+            vel = _velocity(v[ok, 2], v[ok, 3]) if v.shape[1] >= 4 else None
+            got = nav_model.position_channels(name, t[ok], xy, vel, stated_noise(sources[name]))
+            channels.extend(got)
+            times.append(got[0].t[got[0].weights_ > 0])
         for name, s in readings.get("velocity", {}).items():
             t, v = s.arrays()
             okv = np.isfinite(v[:, 0]) & np.isfinite(v[:, 1]) if v.shape[1] >= 2 else []
             if len(t) and np.sum(okv) > 2:
-                vel = _velocity(v[okv, 0], v[okv, 1])
                 channels.append(
-                    Channel(name, "rate", t[okv], vel, sigma0=0.3, floor=VELOCITY_FLOOR)
+                    nav_model.velocity_channel(name, t[okv], _velocity(v[okv, 0], v[okv, 1]))
                 )
         lags = self._velocity_latencies(channels)
         self.q_position_ = Q_POSITION if self.q_position is None else self.q_position
@@ -222,41 +171,13 @@ class Navigation:
             self.fits_.append(fit)
 
     def _velocity_latencies(self, channels: list[Channel]) -> dict[int, tuple[float | None, str]]:
-        """Each ground-velocity source's lag behind the positions (the velocity vector against the
-        positions' change, source_stats.best_lag); removed where clear (a filtered or relayed SOG)."""
-        values = [c for c in channels if c.kind == "value" and c.n > 10]
-        if not values:
-            return {}
-        ref_c = max(values, key=lambda c: c.n)
-        ok = ref_c.weights_ > 0
-        pos = source_stats.Track("p", ref_c.t[ok], ref_c.z[ok])
-        out: dict[int, tuple[float | None, str]] = {}
+        """Each ground-velocity source's lag behind the positions (nav_model.velocity_latencies);
+        removed where clear (a filtered or relayed SOG)."""
+        out = nav_model.velocity_latencies(channels)
         for c in channels:
-            if c.kind != "rate" or c.n < 10:
-                continue
-            vel = source_stats.Track("v", c.t, c.z)
-            grid = source_stats._grid(pos, vel)
-            if not len(grid):
-                continue
-            ref = np.stack(
-                [
-                    np.gradient(source_stats._on_grid(pos.t, pos.v[:, j], grid), GRID)
-                    for j in (0, 1)
-                ],
-                axis=1,
-            )
-            sig = np.stack(
-                [source_stats._on_grid(vel.t, vel.v[:, j], grid) for j in (0, 1)], axis=1
-            )
-            lag, peak = source_stats.best_lag(ref, sig, 15.0)
-            if lag is None or peak is None or peak < MIN_VELOCITY_R:
-                r = "" if peak is None else f" (r = {peak:.2f})"
-                out[id(c)] = (None, f"no clear lag against the positions{r}")
-                continue
-            small = abs(lag) < MIN_VELOCITY_LAG_S
-            out[id(c)] = (float(lag), "within the estimate's noise: not removed" if small else "")
-            if self.remove_latency and not small:
-                c.latency = float(lag)
+            lag, note = out.get(id(c), (None, ""))
+            if self.remove_latency and lag is not None and not note:
+                c.latency = lag
         return out
 
     # --- heading ----------------------------------------------------------------------------------
@@ -282,18 +203,12 @@ class Navigation:
         for kind, group in (("value", heads), ("rate", rates)):
             for n, (t, v) in group.items():
                 ok = np.isfinite(v[:, 0])
-                c = Channel(n, kind, t[ok], v[ok, :1], sigma0=2.0, floor=0.1)
-                if kind == "rate":
-                    c.bias_free, c.sigma0, c.floor = False, 1.0, 0.05
                 got = lat.get(n)
-                if self.remove_latency and got is not None and got.value is not None:
-                    c.latency = got.value
-                channels.append(c)
+                shift = got.value if self.remove_latency and got and got.value is not None else 0.0
+                channels.append(nav_model.heading_channel(n, kind, t[ok], v[ok, :1], shift))
         # the first estimate, to unwrap every compass against: the most frequent one, unwrapped
         best = max(heads, key=lambda n: len(heads[n][0]))
-        tb, vb = heads[best][0], heads[best][1][:, 0]
-        okb = np.isfinite(vb)
-        tb, hb = tb[okb], np.degrees(np.unwrap(np.radians(vb[okb])))
+        tb, hb = nav_model.unwrapped(heads[best][0], heads[best][1][:, 0])
         lb = lat.get(best)
         shift = lb.value if self.remove_latency and lb and lb.value is not None else 0.0
 

@@ -27,6 +27,7 @@ from forcemap.host.log.messages import Current, Sample, SetAndDrift, TrueWind
 
 if TYPE_CHECKING:
     from forcemap.host.fuse.calibration import Calibration
+    from forcemap.host.fuse.live_nav import LiveNavigation
 
 # how far a reading may be from the row's time and still fill it (s)
 MAX_AGE_S = {"app": 2.0, "true": 2.0, "stw": 2.0, "depth": 5.0, "temp": 60.0}
@@ -97,6 +98,7 @@ class SampleAssembler:
         self.columns: dict[str, set[str]] = {}
         self._fed_keys: set[tuple] = set()
         self.counts: Counter[str] = Counter()
+        self.live: LiveNavigation | None = None  # the daemon's filter (forcemap run), if on
 
     # --- input ----------------------------------------------------------------------------------
 
@@ -136,9 +138,13 @@ class SampleAssembler:
     # --- output ---------------------------------------------------------------------------------
 
     def drain(self, now: float, final: bool) -> None:
-        """Emit the rows the navigation has passed, those older than ``hold_s``, or all (final)."""
+        """Emit the rows the navigation has passed, those older than ``hold_s``, or all (final);
+        with the live filter, those that have waited its lag."""
         pend = self.pending
         if not pend:
+            return
+        if self.live is not None and self.live.active:
+            self._drain_live(now, final)
             return
         covered = self.state.covered_until()
         while pend:
@@ -149,8 +155,38 @@ class SampleAssembler:
             pend.popleft()
             self._emit(p, edge=final or covered is None or covered < p.t)
 
-    def _emit(self, p: Pending, edge: bool) -> None:
-        st = self.state.at(p.t, edge=edge)
+    def _drain_live(self, now: float, final: bool) -> None:
+        """The rows that have waited the filter's lag, each with its state at its own time (and at
+        half a rate window before, for the paddle wheels), from one solve."""
+        live, pend = self.live, self.pending
+        if not final and not live.due(pend[0].t, now):  # type: ignore[union-attr]
+            return
+        ready = []
+        while pend and (final or live.ready(pend[0].t, now)):  # type: ignore[union-attr]
+            ready.append(pend.popleft())
+        if not ready:
+            return
+        times = [p.t for p in ready]
+        if self.rate_lag_s:
+            times += [p.t - self.rate_lag_s for p in ready if p.wheels is not None]
+        got = live.states(times)  # type: ignore[union-attr]
+        at = dict(zip(times, got, strict=True)) if got is not None else {}
+        for p in ready:
+            self._emit(p, edge=True, live=at)
+
+    def _state(self, t: float, edge: bool, live: dict[float, Any] | None) -> Any:
+        """The boat state at ``t``: the chosen sources', with the live filter's where it has one."""
+        st = self.state.at(t, edge=edge)
+        f = live.get(t) if live else None
+        if f is not None:
+            for name in ("lat", "lon", "v_east", "v_north", "heading", "yaw_rate"):
+                value = getattr(f, name)
+                if value is not None:
+                    setattr(st, name, value)
+        return st
+
+    def _emit(self, p: Pending, edge: bool, live: dict[float, Any] | None = None) -> None:
+        st = self._state(p.t, edge, live)
         moving = st.heading is not None and st.v_east is not None and st.v_north is not None
         if p.wheels is None and st.lat is None:
             self.counts["ticks_without_position"] += 1
@@ -165,7 +201,7 @@ class SampleAssembler:
             self._true_wind(row, p, st, labels)
             self._stw_current(row, p.t, st, labels)
         if p.wheels is not None:
-            self._wheels(row, p, st, edge, moving)
+            self._wheels(row, p, st, edge, moving, live)
         self._provenance(row, labels)
         self.out.write("/samples", p.t, row)
         self.counts["samples"] += 1
@@ -237,7 +273,9 @@ class SampleAssembler:
             row.current_east, row.current_north = ce, cn
             row.current_speed, row.current_dir = row.current_speed_stw, row.current_dir_stw
 
-    def _wheels(self, row: Sample, p: Pending, st: Any, edge: bool, moving: bool) -> None:
+    def _wheels(
+        self, row: Sample, p: Pending, st: Any, edge: bool, moving: bool, live: dict | None
+    ) -> None:
         cal = self.cal
         wheels = p.wheels or []
         for i, w in enumerate(wheels[:4]):
@@ -246,7 +284,7 @@ class SampleAssembler:
         # before the frame, so the current uses the boat state of that instant
         sr = st
         if self.rate_lag_s:
-            sr = self.state.at(p.t - self.rate_lag_s, edge=edge)
+            sr = self._state(p.t - self.rate_lag_s, edge, live)
             if sr.heading is None or sr.v_east is None:
                 sr = st
         (ff, fs), ambiguous = comp.current_lsq(wheels, self.angles, cal.wheel_noise)

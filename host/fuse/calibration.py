@@ -64,6 +64,9 @@ class Calibration:
     # before the compensation, or "keep" it
     navigation: str = "smoothed"
     latency: str = "remove"
+    # [sync] live_lag_s: how long `forcemap run` holds a row back for the readings after it (its
+    # fixed-lag filter, docs/NAVIGATION.md); 0 is a pure filter
+    live_lag_s: float = 3.0
     # [sources]: per quantity, substrings of source names in order of preference; silence timeouts
     source_priorities: dict[str, list[str]] = field(default_factory=dict)
     source_timeouts: dict[str, float] = field(default_factory=dict)
@@ -227,7 +230,7 @@ def _current(c: dict) -> dict[str, Any]:
 def _depth_compass_sync(d: dict, m: dict, s: dict) -> dict[str, Any]:
     _known(d, "depth.", {"offset_m"})
     _known(m, "compass.", {"variation_deg"})
-    _known(s, "sync.", {"mode", "max_gap_s", "navigation", "latency"})
+    _known(s, "sync.", {"mode", "max_gap_s", "navigation", "latency", "live_lag_s"})
     kw: dict[str, Any] = {}
     if "offset_m" in d:
         kw["depth_offset_m"] = _num(d["offset_m"], "depth.offset_m", lo=-10, hi=10)
@@ -246,6 +249,8 @@ def _depth_compass_sync(d: dict, m: dict, s: dict) -> dict[str, Any]:
             kw[key] = s[key]
     if "max_gap_s" in s:
         kw["max_state_gap_s"] = _num(s["max_gap_s"], "sync.max_gap_s", positive=True)
+    if "live_lag_s" in s:
+        kw["live_lag_s"] = _num(s["live_lag_s"], "sync.live_lag_s", lo=0, hi=30)
     return kw
 
 

@@ -51,5 +51,11 @@ class FeedContext(Protocol):
     def advance(self, t_wall: float) -> None: ...
 
     def source_reading(
-        self, quantity: str, source: str, t: float, value: tuple, group: str | None = None
+        self,
+        quantity: str,
+        source: str,
+        t: float,
+        value: tuple,
+        group: str | None = None,
+        stamp: float | None = None,
     ) -> bool: ...

@@ -17,6 +17,7 @@ from forcemap.host.decode import nmea_checksum
 from forcemap.host.decode.nmea import LineSplitter, NmeaParser, Sentence, depth_below_surface
 from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse import fix_quality as fq
+from forcemap.host.fuse import nav_model
 from forcemap.host.fuse.declination import DeclinationModel
 from forcemap.host.fuse.position_jumps import JumpFilter
 from forcemap.host.fuse.sources import (
@@ -353,7 +354,9 @@ class NmeaDecoder:
         receiver = self._receiver(s)
         if self.jumps.is_jump(t, lat, lon, self.pipe.utc_s(t)):
             return  # counted and listed with its reason (position_jumps.py)
-        if not self.pipe.source_reading("position", name, t, (lat, lon, sog, cog), receiver):
+        tod = nav_model.time_of_day(s.text, s.type)
+        stamp = None if tod is None else nav_model.on_day(self.pipe.utc_s(t), tod)
+        if not self.pipe.source_reading("position", name, t, (lat, lon, sog, cog), receiver, stamp):
             return
         if sog is not None:
             state.add_position_sog_cog(t, lat, lon, sog, cog)

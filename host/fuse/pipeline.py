@@ -31,6 +31,7 @@ from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse.assembler import SampleAssembler
 from forcemap.host.fuse.bridge_feed import BridgeDecoder
 from forcemap.host.fuse.calibration import Calibration
+from forcemap.host.fuse.live_nav import LiveNavigation
 from forcemap.host.fuse.mavlink_feed import MavDecoder
 from forcemap.host.fuse.nmea_feed import NmeaDecoder
 from forcemap.host.fuse.source_stats import sources_metadata
@@ -114,6 +115,7 @@ class Pipeline:
         sample_rate_hz: float | None = None,
         sources_period_s: float | None = None,
         nmea_checksum: str = "strict",
+        live_filter: bool = False,
     ) -> None:
         self.cal = cal = calibration if calibration is not None else Calibration()
         self.hold_s = hold_s
@@ -133,6 +135,13 @@ class Pipeline:
         self.wall = WallClock()
         self.mav_nav = False
         self.selector = SourceSelector(cal.source_priorities, cal.source_timeouts)
+        # `forcemap run`: the rows' navigation from every source, causally (live_nav.py)
+        self.live_nav: LiveNavigation | None = None
+        if live_filter and cal.navigation == "smoothed":
+            self.live_nav = LiveNavigation(
+                cal.live_lag_s, remove_latency=cal.latency != "keep", quality=self.selector.quality
+            )
+            self.assembler.live = self.live_nav
         self.bridge = BridgeDecoder(self, rate_window_s)
         self.nmea = NmeaDecoder(self, nmea_checksum)
         self.mav = MavDecoder(self)
@@ -157,6 +166,11 @@ class Pipeline:
         self.sink.metadata("calibration", cal.as_metadata())
         meta = {"sync": self.sync, "current_estimator": cal.current_estimator}
         meta["sample_rate_hz"] = str(sample_rate_hz or "paced by the fastest measurement")
+        if self.live_nav is not None:
+            meta["navigation"] = (
+                f"fixed-lag filter: every source over {self.live_nav.window_s:g} s, "
+                f"rows {self.live_nav.lag_s:g} s late"
+            )
         if config:
             meta.update({str(k): str(v) for k, v in config.items()})
         self.sink.metadata("config", meta)
@@ -237,6 +251,7 @@ class Pipeline:
                 q: {"chosen": v["chosen"], "switches": v["switches"], "n": len(v["sources"])}
                 for q, v in self.selector.summary().items()
             },
+            "live_filter": dict(self.live_nav.counts) if self.live_nav is not None else None,
             "last_fix": self.last_fix,
             "timesync": {
                 "bridge": mb.as_message() if mb else None,
@@ -296,13 +311,23 @@ class Pipeline:
         self.sink.metadata(name, data)
 
     def source_reading(
-        self, quantity: str, source: str, t: float, value: tuple, group: str | None = None
+        self,
+        quantity: str,
+        source: str,
+        t: float,
+        value: tuple,
+        group: str | None = None,
+        stamp: float | None = None,
     ) -> bool:
         """Log a reading of ``quantity`` from ``source``; True if it is the chosen source's
-        (``group``: the instrument it belongs to, see SourceSelector.accept)."""
+        (``group``: the instrument it belongs to, see SourceSelector.accept; ``stamp``: the UTC
+        its own time field names, for the live filter)."""
         sel = self.selector
         used = sel.accept(quantity, source, t, value, group)
         self.write("/source/reading", t, SourceReading(quantity, source, list(value), used))
+        if self.live_nav is not None:
+            t_fix = None if stamp is None else t + (stamp - self.utc_s(t))
+            self.live_nav.add(quantity, source, t, value, used, group, t_fix)
         if used and quantity in ("position", "heading"):
             self.assembler.state.source_interval(quantity, sel.tracks[quantity][source].interval)
         return used
@@ -316,6 +341,8 @@ class Pipeline:
         if not self.mav_nav:
             self.mav_nav = True
             self.assembler.state.reset()
+            if self.live_nav is not None:
+                self.live_nav.autopilot = True
 
     def fix(self, t: float, lat: float, lon: float, alt: float, h_acc: float | None) -> None:
         log_ns = self._log_ns(t)

@@ -109,14 +109,20 @@ class CvSmoother:
         ab[3] += 1e-9  # a weak prior on every state: a node no reading reaches is still defined
         return ab
 
-    def _solve(self, t: np.ndarray, channels: list[Channel], est: np.ndarray | None) -> np.ndarray:
-        ab = self._prior(t)
+    def _solve(
+        self,
+        t: np.ndarray,
+        channels: list[Channel],
+        est: np.ndarray | None,
+        prior: np.ndarray | None = None,
+    ) -> np.ndarray:
+        ab = self._prior(t) if prior is None else prior.copy()  # the readings are added in place
         d = channels[0].z.shape[1]
         rhs = np.zeros((2 * len(t), d))
         for c in channels:
             if not c.n:
                 continue
-            idx = self._index(t, c)
+            idx = self._node_of(t, c)
             col = 2 * idx + (0 if c.kind == "value" else 1)
             z = c.z - (c.bias_ if c.bias_.size else 0.0)
             if self.wrap and c.kind == "value" and est is not None:
@@ -129,6 +135,14 @@ class CvSmoother:
             np.add.at(ab[3], col, w)
             np.add.at(rhs, col, w[:, None] * z)
         return solveh_banded(ab, rhs, check_finite=False)
+
+    def _node_of(self, t: np.ndarray, c: Channel) -> np.ndarray:
+        """``_index``, kept for the fit's nodes: every iteration asks the same."""
+        cache = self._nodes_of
+        got = cache.get(id(c))
+        if got is None or got[0] is not t or got[1] != c.latency or got[2] is not c.t:
+            got = cache[id(c)] = (t, c.latency, c.t, self._index(t, c))
+        return got[3]
 
     @staticmethod
     def _index(t: np.ndarray, c: Channel) -> np.ndarray:
@@ -152,6 +166,7 @@ class CvSmoother:
             raise ValueError("no readings to smooth")
         t = self._nodes(channels, query)
         self.t_ = t
+        self._nodes_of: dict[int, tuple] = {}
         d = channels[0].z.shape[1]
         for c in channels:
             c.sigma_ = c.sigma0
@@ -162,8 +177,9 @@ class CvSmoother:
         if init is not None:
             est = np.zeros((2 * len(t), d))
             est[0::2] = init(t)
+        prior = self._prior(t)  # the same at every iteration: only the readings' weights change
         for it in range(self.iterations):
-            est = self._solve(t, channels, est)
+            est = self._solve(t, channels, est, prior)
             self._reweight(t, channels, est, last=it == self.iterations - 1)
         self.x_ = est
         self.channels_ = channels
@@ -175,7 +191,7 @@ class CvSmoother:
         return _wrap(r, self.wrap) if self.wrap and c.kind == "value" else r
 
     def _residuals(self, t: np.ndarray, c: Channel, est: np.ndarray) -> np.ndarray:
-        col = 2 * self._index(t, c) + (0 if c.kind == "value" else 1)
+        col = 2 * self._node_of(t, c) + (0 if c.kind == "value" else 1)
         r = c.z - est[col]
         if self.wrap and c.kind == "value":
             r = _wrap(r, self.wrap)
