@@ -27,13 +27,17 @@ def _is_source_tree(path: Path) -> bool:
 
 def _direct_url() -> dict | None:
     """The installed distribution's PEP 610 record (pip writes it for a folder, a URL or git)."""
-    from importlib.metadata import PackageNotFoundError, distribution
+    from importlib.metadata import distributions
 
-    try:
-        text = distribution("forcemap").read_text("direct_url.json")
-        return json.loads(text) if text else None
-    except (PackageNotFoundError, ValueError, OSError):
-        return None
+    # a build leaves forcemap.egg-info in the clone, found first from there: it has no record
+    for dist in distributions(name="forcemap"):
+        try:
+            text = dist.read_text("direct_url.json")
+            if text:
+                return json.loads(text)
+        except (ValueError, OSError):
+            continue
+    return None
 
 
 def _folder(path: Path, extra: str, editable: bool, cwd: Path) -> str:

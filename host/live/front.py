@@ -16,6 +16,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import threading
+import time
+from collections.abc import Callable
 
 SDK = "foxglove.sdk.v1"
 SPEC = "foxglove.websocket.v1"
@@ -62,9 +64,15 @@ def response_for_client(head: bytes) -> bytes:
     return head
 
 
-async def _pipe(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+async def _pipe(
+    reader: asyncio.StreamReader,
+    writer: asyncio.StreamWriter,
+    moved: Callable[[], None] | None = None,
+) -> None:
     try:
         while data := await reader.read(BUFFER):
+            if moved is not None:
+                moved()
             writer.write(data)
             await writer.drain()  # a slow reader on the other side holds this side back
     except (ConnectionError, OSError):
@@ -87,6 +95,7 @@ class SubprotocolFront:
         self._loop = asyncio.new_event_loop()
         self._server: asyncio.base_events.Server | None = None
         self._tasks: set[asyncio.Task] = set()
+        self.last_moved = time.monotonic()  # the last bytes from the sdk towards a viewer
         started = threading.Event()
         failure: list[BaseException] = []
 
@@ -133,7 +142,7 @@ class SubprotocolFront:
             answer = await up_reader.readuntil(b"\r\n\r\n")
             writer.write(response_for_client(answer) if spec else answer)
             await writer.drain()
-            await asyncio.gather(_pipe(reader, up_writer), _pipe(up_reader, writer))
+            await asyncio.gather(_pipe(reader, up_writer), _pipe(up_reader, writer, self._moved))
         except (asyncio.IncompleteReadError, asyncio.LimitOverrunError, ConnectionError, OSError):
             pass  # not a WebSocket client, or it went away: nothing to serve
         finally:
@@ -143,6 +152,17 @@ class SubprotocolFront:
                         w.close()
             if task is not None:
                 self._tasks.discard(task)
+
+    def _moved(self) -> None:
+        self.last_moved = time.monotonic()
+
+    def settle(self, quiet_s: float = 1.0, timeout_s: float = 10.0) -> None:
+        """Wait until no bytes have gone towards a viewer for ``quiet_s`` (at most ``timeout_s``), so
+        what the sdk still holds for a viewer that is behind reaches it before the connections drop.
+        A stalled viewer moves nothing, so it does not hold this up."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end and time.monotonic() - self.last_moved < quiet_s:
+            time.sleep(0.05)
 
     async def _close(self) -> None:
         if self._server is not None:

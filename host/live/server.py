@@ -171,5 +171,7 @@ class LiveServer:
             }
 
     def stop(self) -> None:
+        """Let the viewers take what is on its way to them (bounded), then close."""
+        self.front.settle()
         self.front.close()
         self.server.stop()
