@@ -35,8 +35,15 @@ HEADING_GAP_S = 5.0
 # user-equivalent range errors of each kind of fix; the data decide where a receiver states nothing
 UERE_M = {1: 10.0, 2: 4.0, 3: 2.0, 4: 0.5, 5: 0.2, 6: 0.02}
 JUMP_M = 200.0
-Q_CANDIDATES = (0.02, 0.1, 0.5, 2.0)  # m^2/s^3: from a drifting sailing boat to a jet boat's turn
-CV_BLOCK_S = 20.0
+# the acceleration's density from the ground-velocity readings (acceleration_density): from a
+# sailing boat on a steady reach (0.001) to a jet boat's turns (about 0.5)
+Q_RANGE = (1e-3, 2.0)  # m^2/s^3
+MIN_Q_READINGS = 30
+MAX_Q_GAP_S = 10.0
+MIN_DT_S = 0.05
+G = 9.81  # m/s^2
+SINGER = 4.0  # Singer's white density over the velocity increments' measure, at T = tau
+SAME_FIX_S = 0.5  # one receiver's RMC, GGA and GLL of one fix are stamped 0.2-0.4 s apart
 VELOCITY_FLOOR = 0.03  # m/s: no SOG is better than this, whatever its decimals say
 MIN_VELOCITY_LAG_S = 0.5  # a smaller lag of a ground velocity is not told from its noise
 MIN_VELOCITY_R = 0.7  # a velocity source's lag is taken from a clear correlation peak only
@@ -78,32 +85,43 @@ def stated_noise(s: SourceData) -> float | None:
     return max(uere * max(hdop, 0.5), step / math.sqrt(12.0))
 
 
-def acceleration_density(channels: list[Channel], query: np.ndarray) -> float:
-    """The white acceleration's spectral density (m^2/s^3) that predicts held-out positions best:
-    every fifth block of CV_BLOCK_S of position readings is left out, the track is fitted with each
-    of Q_CANDIDATES, and the one whose track passes closest to the held-out readings (each in its
-    source's noise; the median) is kept. Blocks, not single readings: a receiver's error wanders, and
-    the question is how well the track bridges a gap, as between a slow receiver's fixes."""
-    values = [c for c in channels if c.kind == "value" and c.n]
-    if not values or sum(c.n for c in values) < 50:
-        return Q_POSITION
-    t0 = min(float(c.t.min()) for c in values)
-    scores = {}
-    for q in Q_CANDIDATES:
-        for c in values:
-            c.active = (np.floor((c.t - t0) / CV_BLOCK_S) % 5) != 2
-        fit = CvSmoother(q, iterations=3).fit(channels, query)
-        u = []
-        for c in values:
-            held = ~c.active & (c.weights_ > 0)  # type: ignore[operator]
-            if held.any():
-                r = fit.residuals(c)[held]
-                sigma = c.prior_sigma or c.sigma_
-                u.append(np.sqrt((r**2).sum(axis=1)) / sigma)
-        scores[q] = float(np.median(np.concatenate(u))) if u else math.inf
-    for c in values:
-        c.active, c.weights_ = None, np.where(_screen(c.z), 0.0, 1.0)
-    return min(scores, key=scores.__getitem__)
+def acceleration_density(channels: list[Channel]) -> float | None:
+    """The white acceleration's spectral density (m^2/s^3, per axis) the log's own ground-velocity
+    readings show, or None without them. Over an interval ``tau`` a boat's velocity changes by
+    ``a tau`` (a turn's acceleration is smooth: Singer's model, variance ``s2`` correlated over
+    ``T``), so ``|dv|^2 / (2 tau)`` per axis measures ``s2 tau / 2``, and the white density that
+    model equals is ``2 s2 T``: ``SINGER`` (4) times the measure with ``T = tau``, ``tau`` the
+    longest interval the track has to bridge (the slowest receiver's between fixes). The mean over
+    each source's readings ``tau`` apart (manoeuvres included: q is the acceleration's mean power);
+    a reading's own noise only adds to it, so each source's figure is an upper bound and the least
+    is kept. Increments beyond 1 g (no boat turns or brakes harder: a garbled reading) and across
+    silences longer than MAX_Q_GAP_S do not count. Bounded to Q_RANGE."""
+    tau = float(np.clip(max(map(_fix_interval, channels), default=1.0), MIN_DT_S, MAX_Q_GAP_S / 2))
+    found = []
+    for c in channels:
+        if c.kind != "rate" or c.n < MIN_Q_READINGS:
+            continue
+        i = np.arange(c.n)
+        j = np.searchsorted(c.t, c.t + tau - MIN_DT_S)
+        i, j = i[j < c.n], j[j < c.n]
+        dt = c.t[j] - c.t[i]
+        a2 = ((c.z[j, :2] - c.z[i, :2]) ** 2).sum(axis=1)
+        ok = (dt <= MAX_Q_GAP_S) & (a2 <= (G * dt) ** 2)
+        if ok.sum() >= MIN_Q_READINGS:
+            found.append(SINGER * float(np.mean(a2[ok] / (2 * dt[ok]))))
+    if not found:
+        return None
+    return float(np.clip(min(found), *Q_RANGE))
+
+
+def _fix_interval(c: Channel) -> float:
+    """The median interval between a receiver's fixes (its sentences of one fix, stamped within
+    SAME_FIX_S of each other, are one); 0 for a velocity source."""
+    if c.kind != "value" or c.n < 3:
+        return 0.0
+    dt = np.diff(c.t)
+    apart = dt[dt > SAME_FIX_S]
+    return float(np.median(apart if len(apart) else dt))
 
 
 def _screen(xy: np.ndarray) -> np.ndarray:
@@ -205,7 +223,8 @@ class Navigation:
                     Channel(name, "rate", t[okv], vel, sigma0=0.3, floor=VELOCITY_FLOOR)
                 )
         lags = self._velocity_latencies(channels)
-        self.q_position_ = Q_POSITION if self.q_position is None else self.q_position
+        q = acceleration_density(channels) if self.q_position is None else self.q_position
+        self.q_position_ = Q_POSITION if q is None else q
         self.pos_ = CvSmoother(self.q_position_).fit(channels, query)
         self.pos_t_ = np.concatenate(times) if times else np.zeros(0)
         for c in channels:
