@@ -1,40 +1,47 @@
 """Navigation smoothed on every real NMEA log that imports (issue 29): no row lost, and positions that
-agree with the speed over ground.
+agree with the receiver's own speed over ground.
 
 Two properties per log, each checked by hand on the logs:
 - every row the pipeline made is still there, at the same time, with every column it had;
-- the speed from successive positions agrees with the table's SOG within 0.5 m/s at p95 (the
-  data-quality check's own measure, host/workbench/data_quality.speed_mismatch), and agrees with
-  the receiver's own SOG (the logged rows') better than the logged positions did: one receiver's
-  RMC, GGA and GLL interleaved (PacCup, irene), a slow receiver's last fix held (the simulator,
-  tests/test_navigation.py) are what the smoothing removes.
+- the speed from successive rows agrees with the receiver's own SOG (its raw readings, not the
+  table's) within 0.5 m/s at p95, the SOG taken at the lag the smoother measured for it against
+  the positions (a filtered or relayed SOG is late: PacCup's by 4.9 s, plaka's by 2.4 s; the log
+  says how late, so the lag is not assumed). "Successive" is each row and the first row at least
+  1 s after it: positions quantised to a thousandth of a minute (1.85 m) are not a speed over
+  less. The smoothed rows must also agree better than the logged ones (one receiver's RMC, GGA
+  and GLL interleaved, a relayed SOG's lag: what the smoothing removes).
 
-``irene_2013-07-31_flensburg_checksums.nmea`` does not import until its checksum variant is read
-(issue 28); the tlogs and the DataFlash log have no position or no measurement, so no rows.
+The autopilot logs (tests/data/real/mavlink) give no rows: two tlogs have a fix but no measurement,
+the other tlog and the DataFlash log no fix (tests/test_import_real.py); an autopilot log's rows
+keep the autopilot's fused navigation, so there is nothing of the smoother to test on them here
+(docs/NAVIGATION.md gives their figures).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from forcemap.host.convert import nav_readings
+from forcemap.host.convert import navigation_table as nt
 from forcemap.host.convert.export import samples_table
 from forcemap.host.convert.importers import import_to_mcap
-from forcemap.host.workbench import data_quality
-from forcemap.host.workbench.table import survey_from_columns
+from forcemap.host.vessel.geodesy import LocalFrame
 
 from tests.tools import real_data
 
 REAL = real_data()
-LOGS = [
-    "nmea/PacCupStartNMEA.txt",
-    "nmea/NeutronDance.log",
-    "nmea/bundg_zeus_9.log",
-    "nmea/plaka.log",
-    "nmea/irene/irene_2008-08-20_geneva.nmea",
-    "nmea/irene/irene_2013-08-03_flensburg.nmea",
-    "nmea/irene/irene_2014-06-27_geneva.nmea",
-]
+LOGS = {
+    "nmea/PacCupStartNMEA.txt": "strict",
+    "nmea/NeutronDance.log": "strict",
+    "nmea/bundg_zeus_9.log": "strict",
+    "nmea/plaka.log": "strict",
+    "nmea/irene/irene_2008-08-20_geneva.nmea": "strict",
+    "nmea/irene/irene_2013-07-31_flensburg_checksums.nmea": "lenient",  # its checksum variant
+    "nmea/irene/irene_2013-08-03_flensburg.nmea": "strict",
+    "nmea/irene/irene_2014-06-27_geneva.nmea": "strict",
+}
 MAX_MISMATCH = 0.5  # m/s at p95 (issue 29)
+MIN_SPAN_S = 1.0  # speed over rows at least this far apart
 
 
 def _columns(table) -> dict[str, np.ndarray]:
@@ -43,31 +50,55 @@ def _columns(table) -> dict[str, np.ndarray]:
     }
 
 
-def _against_logged_sog(cols: dict[str, np.ndarray], sog: np.ndarray) -> float:
-    """p95 of |speed from successive rows - the logged rows' SOG| (m/s)."""
-    from forcemap.host.vessel.geodesy import LocalFrame
+def receiver_sog(path) -> tuple[str, np.ndarray, np.ndarray, float | None]:
+    """The ground speed the rows were made from (the source used most: RMC's SOG of a receiver, or
+    a VTG), its raw readings (t, m/s), and its lag behind the positions as the smoother measured it
+    (None where no clear lag)."""
+    readings = nav_readings.read([path])
+    best = None
+    for quantity, k in (("position", 2), ("velocity", 0)):
+        for name, s in readings.get(quantity, {}).items():
+            t, v = s.arrays()
+            if v.shape[1] <= k or np.isfinite(v[:, k]).sum() < 10:
+                continue
+            ok = np.isfinite(v[:, k])
+            if best is None or (s.used, ok.sum()) > best[0]:
+                best = ((s.used, ok.sum()), name, t[ok], v[ok, k])
+    assert best is not None, "no ground speed in the log"
+    nav = nt.fitted([path])
+    assert nav is not None
+    lags = [f.latency for f in nav.fits_ if f.quantity == "velocity" and f.source == best[1]]
+    return best[1], best[2], best[3], lags[0] if lags else None
 
+
+def against_sog(cols: dict[str, np.ndarray], t_sog, sog, lag: float | None) -> float:
+    """p95 of |speed from successive rows (MIN_SPAN_S apart) - the SOG of that instant| (m/s):
+    a SOG stamped t describes t - lag."""
     frame = LocalFrame(float(np.nanmedian(cols["lat"])), float(np.nanmedian(cols["lon"])))
     x, y = frame.to_local(cols["lat"], cols["lon"])
-    dt = np.diff(cols["t"])
-    speed = np.hypot(np.diff(x), np.diff(y)) / dt
-    d = np.abs(speed - 0.5 * (sog[1:] + sog[:-1]))
-    return float(np.nanpercentile(d[dt > 0.05], 95))
+    t = cols["t"]
+    j = np.searchsorted(t, t + MIN_SPAN_S)
+    i = np.flatnonzero(j < len(t))
+    j = j[i]
+    speed = np.hypot(x[j] - x[i], y[j] - y[i]) / (t[j] - t[i])
+    mid = 0.5 * (t[i] + t[j]) + (lag or 0.0)
+    d = np.abs(speed - np.interp(mid, t_sog, sog, left=np.nan, right=np.nan))
+    assert np.isfinite(d).sum() > 0.9 * len(d)
+    return float(np.nanpercentile(d, 95))
 
 
 @pytest.mark.parametrize("name", LOGS)
 def test_real_log_smoothed(name, tmp_path):
     out = tmp_path / "log.mcap"
-    import_to_mcap(REAL / name, out)
+    import_to_mcap(REAL / name, out, nmea_checksum=LOGS[name])
     logged = samples_table([out], navigation="logged")
     smoothed = samples_table([out])
     lc, sc = _columns(logged), _columns(smoothed)
-    assert np.array_equal(lc["t"], sc["t"])
+    assert len(lc["t"]) == len(sc["t"]) and np.array_equal(lc["t"], sc["t"])
     assert set(logged.columns) <= set(smoothed.columns)
     for c in ("lat", "lon"):
         assert np.isfinite(sc[c]).sum() >= np.isfinite(lc[c]).sum()
-    survey = survey_from_columns(out, sc)
-    mismatch = data_quality.speed_mismatch(survey)
-    assert mismatch is not None and mismatch <= MAX_MISMATCH
-    # against the receiver's own SOG, the smoothed positions do better than the logged ones
-    assert _against_logged_sog(sc, lc["sog"]) < _against_logged_sog(lc, lc["sog"])
+    _, t_sog, sog, lag = receiver_sog(out)
+    smoothed_p95 = against_sog(sc, t_sog, sog, lag)
+    assert smoothed_p95 <= MAX_MISMATCH
+    assert smoothed_p95 < against_sog(lc, t_sog, sog, lag)

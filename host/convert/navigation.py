@@ -31,8 +31,6 @@ JUMP_M = nav_model.JUMP_M
 Q_POSITION, Q_HEADING = nav_model.Q_POSITION, nav_model.Q_HEADING
 POSITION_GAP_S, HEADING_GAP_S = nav_model.POSITION_GAP_S, nav_model.HEADING_GAP_S
 VELOCITY_FLOOR = nav_model.VELOCITY_FLOOR
-Q_CANDIDATES = (0.02, 0.1, 0.5, 2.0)  # m^2/s^3: from a drifting sailing boat to a jet boat's turn
-CV_BLOCK_S = 20.0
 GRID = source_stats.GRID_S
 # the speed log against the speed over ground: their accelerations differ by the current's change
 # along the track, so a lag is taken only from a clear correlation peak
@@ -65,34 +63,6 @@ def stated_noise(s: SourceData) -> float | None:
     fix_class = int(np.argmax(np.bincount(np.asarray(s.fixes, int))))
     hdop = float(np.median(s.hdops)) if s.hdops else None
     return nav_model.fix_noise(fix_class, hdop, s.decimals)
-
-
-def acceleration_density(channels: list[Channel], query: np.ndarray) -> float:
-    """The white acceleration's spectral density (m^2/s^3) that predicts held-out positions best:
-    every fifth block of CV_BLOCK_S of position readings is left out, the track is fitted with each
-    of Q_CANDIDATES, and the one whose track passes closest to the held-out readings (each in its
-    source's noise; the median) is kept. Blocks, not single readings: a receiver's error wanders, and
-    the question is how well the track bridges a gap, as between a slow receiver's fixes."""
-    values = [c for c in channels if c.kind == "value" and c.n]
-    if not values or sum(c.n for c in values) < 50:
-        return Q_POSITION
-    t0 = min(float(c.t.min()) for c in values)
-    scores = {}
-    for q in Q_CANDIDATES:
-        for c in values:
-            c.active = (np.floor((c.t - t0) / CV_BLOCK_S) % 5) != 2
-        fit = CvSmoother(q, iterations=3).fit(channels, query)
-        u = []
-        for c in values:
-            held = ~c.active & (c.weights_ > 0)  # type: ignore[operator]
-            if held.any():
-                r = fit.residuals(c)[held]
-                sigma = c.prior_sigma or c.sigma_
-                u.append(np.sqrt((r**2).sum(axis=1)) / sigma)
-        scores[q] = float(np.median(np.concatenate(u))) if u else math.inf
-    for c in values:
-        c.active, c.weights_ = None, np.where(_screen(c.z), 0.0, 1.0)
-    return min(scores, key=scores.__getitem__)
 
 
 _screen, _velocity, _near = nav_model.screen, nav_model.velocity, nav_model.near
@@ -154,7 +124,8 @@ class Navigation:
                     nav_model.velocity_channel(name, t[okv], _velocity(v[okv, 0], v[okv, 1]))
                 )
         lags = self._velocity_latencies(channels)
-        self.q_position_ = Q_POSITION if self.q_position is None else self.q_position
+        q = nav_model.acceleration_density(channels) if self.q_position is None else self.q_position
+        self.q_position_ = Q_POSITION if q is None else q
         self.pos_ = CvSmoother(self.q_position_).fit(channels, query)
         self.pos_t_ = np.concatenate(times) if times else np.zeros(0)
         for c in channels:

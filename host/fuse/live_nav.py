@@ -254,7 +254,8 @@ class LiveNavigation:
         values = [c for c in channels if c.kind == "value"]
         if not values:
             return None
-        fit = CvSmoother(nm.Q_POSITION).fit(channels, query)
+        q = nm.acceleration_density(channels)
+        fit = CvSmoother(nm.Q_POSITION if q is None else q).fit(channels, query)
         return fit, np.concatenate([c.t[c.weights_ > 0] for c in values])
 
     def _heading_channels(self, t0: float, latency: bool) -> tuple[list[Channel], dict]:

@@ -28,6 +28,15 @@ JUMP_M = 200.0  # a position this far from its neighbours' median is an outlier 
 VELOCITY_FLOOR = 0.03  # m/s: no SOG is better than this, whatever its decimals say
 MIN_VELOCITY_LAG_S = 0.5  # a smaller lag of a ground velocity is not told from its noise
 MIN_VELOCITY_R = 0.7  # a velocity source's lag is taken from a clear correlation peak only
+# the acceleration's density from the ground-velocity readings (acceleration_density): from a
+# sailing boat on a steady reach (0.001) to a jet boat's turns (about 0.5)
+Q_RANGE = (1e-3, 2.0)  # m^2/s^3
+MIN_Q_READINGS = 30
+MAX_Q_GAP_S = 10.0
+MIN_DT_S = 0.05
+G = 9.81  # m/s^2
+SINGER = 4.0  # Singer's white density over the velocity increments' measure, at T = tau
+SAME_FIX_S = 0.5  # one receiver's RMC, GGA and GLL of one fix are stamped 0.2-0.4 s apart
 DAY = 86400.0
 MAX_UTC_SKEW_S = 30.0
 TIME_FIELD = {"RMC": 1, "GGA": 1, "GLL": 5, "GNS": 1}
@@ -182,3 +191,42 @@ def coarse_stamps(t: Sequence[float], latlon: np.ndarray, moved_deg: float) -> b
     same_t = np.diff(np.asarray(t, float)) == 0
     moved = np.any(np.abs(np.diff(latlon[:, :2], axis=0)) > moved_deg, axis=1)
     return bool((same_t & moved).sum() > 0.1 * len(t))
+
+
+def acceleration_density(channels: list[Channel]) -> float | None:
+    """The white acceleration's spectral density (m^2/s^3, per axis) the log's own ground-velocity
+    readings show, or None without them. Over an interval ``tau`` a boat's velocity changes by
+    ``a tau`` (a turn's acceleration is smooth: Singer's model, variance ``s2`` correlated over
+    ``T``), so ``|dv|^2 / (2 tau)`` per axis measures ``s2 tau / 2``, and the white density that
+    model equals is ``2 s2 T``: ``SINGER`` (4) times the measure with ``T = tau``, ``tau`` the
+    longest interval the track has to bridge (the slowest receiver's between fixes). The mean over
+    each source's readings ``tau`` apart (manoeuvres included: q is the acceleration's mean power);
+    a reading's own noise only adds to it, so each source's figure is an upper bound and the least
+    is kept. Increments beyond 1 g (no boat turns or brakes harder: a garbled reading) and across
+    silences longer than MAX_Q_GAP_S do not count. Bounded to Q_RANGE."""
+    tau = float(np.clip(max(map(_fix_interval, channels), default=1.0), MIN_DT_S, MAX_Q_GAP_S / 2))
+    found = []
+    for c in channels:
+        if c.kind != "rate" or c.n < MIN_Q_READINGS:
+            continue
+        i = np.arange(c.n)
+        j = np.searchsorted(c.t, c.t + tau - MIN_DT_S)
+        i, j = i[j < c.n], j[j < c.n]
+        dt = c.t[j] - c.t[i]
+        a2 = ((c.z[j, :2] - c.z[i, :2]) ** 2).sum(axis=1)
+        ok = (dt <= MAX_Q_GAP_S) & (a2 <= (G * dt) ** 2)
+        if ok.sum() >= MIN_Q_READINGS:
+            found.append(SINGER * float(np.mean(a2[ok] / (2 * dt[ok]))))
+    if not found:
+        return None
+    return float(np.clip(min(found), *Q_RANGE))
+
+
+def _fix_interval(c: Channel) -> float:
+    """The median interval between a receiver's fixes (its sentences of one fix, stamped within
+    SAME_FIX_S of each other, are one); 0 for a velocity source."""
+    if c.kind != "value" or c.n < 3:
+        return 0.0
+    dt = np.diff(c.t)
+    apart = dt[dt > SAME_FIX_S]
+    return float(np.median(apart if len(apart) else dt))
