@@ -73,11 +73,11 @@ class Recorded:
 class VirtualClock:
     name, speed = "virtual", 1.0
 
-    def __init__(self) -> None:
-        self.t = T0_NS
+    def __init__(self, t0: int = T0_NS) -> None:
+        self.t0 = self.t = t0
 
     def monotonic_ns(self) -> int:
-        return self.t - T0_NS
+        return self.t - self.t0
 
     def wall_ns(self) -> int:
         return self.t

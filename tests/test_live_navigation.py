@@ -30,6 +30,7 @@ from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.sim_devices.engine import Simulation
 
 from tests.test_daemon_support import mcap_files
+from tests.test_live_daemon import Recorded, VirtualClock
 from tests.tools import validate_log_schemas
 
 FAULTS = "nav_receivers,late_compass,rate_of_turn"
@@ -39,45 +40,8 @@ WARM_UP_S = 180.0  # the latencies are first measured on 120 s of readings
 LIVE_VS_IMPORT = {"position_m": 0.5, "sog_m_s": 0.1, "heading_deg": 3.0, "stw_m_s": 0.05}
 
 
-class Clock:
-    name, speed = "virtual", 1.0
-
-    def __init__(self, t0: int) -> None:
-        self.t0 = self.t = t0
-
-    def monotonic_ns(self) -> int:
-        return self.t - self.t0
-
-    def wall_ns(self) -> int:
-        return self.t
-
-    def note(self, source: str, what: str) -> None:
-        pass
-
-
-class Recorded:
-    """The simulator's NMEA bus, chunk by chunk, each read at its own time."""
-
-    def __init__(self, clock: Clock, chunks: list[tuple[int, bytes]]) -> None:
-        self.clock, self.chunks, self.i = clock, chunks, 0
-        self.done = threading.Event()
-
-    def read(self) -> bytes:
-        if self.i >= len(self.chunks):
-            self.done.set()
-            time.sleep(0.01)
-            return b""
-        t, data = self.chunks[self.i]
-        self.i += 1
-        self.clock.t = t
-        return data
-
-    def close(self) -> None:
-        pass
-
-
 def _daemon(out: Path, chunks: list[tuple[int, bytes]]) -> list[Path]:
-    clock = Clock(chunks[0][0])
+    clock = VirtualClock(chunks[0][0])
     transport = Recorded(clock, chunks)
     log = McapLog(out)
     cal = calibration.load(None)

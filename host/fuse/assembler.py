@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any
 
 from forcemap.host.fuse import compensation as comp
@@ -179,10 +179,10 @@ class SampleAssembler:
         st = self.state.at(t, edge=edge)
         f = live.get(t) if live else None
         if f is not None:
-            for name in ("lat", "lon", "v_east", "v_north", "heading", "yaw_rate"):
-                value = getattr(f, name)
-                if value is not None:
-                    setattr(st, name, value)
+            for field in fields(f):
+                value = getattr(f, field.name)
+                if value is not None and field.name != "t":
+                    setattr(st, field.name, value)
         return st
 
     def _emit(self, p: Pending, edge: bool, live: dict[float, Any] | None = None) -> None:

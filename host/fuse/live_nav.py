@@ -22,7 +22,6 @@ import math
 import re
 from collections import Counter, deque
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from forcemap.host.fuse import nav_model as nm
@@ -30,6 +29,7 @@ from forcemap.host.fuse.latency import heading_latencies
 from forcemap.host.fuse.smoother import Channel, CvSmoother
 from forcemap.host.fuse.source_stats import Track
 from forcemap.host.fuse.sources import AUTOPILOT_CONNECTIONS, split_name
+from forcemap.host.fuse.state import FusedBoatState
 from forcemap.host.vessel.geodesy import LocalFrame
 
 LAG_S = 3.0  # s: how long a row waits for the readings after it (the boat file's live_lag_s)
@@ -42,18 +42,6 @@ FRAME_KM = 10.0
 MOVED_DEG = 1.5e-5  # one stamp on positions this far apart is not one fix (nav_readings)
 QUANTITIES = ("position", "velocity", "heading", "yaw_rate")
 _DP = re.compile(r"(\d+)dp")
-
-
-@dataclass(slots=True)
-class LiveState:
-    """The filter's boat state at one instant; None where no reading is near."""
-
-    lat: float | None = None
-    lon: float | None = None
-    v_east: float | None = None
-    v_north: float | None = None
-    heading: float | None = None
-    yaw_rate: float | None = None
 
 
 def _far(frame: LocalFrame, lat: float, lon: float) -> bool:
@@ -178,7 +166,7 @@ class LiveNavigation:
 
     # --- output -----------------------------------------------------------------------------------
 
-    def states(self, times: list[float]) -> list[LiveState] | None:
+    def states(self, times: list[float]) -> list[FusedBoatState] | None:
         """The state at each of ``times`` from the readings of the window before the earliest up
         to the latest one; None when the filter stands aside or cannot solve (counted)."""
         if not self.active or not times:
@@ -190,13 +178,13 @@ class LiveNavigation:
             self.counts["unsolved"] += 1
             return None
 
-    def _states(self, t: np.ndarray) -> list[LiveState]:
+    def _states(self, t: np.ndarray) -> list[FusedBoatState]:
         if self.remove_latency and (
             self._latency_t is None or self.latest - self._latency_t >= LATENCY_PERIOD_S
         ):
             self._measure_latencies()
         t0 = float(t.min()) - self.window_s
-        out = [LiveState() for _ in t]
+        out = [FusedBoatState(float(ti)) for ti in t]
         pos = self._position(t0, t)
         if pos is not None:
             fit, seen = pos
