@@ -60,7 +60,12 @@ def _daemon(out: Path, chunks: list[tuple[int, bytes]]) -> list[Path]:
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("live_nav")
+    return live_run(tmp_path_factory.mktemp("live_nav"))
+
+
+def live_run(out: Path):
+    """The simulated survey through the real daemon (its log's paths), its truth, the plain
+    pipeline's rows of old, and the live rows' wait (bench/bench_nav_real.py measures from it)."""
     sim = Simulation(
         scenario="river", faults=FAULTS, seed=1, truth_dir=out / "truth", nmea_bus=True
     )
