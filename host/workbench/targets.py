@@ -78,12 +78,12 @@ class SurveyModel:
                 )
         for spec in self.term_specs:
             for name in spec.inputs:
-                if name == self.target or (self.vector and name in self._own_columns()):
+                if name == self.target or (self.vector and name in self.own_columns()):
                     raise WorkbenchError(
                         f"term {spec} uses the target's own reading '{name}' as a covariate"
                     )
 
-    def _own_columns(self) -> set[str]:
+    def own_columns(self) -> set[str]:
         """The vector's own readings; a speed may depend on its own direction (shelter), so that one is allowed."""
         vt = self.vector
         aspects = (

@@ -160,3 +160,39 @@ def explain(
         f"an effect tied to '{covariate}' that the map model does not carry (check the sensor and its processing)",
         f"gp({covariate}, matern32)",
     )
+
+
+def _hours(seconds: float) -> str:
+    return f"{seconds / 3600:.2f} h" if seconds >= 3 * 3600 else f"{seconds / 60:.0f} min"
+
+
+def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
+    """The likely cause of a change in time the revisits found, named by its form (a tide near 12.42 or
+    23.93 h, another period a seiche, a steady change a stage or a drift), with what they cannot tell apart."""
+    form = verdict.best
+    sd = f" ± {_hours(verdict.period_sd_s)}" if verdict.period_sd_s else ""
+    if family == "wind":
+        return "the wind changes in time: gusts, a veer or a front passing"
+    level = family == "depth"
+    what = "the water level changes during the survey" if level else f"the {family} changes in time"
+    if form.name == "tide" and not short_for_tide:
+        cause = f"{what}: a tide (the revisits' differences follow a period of {_hours(form.period_s)}{sd})"
+    elif form.name in ("tide", "periodic"):
+        cause = (
+            f"{what}: an oscillation with a period of {_hours(form.period_s)}{sd}, such as a seiche of "
+            "the lake or basin (Merian: T = 2 L / (n sqrt(g h)) for a basin of length L and depth h)"
+        )
+    else:
+        cause = f"{what}: a steady rise or fall (a river's stage, a discharge changing, a slow drift)"
+    if short_for_tide and form.name != "tide":
+        cause += (
+            f"; a record of {_hours(verdict.span_s)} cannot tell a tide (12.42 h) from it: in tidal water "
+            "the term tide predicts beyond the survey"
+        )
+    others = [k for k in verdict.indistinct if not (short_for_tide and k == "tide")]
+    if others:
+        names = {"drift": "a steady drift", "tide": "a tide", "periodic": "another period"}
+        cause += f"; the revisits cannot tell it from {' or '.join(names[k] for k in others)}"
+    if level:
+        cause += "; or give a gauge's record with --water-level"
+    return cause

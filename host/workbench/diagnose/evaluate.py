@@ -17,7 +17,6 @@ from forcemap.host.workbench.spec import build_term, parse_term
 from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, survey_inputs
-from forcemap.host.workbench.water_level import revisit_folds
 
 # the comparison between candidates needs no finer spatial basis than this; `fit` goes further
 DIAGNOSE_MAX_BASIS = 600
@@ -53,7 +52,7 @@ class Evaluator:
             self.sec_r = self.sm.secondary.cv_predict(self.rfold)
         self.base_b = self.blocked_cv(self.sm)
         self._base_r: CVResult | None = None
-        self._revisit: tuple | None = None
+        self._time: tuple | None = None
         self.consequences = consequences_of(target)
 
     @property
@@ -118,36 +117,23 @@ class Evaluator:
         cv = self.sm.cv(self.rfold, primary=model, secondary_cv=self.sec_r, interval=False)
         return paired_test(self.base_r.error**2, cv.error**2, self.blocks)
 
-    def revisit_plan(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, CVResult] | None:
-        """Folds of time stretches, the held-out rows that another fold's pass revisits, their stretch, and
-        the current model's held-out errors there (`water_level.revisit_folds`); None when the track hardly
-        revisits itself (or the target is a vector's: the revisit test is for a scalar field such as
-        depth)."""
-        if self._revisit is None:
-            self._revisit = (None,)
-            k = int(self.rfold.max()) + 1
-            plan = revisit_folds(self.survey.xy, self.survey.trel, k)
-            if self.sm.vector is None and plan is not None:
-                self._revisit = (*plan, self.sm.cv(plan[0], interval=False))
-        return None if self._revisit[0] is None else self._revisit  # type: ignore[return-value]
+    def with_term(self, term: str) -> Model:
+        """The current model plus the term `term` (written as a user writes it: `water_level`, `tide`,
+        `gp(t, matern32)`), every hyperparameter refitted."""
+        spec = parse_term(term, is_circular)
+        X = self.inputs("t")
+        for name in spec.inputs:
+            if name not in X:
+                X.update(survey_inputs(self.survey, {name}))
+        return self.sm.primary.extended(build_term(spec, is_circular), X, self.sm.y_primary)
 
-    def revisit(self, model: Model) -> tuple[float, float, float] | None:
-        """(gain, p, held-out RMSE at the revisits) of `model` judged where the track revisits itself: each
-        time stretch predicted from the others, scored at the places another stretch passes over (crossline
-        differences); the paired unit is the stretch. None when the survey has too few revisits."""
-        plan = self.revisit_plan()
-        if plan is None:
-            return None
-        folds, rows, groups, base = plan
-        cv = self.sm.cv(folds, primary=model, interval=False)
-        gain, p = paired_test(base.error[rows] ** 2, cv.error[rows] ** 2, groups)
-        return gain, p, float(np.sqrt(np.mean(cv.error[rows] ** 2)))
+    def time_verdict(self):
+        """What the revisits say about time (`time_candidate.time_verdict`), computed once."""
+        if self._time is None:
+            from forcemap.host.workbench.diagnose.time_candidate import time_verdict
 
-    def water_level(self) -> Model:
-        """The current model plus the `water_level` term (a smooth level in time), refitted."""
-        from forcemap.host.workbench.terms import WaterLevelTerm
-
-        return self.sm.primary.extended(WaterLevelTerm(), self.inputs("t"), self.sm.y_primary)
+            self._time = (time_verdict(self.sm),)
+        return self._time[0]
 
     def clock(self) -> tuple[str, float, float, float]:
         """(term, cv_rmse, gain, p) of correcting a clock offset between the boat-frame reading and the

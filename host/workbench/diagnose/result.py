@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
 from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.data_quality import DataFinding
-from forcemap.host.workbench.diagnose.catalogue import explain
+from forcemap.host.workbench.diagnose.catalogue import explain, time_form_cause
 from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, REPEATS
 from forcemap.host.workbench.diagnose.null import NULL_MARGIN
 from forcemap.host.workbench.instruments import Instruments
@@ -41,7 +42,9 @@ class Candidate:
     null_gains: list[float] = field(default_factory=list)
     time_proxies: list[str] = field(default_factory=list)  # counters and clocks folded into t
     one_pass: bool = False  # confounded because the survey is one pass (identify.is_single_pass)
-    revisit: bool = False  # judged where the track revisits itself (evaluate.Evaluator.revisit)
+    revisit: bool = False  # judged where the boat comes back (diagnose/time_candidate.py)
+    time: object = field(default=None, repr=False)  # the revisits' TimeVerdict
+    blocked_p: float | None = None  # the blocked-CV p-value, when the revisits' p-value is the candidate's
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
@@ -176,7 +179,12 @@ class Diagnosis:
     def details(self) -> dict:
         out = self.to_json()
         out["candidate_details"] = [
-            {k: v for k, v in c.__dict__.items() if k != "hypers"} for c in self.first.candidates
+            {
+                k: (dataclasses.asdict(v) if k == "time" and v is not None else v)
+                for k, v in c.__dict__.items()
+                if k != "hypers"
+            }
+            for c in self.first.candidates
         ]
         out["skipped"] = self.first.skipped
         out["time_proxies"] = self.first.time_proxies
@@ -212,17 +220,13 @@ def explain_candidate(
     """The candidate's line of text: its gain, the verdict and why, a likely cause (naming only the
     survey's own instruments) and a term."""
     cause, term = explain(c.covariate, instruments, family)
+    if c.time is not None:
+        return explain_time(c, family)
     head = (
         f"adding {c.term}{' ' + what if what else ''} cuts the blocked-CV RMSE by {c.blocked_gain:.0%}"
         if c.blocked_gain >= 0
         else f"adding {c.term} does not help (blocked-CV RMSE {-c.blocked_gain:.0%} worse)"
     )
-    if c.revisit:
-        head = (
-            f"adding {c.term} cuts the error where the track revisits itself by {c.improvement:.0%} "
-            f"(in unseen blocks, where the bed is extrapolated and a level cannot show: "
-            f"{c.blocked_gain:+.0%})"
-        )
     if c.time_proxies:
         head += f" ({', '.join(c.time_proxies)} only count time and are folded into t)"
     if c.consequence:
@@ -281,3 +285,36 @@ def round_steps(diagnosis_json: dict) -> list[str]:
             )
         out.append(step)
     return out
+
+
+def revisit_note(verdict, held_rows: int) -> str:
+    """How many revisit pairs judged time, and what they showed."""
+    held = (
+        f"; {held_rows} rows where the boat stayed in one place are no revisits" if held_rows else ""
+    )
+    return (
+        f"judged on {verdict.pairs} revisit pairs ({verdict.crossings} crossings within "
+        f"{verdict.radius_m:.0f} m, stretches of {verdict.stretch_s:.0f} s or more apart){held}: their "
+        f"differences have an RMS of {verdict.rms_difference:.3g}, of which a change in time explains "
+        f"{verdict.rms_time:.3g} RMS ({verdict.share:.0%} of their mean square, cross-validated)"
+    )
+
+
+def explain_time(c: Candidate, family: str) -> str:
+    """Time's line when the revisits judged it: what they showed, how sure, its form and its term."""
+    from forcemap.host.workbench.diagnose.time_candidate import short_for_a_tide
+
+    v = c.time
+    head = (
+        f"where the boat comes back, a change in time explains {v.share:.0%} of the differences between "
+        f"passes (their RMS falls by {c.improvement:.0%}; in unseen blocks adding {c.term} gains "
+        f"{c.blocked_gain:+.0%})"
+    )
+    null = (
+        f"p = {c.p_value:.1e} against {v.permutations} exchanges of whole stretches' times "
+        "(their own noise and correlation kept)"
+    )
+    if not c.significant:
+        return f"{head}; {null}: not significant ({c.note})."
+    cause = time_form_cause(v, family, short_for_a_tide(v))
+    return f"{head}; {null}: significant ({c.note}). Likely cause: {cause}. Suggested term: {c.term}."

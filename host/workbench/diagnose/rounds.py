@@ -35,14 +35,15 @@ from forcemap.host.workbench.diagnose.result import (
     Diagnosis,
     Round,
     explain_candidate,
+    revisit_note,
 )
+from forcemap.host.workbench.diagnose.time_candidate import time_term
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.instruments import Instruments
 from forcemap.host.workbench.spec import parse_term
 from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.table import Survey, family, is_circular
 from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
-from forcemap.host.workbench.water_level import REVISIT_MIN_DT_S, REVISIT_RADIUS_M
 
 __all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
 
@@ -207,10 +208,6 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
         c = Candidate(name, term, rmse, gain, p, gain, None, False)
         c.note = clock_offset.scan_offset(ev.sm.survey, ev.sm.vector).edge_note()
         return c
-    if name == "t" and family(ev.target) == "depth":
-        c = _water_level(ev)
-        if c is not None:
-            return c
     if name != "t":
         derived_column(ev.survey, name)
     model = ev.extended(name)
@@ -223,26 +220,27 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
     spec = str(parse_term(name, is_circular))
     c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence)
     c.hypers = model.theta_
+    if name == "t":
+        _judged_at_revisits(ev, c)
     return c
 
 
-def _water_level(ev: Evaluator) -> Candidate | None:
-    """Time for a depth target, judged where the track revisits itself: a moving water surface shows as
-    differences between passes over the same place, which unseen blocks drown in the error of extrapolating
-    the bed. The term is `water_level`; None when the survey hardly revisits itself."""
-    if ev.revisit_plan() is None:
-        return None
-    model = ev.water_level()
-    gain, p, rmse = ev.revisit(model)  # type: ignore[misc]
-    cv, gain_b, _ = ev.blocked(model)
-    c = Candidate("t", "water_level", cv.rmse, gain, p, gain_b, None, False)
-    c.hypers, c.revisit = model.theta_, True
-    n = len(ev.revisit_plan()[1])
-    c.note = (
-        f"judged on {n} held-out samples that another pass comes within {REVISIT_RADIUS_M:g} m of, "
-        f"{REVISIT_MIN_DT_S / 60:g} min or more apart: RMSE there {rmse:.3g}"
-    )
-    return c
+def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
+    """Time judged where the boat comes back too (host/workbench/diagnose/time_judge.py): the revisits'
+    share and p-value become the candidate's, the term is the one their form advises, and the blocked-CV
+    figures stay beside them (a short survey's few stretches may judge weakly what its blocks show
+    plainly). Nothing changes when the track comes back too little."""
+    found = ev.time_verdict()
+    if found is None:
+        return
+    verdict, held = found
+    c.blocked_p = c.p_value
+    c.revisit, c.time = True, verdict
+    c.improvement, c.p_value = verdict.improvement, verdict.p_value
+    c.note = revisit_note(verdict, held)
+    term = time_term(verdict, ev.target)
+    if term != c.term:
+        c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
 
 
 def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: dict) -> None:
@@ -252,12 +250,19 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
     screened = 0
     for c in results:
         c.significant = False
-        if c.improvement < FLOOR or c.p_value > threshold or screened >= SCREEN:
+        gain, p = c.improvement, c.p_value
+        if c.revisit:
+            # judged at the revisits, where the place is the same and only the time differs: the null is
+            # the exchange of whole stretches' times, the significance its p-value, with no floor
+            if c.p_value <= threshold:
+                c.identifiable, c.significant = True, True
+                continue
+            gain, p = c.blocked_gain, c.blocked_p  # else the blocks' evidence, under their own rule
+        if gain < FLOOR or p > threshold or screened >= SCREEN:
             continue
         screened += 1
-        if c.covariate == clock_offset.NAME or c.revisit:
-            # a correction of the target, not a covariate: nothing to shift, nothing position could predict;
-            # or a level judged at revisits, where position is the same and only the time differs
+        if c.covariate == clock_offset.NAME:
+            # a correction of the target, not a covariate: nothing to shift, nothing position could predict
             c.identifiable, c.significant = True, True
             continue
         values = survey_inputs(ev.survey, {c.covariate})[c.covariate]
@@ -277,8 +282,30 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
         c.identifiable = c.replaced_gain < identify.REPLACED_SHARE * c.blocked_gain
         if not c.identifiable:
             c.confounded_with = identify.confounders(ev)
-        c.significant = c.identifiable and beats_null(c.improvement, c.null_gains)
+        c.significant = c.identifiable and beats_null(gain, c.null_gains)
     seconds.update(identifiability=t_ident, null=t_null)
+    _own_direction_after_time(ev, results)
+
+
+def _own_direction_after_time(ev: Evaluator, results: list[Candidate]) -> None:
+    """A speed target's own direction is derived from the target: when the flow changes in time (a tide
+    turns it and changes its strength together), its direction is a consequence of that change. Once time
+    is found it is credited only with what it adds to a model with time in it."""
+    vt = ev.sm.vector
+    if vt is None or vt.aspect != "speed":
+        return
+    own = vt.column("dir")
+    t = next((c for c in results if c.covariate == "t" and c.significant), None)
+    d = next((c for c in results if c.covariate == own and c.improvement > 0), None)
+    if t is None or d is None:
+        return
+    left = ev.pair_gain("t", own)
+    d.note = (
+        f"{own} is the target's own direction, and the {vt.prefix} changes in time: once time is in "
+        f"the model it adds {left:+.0%} (credited with that)"
+    )
+    d.improvement = min(d.improvement, left)
+    d.significant = d.significant and d.improvement >= FLOOR
 
 
 def _evidence_first(results: list[Candidate]) -> list[Candidate]:

@@ -1,0 +1,122 @@
+"""The time candidate judged where the boat comes back: which values are compared at the revisits, which
+pairs, and which term the verdict advises.
+
+What is compared is what the current model leaves (every term found so far, the map, no time): a scalar's
+residual, a vector's east and north residuals. The map takes out what the field does across the revisit
+radius; fitted without time, it cannot make the differences depend on time where there is no change in time,
+so the permutation null stays exact. Where there is one, the map takes part of it into the places the boat
+was at each time: the radius is kept to a fifth of the map's length scale, where the map cannot take much.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from forcemap.host.workbench.diagnose.time_judge import M2_S, TimeVerdict, judge_time
+from forcemap.host.workbench.revisits import (
+    MIN_RADIUS_M,
+    revisit_pairs,
+    revisit_radius,
+    stretch_length,
+)
+from forcemap.host.workbench.table import family
+from forcemap.host.workbench.water_level import REVISIT_RADIUS_M
+
+# fewer revisits than these cannot judge time (a permutation of fewer stretches cannot be significant)
+MIN_PAIRS = 50
+MIN_CROSSINGS = 5
+# a record shorter than this share of M2's period sees a tide as a steady rise or fall: the two are one
+# function of time there, and the advice is the term that assumes less
+TIDE_SPAN_SHARE = 0.25
+# a boat that moves less than this in a stretch holds its place (a mooring's swing, a GNSS's wander)
+STATION_M = 10.0
+
+
+def judged_values(sm) -> np.ndarray:
+    """What the model leaves at each row, one column per component: a scalar's residual, a vector's east
+    and north residuals from models of each component with the same terms (a tidal stream or a seiche
+    moves the water back and forth, which its speed alone may hide)."""
+    if sm.vector is None:
+        return (sm.y_primary - sm.primary.predict(sm.X))[:, None]
+    from forcemap.host.workbench.targets import SurveyModel
+
+    own = set(sm.own_columns())
+    terms = [str(t) for t in sm.term_specs if not own & set(t.inputs)]
+    cols = []
+    for aspect in ("east", "north"):
+        m = SurveyModel(sm.survey, sm.vector.column(aspect), terms, max_basis=sm.max_basis).fit()
+        cols.append(m.y_primary - m.primary.predict(m.X))
+    return np.column_stack(cols)
+
+
+def map_lengthscale(sm) -> float:
+    """The spatial GP's fitted length scale (m), or the survey's extent when the model has none."""
+    for name, p in sm.primary.params_.items():
+        if name.startswith("gp(position") and "lengthscale" in p:
+            return float(p["lengthscale"])
+    return float(np.ptp(sm.survey.xy, axis=0).max())
+
+
+def under_way(xy: np.ndarray, t: np.ndarray, radius: float, stretch_s: float) -> np.ndarray:
+    """Rows where the boat moves more than the revisit radius (at most STATION_M) within a stretch: a boat
+    that stays in one place (at the dock, at anchor, swinging on its mooring) makes no passes that come
+    back, and its hours there would outnumber every crossing of the survey."""
+    radius = min(radius, STATION_M)
+    half = 0.5 * stretch_s
+    before = np.column_stack([np.interp(t - half, t, xy[:, k]) for k in (0, 1)])
+    after = np.column_stack([np.interp(t + half, t, xy[:, k]) for k in (0, 1)])
+    return np.hypot(*(after - before).T) > radius
+
+
+def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] | None:
+    """The revisits' verdict on time for the fitted model `sm`, and how many rows were left out as held in
+    one place; None when the track comes back too little to judge it."""
+    s = sm.survey
+    t = s.trel
+    resid = sm.y_primary - sm.primary.predict(sm.X)
+    stretch = stretch_length(t, resid)
+    if radius_m is None:
+        depth_like = family(sm.target) == "depth"
+        radius_m = REVISIT_RADIUS_M if depth_like else revisit_radius(map_lengthscale(sm))
+    radius_m = max(radius_m, MIN_RADIUS_M)
+    moving = under_way(s.xy, t, radius_m, stretch)
+    values = judged_values(sm)
+    keep = moving & np.isfinite(values).all(axis=1)
+    if keep.sum() < 2 * MIN_PAIRS:
+        return None
+    rows = np.flatnonzero(keep)
+    rp = revisit_pairs(s.xy[rows], t[rows], radius_m, stretch)
+    if len(rp.pairs) < MIN_PAIRS or rp.crossings < MIN_CROSSINGS:
+        return None
+    v = rows[rp.pairs]
+    d = values[v[:, 1]] - values[v[:, 0]]
+    heading = s.columns.get("heading")
+    verdict = judge_time(d, rp, s.xy[rows], None if heading is None else heading[rows])
+    return verdict, int((~moving).sum())
+
+
+def time_term(verdict: TimeVerdict, target: str) -> str:
+    """The term a verdict advises for `target`: a tide, a periodic term (a seiche), or a smooth change (a
+    drift, a stage: `water_level` under depth, a GP in t otherwise; a wind's gusts and veers too)."""
+    fam = family(target)
+    smooth = "water_level" if fam == "depth" else "gp(t, matern32)"
+    if fam == "wind":
+        return smooth
+    kind = verdict.best.name
+    if kind == "tide" and short_for_a_tide(verdict):
+        kind = "drift"
+    term = {"tide": "tide", "periodic": "seiche"}.get(kind, smooth)
+    return term if is_time_term(term) else smooth
+
+
+def is_time_term(term: str) -> bool:
+    """Whether `term` parses as a term in time (not as a covariate of that name)."""
+    from forcemap.host.workbench.spec import parse_term
+    from forcemap.host.workbench.table import is_circular
+
+    spec = parse_term(term, is_circular)
+    return spec.kind == term or tuple(spec.inputs) == ("t",)
+
+
+def short_for_a_tide(verdict: TimeVerdict) -> bool:
+    """Whether the survey is too short to tell a tide from a steady rise or fall."""
+    return verdict.span_s < TIDE_SPAN_SHARE * M2_S

@@ -1,0 +1,334 @@
+"""Time judged where the boat comes back: do two passes over one place differ by more than their noise, in a
+way that follows the time between them?
+
+The current model (every term found so far, no time) leaves residuals; at each revisit pair
+(host/workbench/revisits.py) their difference is what the map and the terms cannot explain. Under "no time
+effect" those differences do not depend on when the passes were made. Each form a change in time can take is
+fitted to them by least squares, as the difference of a function of time at the pair's two times:
+
+- a drift (stage, a slow rise or fall): linear and quadratic in t;
+- a periodic change at each of a ladder of periods from four stretches to twice the survey (a seiche), and
+  at the tidal periods M2 and K1 (a tide).
+
+The share of the differences' sum of squares a form explains is its statistic. Its null comes from the data
+itself: whole stretches of track (as long as the residuals stay correlated) exchange their times at random,
+which keeps every pair's difference and every dependence inside a stretch, and breaks only the link with time.
+The forms are judged together (each share standardised by its own null, the largest against the largest of
+every permutation), so trying many periods costs no false findings. A smooth signal's time-shifted copies are no
+null: they are the same signal.
+
+Two things a pair's difference may owe to other than time are projected out first: the displacement between
+its two samples (the field's gradient across the revisit radius), and two harmonics of the heading (an
+instrument that reads differently with the bow's direction, a misaligned sensor or a heeling hull: legs sailed
+at set times would otherwise look like a change in time).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from forcemap.host.workbench.revisits import RevisitPairs
+
+PERMUTATIONS = 999
+# periods of the ladder: from this many stretches (a change faster than the paired unit cannot be judged)
+MIN_PERIOD_STRETCHES = 4.0
+MIN_PERIOD_S = 600.0
+LADDER = 24
+M2_S = 44714.16
+K1_S = 86164.09
+# the periods a tide has (s): semidiurnal 12.0-12.66 h, diurnal 23.93-25.82 h
+TIDAL_BANDS = ((12.0 * 3600, 12.66 * 3600), (23.93 * 3600, 25.82 * 3600))
+# forms closer than this in log-likelihood cannot be told apart (a likelihood ratio of e^2)
+TELL_APART = 2.0
+# pair differences beyond this many robust sd are clipped (a lost bottom, a spike the flags missed)
+CLIP_SD = 4.0
+
+
+@dataclass
+class Form:
+    """One shape a change in time can take, fitted to the revisit differences."""
+
+    name: str  # "drift", "tide", "periodic"
+    period_s: float | None
+    share: float  # share of the differences' sum of squares it explains
+    p_value: float
+
+
+@dataclass
+class TimeVerdict:
+    """What the revisits say about time: how many judged it, what they showed, how sure, and its form."""
+
+    pairs: int
+    crossings: int
+    span_s: float  # the survey's duration
+    stretch_s: float
+    radius_m: float
+    rms_difference: float  # RMS of the pairs' differences, in the target's unit
+    share: float  # cross-validated share of their mean square the best form explains
+    p_value: float
+    permutations: int
+    best: Form
+    forms: list[Form] = field(default_factory=list)
+    period_sd_s: float | None = None
+    indistinct: list[str] = field(default_factory=list)  # forms the data cannot tell from the best
+
+    @property
+    def improvement(self) -> float:
+        """The relative drop of the differences' RMS once the fitted change in time is taken out."""
+        return 1.0 - math.sqrt(max(1.0 - self.share, 0.0))
+
+    @property
+    def rms_time(self) -> float:
+        return self.rms_difference * math.sqrt(max(self.share, 0.0))
+
+
+def projected(d: np.ndarray, N: np.ndarray | None) -> np.ndarray:
+    """`d` (one column per vector component) with the columns of `N` projected out."""
+    if N is None or not len(N):
+        return d
+    Q, _ = np.linalg.qr(N)
+    return d - Q @ (Q.T @ d)
+
+
+def nuisance(rp: RevisitPairs, xy: np.ndarray, heading: np.ndarray | None) -> np.ndarray:
+    """What a pair's difference may owe to other than time: the displacement between its two samples (a
+    gradient of the field across the revisit radius) and two harmonics of the heading, differenced (an
+    instrument that reads differently with the bow's direction)."""
+    a, b = rp.pairs[:, 0], rp.pairs[:, 1]
+    cols = [xy[b, 0] - xy[a, 0], xy[b, 1] - xy[a, 1]]
+    if heading is not None and np.isfinite(heading).all():
+        h = np.radians(heading)
+        cols += [f(k * h[b]) - f(k * h[a]) for k in (1, 2) for f in (np.cos, np.sin)]
+    return np.column_stack(cols)
+
+
+def clipped(d: np.ndarray) -> np.ndarray:
+    """Each component clipped at CLIP_SD robust sd from zero."""
+    out = d.copy()
+    for c in range(d.shape[1]):
+        s = 1.4826 * np.median(np.abs(d[:, c] - np.median(d[:, c])))
+        if s > 0:
+            out[:, c] = np.clip(d[:, c], -CLIP_SD * s, CLIP_SD * s)
+    return out
+
+
+def periodic_shares(d: np.ndarray, ta: np.ndarray, tb: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Share of the differences' sum of squares explained by a cos/sin pair at each frequency (a separate
+    pair per vector component), vectorised over the frequencies."""
+    C = np.cos(np.outer(tb, omega)) - np.cos(np.outer(ta, omega))
+    S = np.sin(np.outer(tb, omega)) - np.sin(np.outer(ta, omega))
+    cc, ss, cs = (C * C).sum(0), (S * S).sum(0), (C * S).sum(0)
+    det = cc * ss - cs**2
+    det = np.where(det > 1e-9 * (cc * ss) + 1e-300, det, np.inf)
+    q = np.zeros(len(omega))
+    for k in range(d.shape[1]):
+        cd, sd = C.T @ d[:, k], S.T @ d[:, k]
+        q += (ss * cd**2 - 2 * cs * cd * sd + cc * sd**2) / det
+    return q / float((d * d).sum())
+
+
+def drift_share(d: np.ndarray, ta: np.ndarray, tb: np.ndarray, span: float) -> float:
+    """Share explained by a quadratic in time (a drift), a separate one per vector component."""
+    u, v = ta / span, tb / span
+    A = np.column_stack([v - u, v**2 - u**2])
+    w, *_ = np.linalg.lstsq(A, d, rcond=None)
+    return float(((A @ w) ** 2).sum() / (d * d).sum()) if np.isfinite(w).all() else 0.0
+
+
+class FormLadder:
+    """The forms tried: a drift, then a periodic change at each period of the ladder and at M2 and K1."""
+
+    def __init__(self, span_s: float, stretch_s: float) -> None:
+        lo = max(MIN_PERIOD_STRETCHES * stretch_s, MIN_PERIOD_S)
+        hi = max(2.0 * span_s, 2.0 * lo)
+        self.periods = np.concatenate([np.geomspace(lo, hi, LADDER), [M2_S, K1_S]])
+        self.omega = 2.0 * np.pi / self.periods
+        self.span = span_s
+
+    def shares(self, d: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+        """[drift, each period...] shares of the differences explained."""
+        return np.concatenate(
+            [[drift_share(d, ta, tb, self.span)], periodic_shares(d, ta, tb, self.omega)]
+        )
+
+    def form(self, i: int, share: float, p: float) -> Form:
+        if i == 0:
+            return Form("drift", None, share, p)
+        period = float(self.periods[i - 1])
+        return Form("tide" if is_tidal(period) else "periodic", period, share, p)
+
+
+def kind_of(form: Form, span_s: float, sd_s: float | None) -> str:
+    """What a fitted form is: a tide (a period in a tidal band), a periodic change (a period the record
+    holds at least once), or a drift (no period, or a period longer than the record: a part of a cycle is a
+    smooth rise or fall, whatever the rest of the cycle would be)."""
+    if form.period_s is None:
+        return "drift"
+    if is_tidal(form.period_s, sd_s or 0.0):
+        return "tide"
+    return "periodic" if form.period_s <= span_s else "drift"
+
+
+def is_tidal(period_s: float, sd_s: float = 0.0) -> bool:
+    """Whether a period (within two sd) lies in a tidal band."""
+    return any(lo - 2 * sd_s <= period_s <= hi + 2 * sd_s for lo, hi in TIDAL_BANDS)
+
+
+def permutation_p(obs: np.ndarray, null: np.ndarray) -> tuple[np.ndarray, float]:
+    """Each form's permutation p-value, and the p-value of the forms judged together: each form's share
+    standardised by its own null's mean and sd, the largest of them against the same largest in every
+    permutation (a max-statistic, as Westfall and Young's, without the ties of discrete p-values)."""
+    n = len(null)
+    per_form = (1 + (null >= obs).sum(axis=0)) / (1 + n)
+    mu, sd = null.mean(axis=0), null.std(axis=0) + 1e-12
+    z_obs = float(((obs - mu) / sd).max())
+    z_null = ((null - mu) / sd).max(axis=1)
+    return per_form, float((1 + (z_null >= z_obs).sum()) / (1 + n))
+
+
+class PermutedTimes:
+    """The pairs' times under a permutation of the stretches, from sines and cosines computed once:
+    cos(w (t + s)) = cos(w t) cos(w s) - sin(w t) sin(w s), s each stretch's shift."""
+
+    def __init__(self, rp: RevisitPairs, omega: np.ndarray) -> None:
+        self.rp, self.omega = rp, omega
+        ta, tb = rp.times()
+        self.ta, self.tb = ta, tb
+        self.sa, self.sb = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
+        self.trig = [(np.cos(np.outer(x, omega)), np.sin(np.outer(x, omega))) for x in (ta, tb)]
+
+    def shares(self, d: np.ndarray, ladder: FormLadder, order: np.ndarray) -> np.ndarray:
+        starts = self.rp.stretch_s * np.arange(self.rp.n_stretches)
+        shift = starts[order] - starts
+        cw, sw = np.cos(np.outer(shift, self.omega)), np.sin(np.outer(shift, self.omega))
+        parts = []
+        for (c, s), st in zip(self.trig, (self.sa, self.sb), strict=True):
+            parts.append((c * cw[st] - s * sw[st], s * cw[st] + c * sw[st]))
+        (ca, sa), (cb, sb) = parts
+        C, S = cb - ca, sb - sa
+        cc, ss, cs = (C * C).sum(0), (S * S).sum(0), (C * S).sum(0)
+        det = cc * ss - cs**2
+        det = np.where(det > 1e-9 * (cc * ss) + 1e-300, det, np.inf)
+        q = np.zeros(len(self.omega))
+        for k in range(d.shape[1]):
+            cd, sd = C.T @ d[:, k], S.T @ d[:, k]
+            q += (ss * cd**2 - 2 * cs * cd * sd + cc * sd**2) / det
+        drift = drift_share(d, self.ta + shift[self.sa], self.tb + shift[self.sb], ladder.span)
+        return np.concatenate([[drift], q / float((d * d).sum())])
+
+
+def judge_time(
+    d: np.ndarray,
+    rp: RevisitPairs,
+    xy: np.ndarray,
+    heading: np.ndarray | None = None,
+    permutations: int = PERMUTATIONS,
+    seed: int = 0,
+) -> TimeVerdict:
+    """Judge a change in time from the residual differences `d` (one row per pair of `rp`, one column per
+    vector component, the later sample minus the earlier)."""
+    d = np.asarray(d, float).reshape(len(rp.pairs), -1)
+    rms = float(np.sqrt(np.mean((d * d).sum(axis=1))))
+    d = projected(clipped(d), nuisance(rp, xy, heading))
+    span = float(np.ptp(rp.t))
+    ladder = FormLadder(span, rp.stretch_s)
+    ta, tb = rp.times()
+    obs = ladder.shares(d, ta, tb)
+    rng = np.random.default_rng(seed)
+    pt = PermutedTimes(rp, ladder.omega)
+    null = np.array(
+        [pt.shares(d, ladder, rng.permutation(rp.n_stretches)) for _ in range(permutations)]
+    )
+    per_form, p = permutation_p(obs, null)
+    best_i = best_form(obs, null)
+    n_eff = max(rp.crossings, 2)
+    forms = [ladder.form(i, float(obs[i]), float(per_form[i])) for i in range(len(obs))]
+    best = forms[best_i]
+    sd = period_sd(d, ta, tb, best.period_s, n_eff) if best.period_s else None
+    best = Form(kind_of(best, span, sd), best.period_s, best.share, best.p_value)
+    return TimeVerdict(
+        pairs=len(rp.pairs),
+        crossings=rp.crossings,
+        span_s=span,
+        stretch_s=rp.stretch_s,
+        radius_m=rp.radius_m,
+        rms_difference=rms,
+        share=cv_share(d, rp, ladder, best_i),
+        p_value=p,
+        permutations=permutations,
+        best=best,
+        forms=forms,
+        period_sd_s=sd,
+        indistinct=indistinct(forms, best_i, n_eff),
+    )
+
+
+def best_form(obs: np.ndarray, null: np.ndarray) -> int:
+    """The form that stands furthest above its own null (in its null's sd)."""
+    z = (obs - null.mean(axis=0)) / (null.std(axis=0) + 1e-12)
+    return int(np.argmax(z))
+
+
+def log_lik(share: float, n_eff: int) -> float:
+    """The Gaussian profile log-likelihood of a form (up to a constant), with n_eff independent units."""
+    return -0.5 * n_eff * math.log(max(1.0 - share, 1e-12))
+
+
+def period_sd(d, ta, tb, period_s: float, n_eff: int) -> float | None:
+    """The period's sd from its profile likelihood: the half-width where it falls by 1/2 from its peak,
+    on a fine grid of periods around it (None when the profile does not fall on both sides: the period
+    is not determined by the survey)."""
+    grid = period_s * np.geomspace(0.5, 2.0, 241)
+    ll = np.array([log_lik(s, n_eff) for s in periodic_shares(d, ta, tb, 2 * np.pi / grid)])
+    top = int(np.argmax(ll))
+    inside = ll >= ll[top] - 0.5
+    lo, hi = top, top
+    while lo > 0 and inside[lo - 1]:
+        lo -= 1
+    while hi < len(grid) - 1 and inside[hi + 1]:
+        hi += 1
+    if lo == 0 or hi == len(grid) - 1:
+        return None
+    return float(0.5 * (grid[hi] - grid[lo]))
+
+
+def indistinct(forms: list[Form], best_i: int, n_eff: int) -> list[str]:
+    """The kinds of form (drift, tide, periodic) whose best member the data cannot tell from the best."""
+    top = log_lik(forms[best_i].share, n_eff)
+    out = []
+    for kind in ("drift", "tide", "periodic"):
+        members = [f for f in forms if f.name == kind]
+        if kind == forms[best_i].name or not members:
+            continue
+        if top - max(log_lik(f.share, n_eff) for f in members) < TELL_APART:
+            out.append(kind)
+    return out
+
+
+def cv_share(d: np.ndarray, rp: RevisitPairs, ladder: FormLadder, i: int, k: int = 5) -> float:
+    """The best form's share of the differences, cross-validated: its coefficients fitted on the pairs
+    away from a fold of stretches, judged on the pairs that touch it (pooled over the folds)."""
+    ta, tb = rp.times()
+    fold = rp.stretch % k
+    fa, fb = fold[rp.pairs[:, 0]], fold[rp.pairs[:, 1]]
+    A = feature_differences(ladder, i, ta, tb)
+    resid = np.zeros_like(d)
+    for f in range(k):
+        test = (fa == f) | (fb == f)
+        if not test.any() or test.all():
+            resid[test] = d[test]
+            continue
+        w, *_ = np.linalg.lstsq(A[~test], d[~test], rcond=None)
+        resid[test] = d[test] - A[test] @ w
+    return float(1.0 - (resid * resid).sum() / (d * d).sum())
+
+
+def feature_differences(ladder: FormLadder, i: int, ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """The columns of form `i` differenced over each pair."""
+    if i == 0:
+        u, v = ta / ladder.span, tb / ladder.span
+        return np.column_stack([v - u, v**2 - u**2])
+    w = ladder.omega[i - 1]
+    return np.column_stack([np.cos(w * tb) - np.cos(w * ta), np.sin(w * tb) - np.sin(w * ta)])
