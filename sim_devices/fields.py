@@ -155,7 +155,9 @@ class World:
             hour = math.floor(float(t) / 3600.0)
             table = self._tide_tables.get(hour)
             if table is None:
-                table = self._tide_tables[hour] = self._tidal(3600.0 * hour + np.arange(0, 3611, 10.0))
+                table = self._tide_tables[hour] = self._tidal(
+                    3600.0 * hour + np.arange(0, 3611, 10.0)
+                )
             return float(np.interp(float(t), 3600.0 * hour + np.arange(0, 3611, 10.0), table))
         return self._tidal(t)
 

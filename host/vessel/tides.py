@@ -34,7 +34,9 @@ _EPOCH_DAYS = -25567.5
 MIN_ABS_LAT = 5.0
 # the constituents `tide` considers by default: the astronomical ones and the main shallow-water overtide
 DEFAULT_COMPOUNDS = ("M4",)
-PRIORITY = ("M2",)  # a record too short for any constituent still gets this one (the semidiurnal band)
+PRIORITY = (
+    "M2",
+)  # a record too short for any constituent still gets this one (the semidiurnal band)
 
 
 @dataclass(frozen=True)
@@ -44,7 +46,9 @@ class Constituent:
     df_cph: float
     doodson: tuple[int, ...] | None
     semi: float
-    satellites: np.ndarray  # (k, 6): d_p, d_N', d_p1, phase correction, amplitude ratio, latitude kind
+    satellites: (
+        np.ndarray
+    )  # (k, 6): d_p, d_N', d_p1, phase correction, amplitude ratio, latitude kind
     shallow: tuple[tuple[str, float], ...]
 
     @property
@@ -196,8 +200,8 @@ def select(span_h: float, rayleigh: float = 1.0, requested: list[str] | None = N
         names = list(PRIORITY)
         left = {
             "M2": f"the record is shorter than the {_hours(1 / constituent('M2').df_cph)} that "
-            "separate it from the mean: fitted as the semidiurnal band, its amplitude and phase "
-            "poorly determined (see their sd)",
+            "separate it from the mean: fitted as the semidiurnal band (S2, N2 and the rest are in "
+            "it; their sd says how well the record fixes amplitude and phase)",
             **{k: v for k, v in left.items() if k != "M2"},
         }
     return Selection(names, span_h, rayleigh, left)

@@ -61,7 +61,9 @@ def chi2(t: np.ndarray, Y: np.ndarray, w: np.ndarray, freqs: np.ndarray) -> np.n
         CS = (c * s) @ w - C * S
         YC, YS = (c * w) @ Y, (s * w) @ Y  # (F, c)
         D = np.maximum(CC * SS - CS * CS, 1e-300)
-        explained = (SS[:, None] * YC**2 + CC[:, None] * YS**2 - 2 * CS[:, None] * YC * YS) / D[:, None]
+        explained = (SS[:, None] * YC**2 + CC[:, None] * YS**2 - 2 * CS[:, None] * YC * YS) / D[
+            :, None
+        ]
         out[a : a + len(f)] = float((w @ Y**2).sum()) - explained.sum(axis=1)
     return np.maximum(out, 1e-300)
 

@@ -39,12 +39,16 @@ _PERIOD = re.compile(r"^([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z]*)$")
 def parse_seiche(args: list[str], text: str) -> TermSpec:
     """`seiche`, `seiche(4440 s)`, `seiche(74 min)`, `seiche(4440 s, 2)` (2 harmonics)."""
     if len(args) > 2:
-        raise WorkbenchError(f"'{text}': write seiche, seiche(PERIOD s) or seiche(PERIOD s, HARMONICS)")
+        raise WorkbenchError(
+            f"'{text}': write seiche, seiche(PERIOD s) or seiche(PERIOD s, HARMONICS)"
+        )
     period = None
     if args:
         m = _PERIOD.match(args[0])
         if not m or m.group(2).lower() not in {**_UNITS, "": 1.0}:
-            raise WorkbenchError(f"'{text}': the period must be a number of s, min or h, e.g. 4440 s")
+            raise WorkbenchError(
+                f"'{text}': the period must be a number of s, min or h, e.g. 4440 s"
+            )
         period = float(m.group(1)) * _UNITS.get(m.group(2).lower(), 1.0)
         if not (math.isfinite(period) and period > 0):
             raise WorkbenchError(f"'{text}': the period must be above 0 s")
@@ -153,7 +157,9 @@ def _hyper_block(model, t: np.ndarray) -> dict:
     Phi = np.hstack(sub.blocks)
     r = model.scaled_residual_[rows]
     G, b = Phi.T @ Phi, Phi.T @ r
-    _, _, _, post = evidence(G, b, float(r @ r), len(rows), model.loglam_, model.theta_[0], grad=False)
+    _, _, _, post = evidence(
+        G, b, float(r @ r), len(rows), model.loglam_, model.theta_[0], grad=False
+    )
     resid = r - Phi @ post["mu"]
     return {"rows": rows, "Phi": Phi, "post": post, "resid": resid, "t": t[rows]}
 

@@ -58,7 +58,9 @@ class SurveyModel:
                 survey, self.vector, self.clock_offset
             )
         self.survey = survey
-        self.seiche_estimate = None  # a seiche's period estimated at `fit` (host/workbench/seiche.py)
+        self.seiche_estimate = (
+            None  # a seiche's period estimated at `fit` (host/workbench/seiche.py)
+        )
         # the predictive band's held-out coverage and the factor on the maps' sd (`calibrate`)
         self.calibration: Calibration | None = None
         self.cv_: CVResult | None = None  # the blocked CV `calibrate` ran, if it ran one
@@ -323,7 +325,9 @@ class SurveyModel:
         full-data frame has seen the held-out vectors, and a direction target would be predicted by them."""
         return survey_fits(self.survey).frame_cv(self.vector, folds, self.frame_terms)
 
-    def predict_grid(self, xy: np.ndarray, at: float | np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def predict_grid(
+        self, xy: np.ndarray, at: float | np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """Mean and predictive std of the target on map positions (what a new measurement there would differ
         from the mean by: latent plus noise variance, times the calibration's `sd_scale`), and `mean_std`, the
         sd of the mean alone; for vectors also the east/north components and their predictive stds. At UNIX

@@ -31,14 +31,18 @@ def parse_tide(args: list[str], text: str) -> TermSpec:
     names = [a for a in args if a.lower() != "position"]
     for a in names:
         if not _NAME.match(a):
-            raise WorkbenchError(f"'{text}': '{a}' is not a tidal constituent name (M2, S2, K1, ...)")
+            raise WorkbenchError(
+                f"'{text}': '{a}' is not a tidal constituent name (M2, S2, K1, ...)"
+            )
         try:
             tides.constituent(a)
         except ValueError as exc:
             raise WorkbenchError(f"'{text}': {exc}") from None
     names = [tides.constituent(a).name for a in names]
     inputs = ("utc", "lat", "position") if spatial else ("utc", "lat")
-    canonical = "tide" if not args else f"tide({', '.join((['position'] if spatial else []) + names)})"
+    canonical = (
+        "tide" if not args else f"tide({', '.join((['position'] if spatial else []) + names)})"
+    )
     return TermSpec("tide", inputs, options={"text": canonical, "constituents": tuple(names)})
 
 
@@ -150,14 +154,17 @@ def constituents(model) -> list[dict]:
         amp = math.hypot(a, b)
         g_a = np.array([a, b]) / max(amp, 1e-300)
         g_p = np.array([-b, a]) / max(amp * amp, 1e-300)
+        amp_sd = float(math.sqrt(max(g_a @ C @ g_a, 0.0)))
+        # a phase is only a phase where the amplitude stands clear of zero
+        phase_sd = math.degrees(math.sqrt(max(g_p @ C @ g_p, 0.0))) if amp > 2 * amp_sd else 180.0
         out.append(
             {
                 "name": name,
                 "period_h": tides.constituent(name).period_h,
                 "amplitude": amp,
-                "amplitude_sd": float(math.sqrt(max(g_a @ C @ g_a, 0.0))),
+                "amplitude_sd": amp_sd,
                 "phase_deg": math.degrees(math.atan2(b, a)) % 360.0,
-                "phase_sd_deg": math.degrees(math.sqrt(max(g_p @ C @ g_p, 0.0))),
+                "phase_sd_deg": min(phase_sd, 180.0),
             }
         )
     return out
@@ -181,7 +188,8 @@ def ellipses(east_model, north_model, draws: int = 400, seed: int = 0) -> list[d
         de = rng.multivariate_normal(me[s], ce[s, s], draws, method="eigh")
         dn = rng.multivariate_normal(mn[s], cn[s, s], draws, method="eigh")
         samples = np.array([_ellipse(a, b) for a, b in zip(de, dn, strict=True)])
-        row = {"name": name, **dict(zip(("major", "minor", "direction_deg", "phase_deg"), best))}
+        keys = ("major", "minor", "direction_deg", "phase_deg")
+        row = {"name": name, **dict(zip(keys, best, strict=True))}
         row["major_sd"], row["minor_sd"] = float(samples[:, 0].std()), float(samples[:, 1].std())
         row["direction_sd_deg"] = _circular_sd(samples[:, 2], best[2], 180.0)
         row["phase_sd_deg"] = _circular_sd(samples[:, 3], best[3], 360.0)
@@ -214,8 +222,13 @@ def describe_fit(model) -> list[str]:
     term = model.feat_terms_[k]
     lines = [f"tide: {term.selection.describe()}"]
     for c in constituents(model):
+        phase = (
+            f"Greenwich phase {c['phase_deg']:.1f} +- {c['phase_sd_deg']:.1f} deg"
+            if c["phase_sd_deg"] < 180.0
+            else "phase undetermined (the amplitude is within 2 sd of zero)"
+        )
         lines.append(
             f"  {c['name']} ({c['period_h']:.2f} h): amplitude {c['amplitude']:.4g} +- "
-            f"{c['amplitude_sd']:.2g}, Greenwich phase {c['phase_deg']:.1f} +- {c['phase_sd_deg']:.1f} deg"
+            f"{c['amplitude_sd']:.2g}, {phase}"
         )
     return lines
