@@ -116,6 +116,15 @@ CATALOGUE: dict[str, EffectSpec] = {
             },
         ),
         EffectSpec(
+            "seiche",
+            "world",
+            "a lake's standing wave",
+            "the current along the flow direction (the channel in a river) gains amplitude_m_s "
+            "sin(2 pi t / period_s + phase_deg), t from the run's start: the basin's water sloshing "
+            "from end to end",
+            {"amplitude_m_s": 0.15, "period_s": 4440.0, "phase_deg": 0.0},
+        ),
+        EffectSpec(
             "stage",
             "world",
             "the river's stage follows its discharge",

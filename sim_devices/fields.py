@@ -172,12 +172,21 @@ class World:
         out = (F * np.asarray(amps) * np.cos(arg)).sum(axis=1)
         return out.reshape(np.shape(t)) if np.ndim(t) else float(out[0])
 
+    def oscillation(self, t: ArrayLike) -> ArrayLike:
+        """The current added along the flow by a tidal stream and a seiche at run times `t` (m/s)."""
+        out = self.tidal_stream(t) if "tidal_stream" in self.on else 0.0 * np.asarray(t, dtype=float)
+        p = self.on.get("seiche")
+        if p is not None:
+            arg = 2 * math.pi * np.asarray(t, dtype=float) / p["period_s"] + math.radians(p["phase_deg"])
+            out = out + p["amplitude_m_s"] * np.sin(arg)
+        return out
+
     def _current(self, x, y, t, ds, d):  # type: ignore[no-untyped-def]
         q = self.discharge_factor(t)
         tidal = self.on.get("tidal_stream")
+        tide = self.oscillation(t)
         if tidal is not None:
             q = q * tidal["river"]
-            tide = self.tidal_stream(t)
         if self.is_river:
             if "depth_current" in self.on:
                 # Manning: with one slope and one bed roughness, the speed goes as depth^(2/3) everywhere
@@ -186,15 +195,13 @@ class World:
                 frac = (ds - self.d_bank) / (self.d_th - self.d_bank)
                 speed = (self.u_bank + (self.u_th - self.u_bank) * frac) * q
             _, theta = self._bank_coords(x, y)
-            if tidal is not None:
-                speed = speed + tide
+            speed = speed + tide
             return speed * np.cos(theta), speed * np.sin(theta)
         a = math.radians(self.sc.flow_dir_deg)
         speed = self.drift * q * (1.0 + 0.1 * np.sin(0.03 * x) * np.cos(0.03 * y))
         if "depth_current" in self.on:
             speed = speed * (d / ds) ** self.manning
-        if tidal is not None:
-            speed = speed + tide
+        speed = speed + tide
         return speed * math.sin(a), speed * math.cos(a)
 
     # ---- wind ---------------------------------------------------------------------------

@@ -65,7 +65,7 @@ def parse_seiche(args: list[str], text: str) -> TermSpec:
 def seiche_text(period_s: float | None, harmonics: int = 1) -> str:
     if period_s is None:
         return "seiche" if harmonics == 1 else f"seiche(auto, {harmonics})"
-    return f"seiche({period_s:.0f} s" + (f", {harmonics})" if harmonics > 1 else ")")
+    return f"seiche({period_s:.6g} s" + (f", {harmonics})" if harmonics > 1 else ")")
 
 
 class SeicheTerm(Term):

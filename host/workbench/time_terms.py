@@ -20,7 +20,13 @@ from forcemap.host.workbench.spec import BASELINE, TIME_KINDS
 from forcemap.host.workbench.survey_fits import finite_target, survey_fits, survey_inputs
 from forcemap.host.workbench.table import prepare_column
 from forcemap.host.workbench.terms import HilbertGPTerm, TermSpec
-from forcemap.host.workbench.tide_term import TideTerm
+from forcemap.host.workbench.tide_term import (
+    TideTerm,
+    constituents,
+    describe_fit,
+    ellipses,
+    term_block,
+)
 
 
 def all_terms(specs: list[TermSpec]) -> tuple[str, ...]:
@@ -116,3 +122,42 @@ def _span(seconds: float) -> str:
     if seconds < 172800:
         return f"{seconds / 3600:.1f} h"
     return f"{seconds / 86400:.1f} days"
+
+
+def tide_summary(sm) -> dict:
+    """A fitted `SurveyModel`'s tide and seiche: constituents of its modelled component (target units: the
+    along-flow component of a speed, the across-flow one of a direction), a vector's tidal ellipses from its
+    east and north frame models, and a seiche's period (estimated, or as given)."""
+    out: dict = {"constituents": constituents(sm.primary), "ellipses": [], "seiche": None}
+    k = term_block(sm.primary, TideTerm)
+    if k is not None:
+        out["selection"] = sm.primary.feat_terms_[k].selection.describe()
+    if sm.secondary is not None and sm.frame_terms:
+        me, mn = survey_fits(sm.survey).frame(sm.vector, sm.frame_terms)
+        out["ellipses"] = ellipses(me, mn)
+    k = term_block(sm.primary, SeicheTerm)
+    if k is not None:
+        est = sm.seiche_estimate
+        term = sm.primary.feat_terms_[k]
+        out["seiche"] = {"period_s": term.period_s, "estimated": est is not None}
+        if est is not None:
+            out["seiche"].update(
+                period_sd_s=est.period_sd_s, power=est.power, fap=est.fap, text=est.describe()
+            )
+    return out
+
+
+def describe(sm) -> list[str]:
+    """The fit's time terms in words, for `fit`'s summary."""
+    lines = describe_fit(sm.primary)
+    summary = tide_summary(sm) if lines or sm.seiche_estimate else {"ellipses": []}
+    for e in summary["ellipses"]:
+        lines.append(
+            f"  {e['name']} ellipse (east/north): major {e['major']:.3g} +- {e['major_sd']:.2g} m/s "
+            f"toward {e['direction_deg']:.1f} +- {e['direction_sd_deg']:.1f} deg (and back), minor "
+            f"{e['minor']:+.3g} +- {e['minor_sd']:.2g} m/s, phase {e['phase_deg']:.1f} +- "
+            f"{e['phase_sd_deg']:.1f} deg"
+        )
+    if sm.seiche_estimate is not None:
+        lines.append(sm.seiche_estimate.describe())
+    return lines
