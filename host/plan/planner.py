@@ -73,14 +73,26 @@ def outcome(
     return Outcome(plan, track, score_lines(track.t, track.xy, plan.lines))
 
 
-def no_headway(lines: np.ndarray, maps: Maps, boat: BoatModel) -> list[list[tuple[float, float]]]:
-    """Stretches of each line where the mapped current against it is at least the boat's top speed."""
+def line_times(track: Track, lines: np.ndarray, t_start: float | None) -> list[float | None]:
+    """When the predicted track passes each line's middle (UNIX s; None without a start time)."""
+    if t_start is None or not len(track.t):
+        return [None] * len(lines)
+    mids = lines.mean(axis=1)
+    k = [int(np.argmin(np.hypot(*(track.xy - m).T))) for m in mids]
+    return [t_start + float(track.t[i]) for i in k]
+
+
+def no_headway(
+    lines: np.ndarray, maps: Maps, boat: BoatModel, when: list[float | None] | None = None
+) -> list[list[tuple[float, float]]]:
+    """Stretches of each line where the mapped current against it (when the boat is there: `when`) is at
+    least the boat's top speed."""
     out = []
-    for a, b in lines:
+    for i, (a, b) in enumerate(lines):
         d = b - a
         length = float(np.hypot(*d))
         s = np.linspace(0.0, length, max(int(length / 2.0), 2))
-        e, n, _ = maps.current.sample(a + (s / length)[:, None] * d)
+        e, n, _ = maps.current.sample(a + (s / length)[:, None] * d, when[i] if when else None)
         against = -(e * d[0] + n * d[1]) / length
         out.append(stretches(against >= boat.max_speed, s))
     return out
@@ -139,10 +151,11 @@ def plan_mission(
         plan, track = adjust(lines, maps, boat, progress)
         planned = outcome(plan, maps, boat, track)
     rel = relative_sd(planned.plan.lines, maps)
+    when = line_times(planned.track, planned.plan.lines, maps.start)
     return PlanResult(
         original,
         planned,
-        no_headway(planned.plan.lines, maps, boat),
+        no_headway(planned.plan.lines, maps, boat, when),
         sensitivity(planned.plan, maps, boat, planned, rel),
         rel,
         maps.current.cv_rmse,
