@@ -220,3 +220,23 @@ def test_the_seiche_period_comes_back_within_its_sd(seiche: Path) -> None:
     again = survey.fit("current_speed", terms=fit.model_.terms)
     assert again.tide()["seiche"]["estimated"] is False
     assert math.isclose(again.tide()["seiche"]["period_s"], s["period_s"], rel_tol=1e-4)
+
+
+def test_tide_on_depth_is_the_water_level(work: Path) -> None:
+    """The simulator's tide moves the surface 0.7 m with M2's period: `tide` on depth is that level, and
+    the depth map's datum says so."""
+    from forcemap.host.workbench.water_level import level_estimate, map_datum
+
+    table = truth_survey("river", ["tide"], 1, 3 * 3600.0, work / "level")
+    survey = read_survey(table)
+    base = survey.fit("depth")
+    fit = survey.fit("depth", effects="tide")
+    sm = fit.model_
+    level, sd = level_estimate(sm.primary, sm.survey.trel)
+    truth = np.load(table.parent / "truth" / "samples.npz")
+    true_level = np.interp(sm.survey.columns["t"], truth["t"], truth["water_level"])
+    true_level -= true_level.mean()
+    assert np.sqrt(np.mean((level - true_level) ** 2)) < 0.05  # of a 1.4 m range
+    assert fit.result_.crossline["crossline_rmse"] < 0.5 * base.result_.crossline["crossline_rmse"]
+    assert "tidal fit (tide)" in map_datum(sm.survey, sm.terms)
+    assert "2026-06-02T14:00Z" in map_datum(sm.survey, sm.terms, parse_at(TOMORROW))

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from forcemap.host.cli.at_option import add_at, at_time
 from forcemap.host.cli.common import (
-    add_at,
     add_effects,
     add_json,
     add_keep_outliers,
@@ -14,7 +14,6 @@ from forcemap.host.cli.common import (
     add_target,
     add_water_level,
     add_workspace_options,
-    at_time,
     check_json_output,
     human,
     load_table,

@@ -6,8 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from forcemap.host.cli.at_option import add_at, at_time
 from forcemap.host.cli.common import (
-    add_at,
     add_json,
     add_keep_outliers,
     add_output,
@@ -15,7 +15,6 @@ from forcemap.host.cli.common import (
     add_table,
     add_water_level,
     add_workspace_options,
-    at_time,
     check_json_output,
     human,
     load_table,

@@ -148,6 +148,20 @@ def map_age_note(args: argparse.Namespace, map_time: float) -> str:
         raise CliError(str(e)) from None
 
 
+def adjusting(progress: bool):  # type: ignore[no-untyped-def]
+    """The adjuster's progress callback: one line per prediction, with the time so far."""
+    t0 = time.perf_counter()
+
+    def step(i: int, n: int) -> None:
+        if progress:
+            print(
+                f"adjusting: prediction {i} of {n} ({time.perf_counter() - t0:.1f} s)",
+                file=sys.stderr,
+            )
+
+    return step
+
+
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.errors import CliError
     from forcemap.host.outputs import check_output
@@ -188,19 +202,9 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from e
     for n in maps.notes:
         print(f"note: {n}", file=sys.stderr)
-    t0 = time.perf_counter()
-
-    def step(i: int, n: int) -> None:
-        if progress:
-            print(
-                f"adjusting: prediction {i} of {n} ({time.perf_counter() - t0:.1f} s)",
-                file=sys.stderr,
-            )
-
-    result = plan_mission(wps, mission.speeds, lines, maps, boat, step)
+    result = plan_mission(wps, mission.speeds, lines, maps, boat, adjusting(progress))
     out = human(args)
-    print(f"boat: {boat.describe()}", file=out)
-    print(f"mission start: {iso(start)}", file=out)
+    print(f"boat: {boat.describe()}\nmission start: {iso(start)}", file=out)
     if age_note:
         print(age_note, file=out)
     print_table(result, out)

@@ -310,7 +310,7 @@ def evaluate(grid: MapGrid, model) -> Layer:
     if model.target == "depth":
         from forcemap.host.workbench.water_level import map_datum
 
-        layer.datum = map_datum(model.survey, list(model.terms))
+        layer.datum = map_datum(model.survey, list(model.terms), grid.at)
     if grid.at is not None:
         from forcemap.host.workbench.time_terms import notes_at
 

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.evidence import evidence
-from forcemap.host.workbench.hypersearch import spaced_rows
 from forcemap.host.workbench.periodogram import (
     chi2,
     curvature_sd,
@@ -148,10 +147,9 @@ def merian(period_s: float, depth_m: float | None, extent_m: float) -> str:
     )
 
 
-def _hyper_block(model, t: np.ndarray) -> dict:
-    """What the profile needs of a fitted base model on its hyperparameter rows: their features, residual,
-    posterior and noise."""
-    rows = spaced_rows(t, model.hyper_spacing_s) if model.hyper_spacing_s else None
+def _hyper_block(model, t: np.ndarray, rows: np.ndarray | None) -> dict:
+    """What the profile needs of a fitted base model on its hyperparameter rows (`rows`; None: all): their
+    features, residual, posterior and noise."""
     rows = np.arange(len(t)) if rows is None else rows
     sub = model.design_.subset(rows)
     Phi = np.hstack(sub.blocks)
@@ -185,11 +183,13 @@ def _profile_gain(block: dict, period: float, harmonics: int) -> float:
     return -float(res.fun)
 
 
-def resolve(models: list, t: np.ndarray, harmonics: int = 1) -> SeicheEstimate:
+def resolve(
+    models: list, t: np.ndarray, harmonics: int = 1, rows: np.ndarray | None = None
+) -> SeicheEstimate:
     """The period of a seiche in fitted base models (one per component: a scalar's, or a vector's east and
-    north) on times `t`: the periodogram of their hyperparameter rows' residuals, then the profile of their
-    summed marginal likelihood over the period, its sd from the profile's curvature."""
-    blocks = [_hyper_block(m, t) for m in models]
+    north) on times `t`: the periodogram of their hyperparameter rows' (`rows`) residuals, then the profile
+    of their summed marginal likelihood over the period, its sd from the profile's curvature."""
+    blocks = [_hyper_block(m, t, rows) for m in models]
     th = blocks[0]["t"]
     try:
         lo, hi = search_range(th, None, None)

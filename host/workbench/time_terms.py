@@ -46,7 +46,9 @@ def resolve_seiche(sm) -> None:
         if spec.kind != "seiche" or spec.options.get("period_s") is not None:
             continue
         others = [s for s in sm.term_specs if s is not spec]
-        est = resolve(_base_models(sm, others), sm.survey.trel, spec.options["harmonics"])
+        fits = survey_fits(sm.survey)
+        models = _base_models(sm, others)
+        est = resolve(models, sm.survey.trel, spec.options["harmonics"], fits.hyper_rows)
         depth = sm.survey.columns.get("depth")
         mean_depth = float(np.nanmean(depth)) if depth is not None else None
         est.merian = merian(est.period_s, mean_depth, float(np.ptp(sm.survey.xy, axis=0).max()))
