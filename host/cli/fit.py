@@ -34,10 +34,15 @@ examples:
   forcemap fit survey.csv --target current_speed --effects "power(depth),t"
   forcemap fit survey.csv --target wind_dir --effects heading --json fit.json
   forcemap fit survey.parquet --target depth --model spec.toml
+  forcemap fit survey.csv --target current_speed --effects tide --at 2026-06-02T14:00Z
 
 terms: gp(INPUTS, KERNEL) with kernel linear, rbf, matern12, matern32, matern52 or periodic (angles);
   linear(COV); power(COV) = a*COV^b; cos(ANGLE) = a*cos(ANGLE-phase); user(COV, module:function).
   A bare name is its default term: gp(NAME, periodic) for an angle, gp(NAME, matern32) otherwise.
+  tide: tidal constituents chosen by the Rayleigh criterion for the record's span (tide(M2, K1): those;
+  tide(position): varying over the survey), with nodal corrections: amplitudes and Greenwich phases with
+  their sd, a vector's tidal ellipses; it predicts at any time (--at). seiche: a cos/sin pair at a period
+  estimated from the data (recorded as seiche(4436 s)); seiche(74 min) a given one.
   clock_offset (wind and current) re-references the vector with the heading and ground velocity shifted by the
   offset that makes it steadiest in turns; clock_offset(+1.5 s) uses a given offset.
 spec.toml:  terms = ["const", "gp(position, matern32)", "user(depth, mylaws:manning)"]

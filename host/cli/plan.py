@@ -37,6 +37,10 @@ examples:
   forcemap plan survey.csv --mission survey.plan -o planned           # QGC .plan: also planned.plan
   forcemap plan logs/run-1.mcap --mission my.toml --boat boat.toml -o planned --json -
   forcemap plan survey.csv --mission survey.waypoints -o planned --upload /dev/ttyACM0,115200
+  forcemap plan survey.csv --mission survey.waypoints -o planned --start 2026-06-02T23:00Z
+
+--start (default now) is when the mission is flown: a current fitted with a tide or a seiche term
+(`forcemap fit --effects tide`) is predicted for when the boat will be on each line.
 
 writes PLANNED.waypoints (QGC WPL 110: load it in Mission Planner or QGroundControl), PLANNED.toml
 (`forcemap sim --mission PLANNED.toml`) and PLANNED.json (waypoints, intended lines, the prediction);

@@ -117,8 +117,16 @@ def with_units(term: str, params: dict[str, float], target: str) -> list[str]:
     iu.discard("")
     out = []
     for k, v in params.items():
-        if k in ("std", "value", "amplitude"):
+        if (
+            k in ("std", "value", "amplitude")
+            or k.startswith("amplitude_")
+            or k.endswith("_amplitude")
+        ):
             u = tu
+        elif k.endswith("_deg") or k.startswith("phase_deg"):
+            u = "deg"
+        elif k == "period_s":
+            u = "s"
         elif k == "lengthscale":
             u = next(iter(iu)) if len(iu) == 1 else ""
         elif k.startswith("slope_"):
