@@ -173,8 +173,9 @@ def constituents(model) -> list[dict]:
 def ellipses(east_model, north_model, draws: int = 400, seed: int = 0) -> list[dict]:
     """Each constituent's tidal ellipse from the east and north components' tide weights: semi-major and
     semi-minor axis (m/s; the minor positive when the current turns anticlockwise), the major axis's
-    direction (deg clockwise from true north, 0-180: the current flows TO it at the phase) and the phase
-    (deg, Greenwich) at which it does; each with its sd from posterior draws of the weights."""
+    direction (deg clockwise from true north, 0-360: where the current flows TO at the phase; half a cycle
+    later it flows the opposite way) and that phase (deg, Greenwich); each with its sd from posterior
+    draws of the weights (each draw's axis taken on the estimate's side)."""
     ke, kn = term_block(east_model, TideTerm), term_block(north_model, TideTerm)
     if ke is None or kn is None:
         return []
@@ -185,26 +186,35 @@ def ellipses(east_model, north_model, draws: int = 400, seed: int = 0) -> list[d
     for i, name in enumerate(names):
         s = slice(2 * i, 2 * i + 2)
         best = _ellipse(me[s], mn[s])
+        axis = np.radians(best[2])
+        ref = np.array([math.sin(axis), math.cos(axis)])
         de = rng.multivariate_normal(me[s], ce[s, s], draws, method="eigh")
         dn = rng.multivariate_normal(mn[s], cn[s, s], draws, method="eigh")
-        samples = np.array([_ellipse(a, b) for a, b in zip(de, dn, strict=True)])
+        samples = np.array([_ellipse(a, b, ref) for a, b in zip(de, dn, strict=True)])
         keys = ("major", "minor", "direction_deg", "phase_deg")
         row = {"name": name, **dict(zip(keys, best, strict=True))}
         row["major_sd"], row["minor_sd"] = float(samples[:, 0].std()), float(samples[:, 1].std())
-        row["direction_sd_deg"] = _circular_sd(samples[:, 2], best[2], 180.0)
+        row["direction_sd_deg"] = _circular_sd(samples[:, 2], best[2], 360.0)
         row["phase_sd_deg"] = _circular_sd(samples[:, 3], best[3], 360.0)
         out.append(row)
     return out
 
 
-def _ellipse(we: np.ndarray, wn: np.ndarray) -> tuple[float, float, float, float]:
+def _ellipse(
+    we: np.ndarray, wn: np.ndarray, ref: np.ndarray | None = None
+) -> tuple[float, float, float, float]:
+    """(major, minor, direction, phase) of one constituent; the major axis (east, north) points within 90
+    degrees of `ref` (a draw's, the estimate's axis), else to a bearing in [0, 180)."""
     M = np.array([[we[0], we[1]], [wn[0], wn[1]]])
     U, S, Vt = np.linalg.svd(M)
     major = U[:, 0]
-    sign = 1.0 if (major[1] > 0 or (major[1] == 0 and major[0] >= 0)) else -1.0
+    if ref is None:
+        sign = 1.0 if math.degrees(math.atan2(major[0], major[1])) % 360.0 < 180.0 else -1.0
+    else:
+        sign = 1.0 if major @ ref >= 0 else -1.0
     major, v = sign * major, sign * Vt[0]
     minor = float(S[1]) * (1.0 if np.linalg.det(M) >= 0 else -1.0)
-    direction = math.degrees(math.atan2(major[0], major[1])) % 180.0
+    direction = math.degrees(math.atan2(major[0], major[1])) % 360.0
     return float(S[0]), minor, direction, math.degrees(math.atan2(v[1], v[0])) % 360.0
 
 

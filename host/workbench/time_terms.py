@@ -156,7 +156,7 @@ def describe(sm) -> list[str]:
     for e in summary["ellipses"]:
         lines.append(
             f"  {e['name']} ellipse (east/north): major {e['major']:.3g} +- {e['major_sd']:.2g} m/s "
-            f"toward {e['direction_deg']:.1f} +- {e['direction_sd_deg']:.1f} deg (and back), minor "
+            f"toward {e['direction_deg']:.1f} +- {e['direction_sd_deg']:.1f} deg at the phase (then back), minor "
             f"{e['minor']:+.3g} +- {e['minor_sd']:.2g} m/s, phase {e['phase_deg']:.1f} +- "
             f"{e['phase_sd_deg']:.1f} deg"
         )
