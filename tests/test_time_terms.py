@@ -240,3 +240,31 @@ def test_tide_on_depth_is_the_water_level(work: Path) -> None:
     assert fit.result_.crossline["crossline_rmse"] < 0.5 * base.result_.crossline["crossline_rmse"]
     assert "tidal fit (tide)" in map_datum(sm.survey, sm.terms)
     assert "2026-06-02T14:00Z" in map_datum(sm.survey, sm.terms, parse_at(TOMORROW))
+
+
+def test_plan_start_reads_the_tide_along_the_mission(lake: Path, work: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    assert (
+        main(
+            [
+                "fit",
+                str(lake),
+                "--target",
+                "current_speed",
+                "--effects",
+                "tide",
+                "--quiet",
+                "--no-plots",
+            ]
+        )
+        == 0
+    )
+    out = work / "lake-plan"
+    capsys.readouterr()
+    code = main(["plan", str(lake), "--mission", "lawnmower", "--scenario", "lake", "-o", str(out),
+                 "--start", TOMORROW, "--json", "-", "--quiet"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    report = json.loads(captured.out)
+    assert report["start"] == "2026-06-02T14:00:00Z"
+    assert "when the boat is on it" in captured.err  # the note: the field in time along the mission
+    assert (work / "lake-plan.waypoints").exists()
