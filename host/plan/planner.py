@@ -98,11 +98,15 @@ def no_headway(
     return out
 
 
-def relative_sd(lines: np.ndarray, maps: Maps) -> float:
-    """The map's current uncertainty relative to its speed along the lines: the larger of its predictive sd
-    there (what a new measurement would differ by, not the mean's sd alone) and its blocked-CV RMSE."""
+def relative_sd(lines: np.ndarray, maps: Maps, when: list[float | None] | None = None) -> float:
+    """The map's current uncertainty relative to its speed along the lines (each at its time `when`, for a
+    field in time): the larger of its predictive sd there (what a new measurement would differ by, not the
+    mean's sd alone) and its blocked-CV RMSE."""
     pts = np.concatenate([a + np.linspace(0, 1, 50)[:, None] * (b - a) for a, b in lines])
-    e, n, sd = maps.current.sample(pts)
+    t = None
+    if when is not None and all(w is not None for w in when):
+        t = np.repeat(np.asarray(when, float), 50)
+    e, n, sd = maps.current.sample(pts, t)
     speed = np.hypot(e, n)
     spread = max(float(np.mean(sd)), maps.current.cv_rmse)
     return spread / max(float(np.mean(speed)), 1e-6) if speed.mean() > 0.05 else 0.0
@@ -150,8 +154,8 @@ def plan_mission(
     else:
         plan, track = adjust(lines, maps, boat, progress)
         planned = outcome(plan, maps, boat, track)
-    rel = relative_sd(planned.plan.lines, maps)
     when = line_times(planned.track, planned.plan.lines, maps.start)
+    rel = relative_sd(planned.plan.lines, maps, when)
     return PlanResult(
         original,
         planned,
