@@ -28,7 +28,6 @@ from forcemap.host.workbench.table import load_survey
 from bench.closed_loop import fly
 from bench.tidal_survey import truth_survey
 
-pytestmark = pytest.mark.slow
 TIDE = ["tidal_stream:amplitude_m_s=1.6:s2_m_s=0.3:river=0.5"]
 START_H = 33.3  # hours after the survey's start: the next night's ebb
 
@@ -61,6 +60,7 @@ def plan_and_fly(table: Path, effect: str, start: float, scenario: Path, out: Pa
     return maps, fly(path, str(scenario), 5, TIDE, 1.5 * p.track.duration + 120)
 
 
+@pytest.mark.slow
 def test_the_tidal_plan_beats_the_plan_from_the_mean_current(tmp_path: Path) -> None:
     table = truth_survey("river", TIDE, 3, 6 * 3600.0, tmp_path / "survey")
     start = sc.load("river").t0 + START_H * 3600
@@ -80,3 +80,24 @@ def test_the_tidal_plan_beats_the_plan_from_the_mean_current(tmp_path: Path) -> 
         mean.summary,
     )
     assert tide.summary["coverage"] >= 0.95
+
+
+@pytest.mark.parametrize("t", [None, 50.0])
+def test_a_field_in_time_is_linear_between_its_slices(t: float | None) -> None:
+    from forcemap.host.plan.maps import Field, Maps
+    from forcemap.host.plan.predict import predict_track
+
+    z = np.zeros((3, 4, 4))
+    east = z + np.array([1.0, -1.0, -1.0])[:, None, None]  # east at 0 s, west from 100 s on
+    f = Field(0.0, 0.0, 50.0, east, z, z, z, times=np.array([0.0, 100.0, 200.0]))
+    assert f.at(10.0, 10.0, t=25.0) == (0.5, 0.0) and f.at(10.0, 10.0, t=-5.0) == (1.0, 0.0)
+    assert f.at(10.0, 10.0, t=500.0) == (-1.0, 0.0)  # held at the last slice
+    assert f.sample(np.zeros((1, 2)), 90.0)[0][0] == -1.0  # the nearest slice
+    # a boat drifting in it from t: the track reads the current at each step's time
+    maps = Maps(f, Field.still(), 0.0, 0.0, start=t)
+    wps = np.array([[0.0, 0.0], [0.0, 150.0]])
+    tr = predict_track(
+        wps, None, maps, __import__("forcemap.host.plan.boat_model", fromlist=["x"]).BoatModel()
+    )
+    drift = float(np.mean(tr.x))
+    assert (drift < 0) if t is not None else (drift > 0)  # from 50 s the water runs west
