@@ -18,6 +18,7 @@ from forcemap.host.workbench.cv import (
 )
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
+from forcemap.host.workbench.revisits import target_radius
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
 from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import survey_fits
@@ -50,7 +51,7 @@ class FitResult:
     cv: CVResult
     folds: str
     failures: list[str]
-    # depth: the held-out error where the track revisits itself (water_level.crossline_rmse), or None
+    # the held-out error where the track revisits itself (water_level.crossline_rmse), or None
     crossline: dict | None = None
 
     def to_json(self) -> dict:
@@ -163,7 +164,7 @@ def fit_target(
         sm.calibrate(fold_ids, cv)
     unit = f" {u}" if (u := unit_of(target)) else ""
     # depth is read from the moving surface: what blocked CV cannot see shows where the track crosses itself
-    crossline = crossline_rmse(sm) if target == "depth" else None
+    crossline = crossline_rmse(sm, target_radius(sm))
     return FitResult(sm, cv, folds, failure_summary(sm.survey, cv.error, unit), crossline)
 
 

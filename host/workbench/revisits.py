@@ -69,6 +69,26 @@ def stretch_length(t: np.ndarray, r: np.ndarray) -> float:
     return max(MIN_STRETCH_S, STRETCH_SCALES * correlation_time(t, r))
 
 
+def map_lengthscale(sm) -> float:
+    """A fitted survey model's spatial length scale (m), or the survey's extent when it has none."""
+    for name, p in sm.primary.params_.items():
+        if name.startswith("gp(position") and "lengthscale" in p:
+            return float(p["lengthscale"])
+    return float(np.ptp(sm.survey.xy, axis=0).max())
+
+
+def target_radius(sm) -> float:
+    """The revisit radius for a fitted survey model: REVISIT_RADIUS_M under depth (a bed has detail at
+    every scale, and soundings a few metres apart already differ), a fifth of the map's length scale for a
+    smooth field (a current, the wind, a temperature)."""
+    from forcemap.host.workbench.table import family
+    from forcemap.host.workbench.water_level import REVISIT_RADIUS_M
+
+    if family(sm.target) == "depth":
+        return REVISIT_RADIUS_M
+    return revisit_radius(map_lengthscale(sm))
+
+
 def revisit_radius(lengthscale_m: float) -> float:
     """The radius (m) within which two samples count as the same place, from the map's length scale."""
     return float(np.clip(RADIUS_SHARE * lengthscale_m, MIN_RADIUS_M, MAX_RADIUS_M))

@@ -219,17 +219,21 @@ def reduce_to_gauge(survey, gauge: Gauge):
     return survey
 
 
-def revisits(xy: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Pairs (i, j) of samples within REVISIT_RADIUS_M of each other and at least REVISIT_MIN_DT_S apart:
+def revisits(xy: np.ndarray, t: np.ndarray, radius_m: float = REVISIT_RADIUS_M) -> np.ndarray:
+    """Pairs (i, j) of samples within `radius_m` of each other and at least REVISIT_MIN_DT_S apart:
     the places where the track crosses or revisits itself."""
     from scipy.spatial import cKDTree
 
-    pairs = cKDTree(xy).query_pairs(REVISIT_RADIUS_M, output_type="ndarray")
+    pairs = cKDTree(xy).query_pairs(radius_m, output_type="ndarray")
     return pairs[np.abs(t[pairs[:, 0]] - t[pairs[:, 1]]) >= REVISIT_MIN_DT_S]
 
 
 def revisit_folds(
-    xy: np.ndarray, t: np.ndarray, k: int = 5, min_rows: int = REVISIT_MIN_ROWS
+    xy: np.ndarray,
+    t: np.ndarray,
+    k: int = 5,
+    min_rows: int = REVISIT_MIN_ROWS,
+    radius_m: float = REVISIT_RADIUS_M,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Folds for judging what changes in time where the track revisits itself: the survey's time cut into
     REVISIT_STRETCHES stretches dealt to `k` folds in turn; the samples another fold's pass revisits (the
@@ -239,7 +243,7 @@ def revisit_folds(
         (REVISIT_STRETCHES * (t - t.min()) / span).astype(int), REVISIT_STRETCHES - 1
     )
     folds = stretch % max(2, min(k, REVISIT_STRETCHES // 2))
-    pairs = revisits(xy, t)
+    pairs = revisits(xy, t, radius_m)
     pairs = pairs[folds[pairs[:, 0]] != folds[pairs[:, 1]]]
     rows = np.unique(pairs.ravel())
     if len(rows) < min_rows:
@@ -247,11 +251,11 @@ def revisit_folds(
     return folds, rows, stretch[rows]
 
 
-def crossline_rmse(sm) -> dict | None:
+def crossline_rmse(sm, radius_m: float = REVISIT_RADIUS_M) -> dict | None:
     """A fitted `SurveyModel`'s held-out error where the track revisits itself (each time stretch predicted
-    from the others, scored where another pass crosses it): the error a moving surface leaves, which
-    blocked CV cannot see. None when the survey hardly revisits itself."""
-    plan = revisit_folds(sm.survey.xy, sm.survey.trel)
+    from the others, scored where another pass comes within `radius_m`): the error a moving surface, a tide
+    or a seiche leaves, which blocked CV cannot see. None when the survey hardly revisits itself."""
+    plan = revisit_folds(sm.survey.xy, sm.survey.trel, radius_m=radius_m)
     if plan is None:
         return None
     folds, rows, _ = plan

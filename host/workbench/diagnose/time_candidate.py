@@ -15,11 +15,10 @@ from forcemap.host.workbench.diagnose.time_judge import M2_S, TimeVerdict, judge
 from forcemap.host.workbench.revisits import (
     MIN_RADIUS_M,
     revisit_pairs,
-    revisit_radius,
     stretch_length,
+    target_radius,
 )
 from forcemap.host.workbench.table import family
-from forcemap.host.workbench.water_level import REVISIT_RADIUS_M
 
 # fewer revisits than these cannot judge time (a permutation of fewer stretches cannot be significant)
 MIN_PAIRS = 50
@@ -48,14 +47,6 @@ def judged_values(sm) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def map_lengthscale(sm) -> float:
-    """The spatial GP's fitted length scale (m), or the survey's extent when the model has none."""
-    for name, p in sm.primary.params_.items():
-        if name.startswith("gp(position") and "lengthscale" in p:
-            return float(p["lengthscale"])
-    return float(np.ptp(sm.survey.xy, axis=0).max())
-
-
 def under_way(xy: np.ndarray, t: np.ndarray, radius: float, stretch_s: float) -> np.ndarray:
     """Rows where the boat moves more than the revisit radius (at most STATION_M) within a stretch: a boat
     that stays in one place (at the dock, at anchor, swinging on its mooring) makes no passes that come
@@ -74,10 +65,7 @@ def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] |
     t = s.trel
     resid = sm.y_primary - sm.primary.predict(sm.X)
     stretch = stretch_length(t, resid)
-    if radius_m is None:
-        depth_like = family(sm.target) == "depth"
-        radius_m = REVISIT_RADIUS_M if depth_like else revisit_radius(map_lengthscale(sm))
-    radius_m = max(radius_m, MIN_RADIUS_M)
+    radius_m = max(target_radius(sm) if radius_m is None else radius_m, MIN_RADIUS_M)
     moving = under_way(s.xy, t, radius_m, stretch)
     values = judged_values(sm)
     keep = moving & np.isfinite(values).all(axis=1)
@@ -104,7 +92,10 @@ def time_term(verdict: TimeVerdict, target: str) -> str:
     kind = verdict.best.name
     if kind == "tide" and short_for_a_tide(verdict):
         kind = "drift"
-    term = {"tide": "tide", "periodic": "seiche"}.get(kind, smooth)
+    if kind == "periodic":
+        term = f"seiche({verdict.best.period_s:.0f} s)"
+    else:
+        term = "tide" if kind == "tide" else smooth
     return term if is_time_term(term) else smooth
 
 
@@ -114,7 +105,7 @@ def is_time_term(term: str) -> bool:
     from forcemap.host.workbench.table import is_circular
 
     spec = parse_term(term, is_circular)
-    return spec.kind == term or tuple(spec.inputs) == ("t",)
+    return spec.kind in ("tide", "seiche", "water_level") or tuple(spec.inputs) == ("t",)
 
 
 def short_for_a_tide(verdict: TimeVerdict) -> bool:
