@@ -8,7 +8,13 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 from forcemap.host.errors import CliError
-from forcemap.host.vessel.geodesy import LocalFrame, to_direction, velocity, world_to_boat
+from forcemap.host.vessel.geodesy import (
+    LocalFrame,
+    to_direction,
+    velocity,
+    world_to_boat,
+    wrap_to_180,
+)
 
 from bench.inject_effects import Effect
 from bench.nmea_fields_like import (
@@ -143,13 +149,6 @@ def survey(lines: list[bytes]) -> tuple[float, float, float, tuple[float, float]
 # --- the rewriting ---------------------------------------------------------------------------------
 
 
-def _set_speeds(g: list[str], known: list[tuple[int, float]], change: float) -> None:
-    """Each speed field (index, m/s per unit) changed by ``change`` m/s: every unit keeps its own
-    rounding of the recorded value, so a change of nothing leaves every field as recorded."""
-    for i, u in known:
-        g[i] = number_like(g[i], num(g[i]) + change / u)
-
-
 class Injector:
     """Rewrites one sentence at a time (fields after the address), keeping the log's state: its
     clock, its last true heading, its variation."""
@@ -168,8 +167,9 @@ class Injector:
         self.fix = fix
         self.heading: float | None = None
         self.variation: float | None = None
-        # each rewritten position and depth field's rounding error, carried into its next value
-        # (error diffusion): a slow effect is not turned into a staircase of the log's resolution
+        # each rewritten field's rounding error, carried into the same field's next value (error
+        # diffusion): a change smaller than the log's resolution (a wind angle in whole degrees, a
+        # sounding in decimetres) is not lost to rounding, nor a slow effect made a staircase
         self.carry: dict[tuple[str, int], float] = {}
         self.igrf: float | None = None
 
@@ -225,15 +225,15 @@ class Injector:
         if stype in POSITION and self.effect.current is not None:
             self._move(stype, g, t)
             if stype == "RMC":
-                self._ground_velocity(g, 6, 7, [(6, KN)], None, ce, cn)
+                self._ground_velocity(stype, g, (6, 7, None), [(6, KN)], ce, cn)
             return g
         if stype == "VTG" and self.effect.current is not None:
             if len(g) < 8 or g[1].upper() != "T":
                 raise Skip("VTG without its T/M/N/K letters")
-            self._ground_velocity(g, 4, 0, [(4, KN), (6, KMH)], 2, ce, cn)
+            self._ground_velocity(stype, g, (4, 0, 2), [(4, KN), (6, KMH)], ce, cn)
             return g
         if stype == "VDR" and self.effect.current is not None:
-            self._ground_velocity(g, 4, 0, [(4, KN)], 2, ce, cn)
+            self._ground_velocity(stype, g, (4, 0, 2), [(4, KN)], ce, cn)
             return g
         if self.effect.current is not None and stype in ("MWV", "VWR", "VWT", "MWD"):
             water = stype == "VWT" or (stype == "MWV" and g[1].upper() == "T") or stype == "MWD"
@@ -243,6 +243,27 @@ class Injector:
         if self.effect.level is not None and stype in DEPTHS + ("DPT",):
             return self._deeper(stype, g, self.level(t))
         return None
+
+    # every rewritten field through these: its rounding error is carried into its next value
+    def _number(self, tag: str, g: list[str], i: int, value: float) -> None:
+        v = value + self.carry.get((tag, i), 0.0)
+        g[i] = number_like(g[i], v)
+        self.carry[(tag, i)] = v - float(g[i])
+
+    def _angle(self, tag: str, g: list[str], i: int, value: float) -> float:
+        """Writes a compass angle; returns the angle written."""
+        v = value + self.carry.get((tag, i), 0.0)
+        g[i] = angle_like(g[i], v)
+        self.carry[(tag, i)] = wrap_to_180(v - float(g[i]))
+        return float(g[i])
+
+    def _speeds(
+        self, tag: str, g: list[str], known: list[tuple[int, float]], change: float
+    ) -> None:
+        """Each speed field (index, m/s per unit) changed by ``change`` m/s: every unit keeps its
+        own rounding of the recorded value, so a change of nothing leaves every field as it was."""
+        for i, u in known:
+            self._number(tag, g, i, num(g[i]) + change / u)
 
     def _move(self, stype: str, g: list[str], t: float) -> None:
         a, b, c, d = POSITION[stype]
@@ -257,10 +278,10 @@ class Injector:
             g[i], g[h] = latlon_like(g[i], g[h], v, axis)
             self.carry[(stype, i)] = v - read_latlon(g[i], g[h])
 
-    @staticmethod
-    def _ground_velocity(g, speed_i, course_i, speeds, mag_i, ce, cn) -> None:  # type: ignore[no-untyped-def]
-        """Speed fields ``speeds`` [(index, m/s per unit)] and the true course at ``course_i`` (and
-        a magnetic one at ``mag_i``) become the recorded velocity plus (ce, cn)."""
+    def _ground_velocity(self, stype, g, at, speeds, ce, cn) -> None:  # type: ignore[no-untyped-def]
+        """Speed fields ``speeds`` [(index, m/s per unit)] and the courses at ``at`` (speed, true
+        course, magnetic course or None) become the recorded velocity plus (ce, cn)."""
+        _, course_i, mag_i = at
         known = [(i, u) for i, u in speeds if num(g[i]) is not None]
         if not known:
             return
@@ -271,12 +292,12 @@ class Injector:
         ve, vn = velocity(sog, cog or 0.0)
         ne, nn = ve + ce, vn + cn
         speed = math.hypot(ne, nn)
-        _set_speeds(g, known, speed - sog)
+        self._speeds(stype, g, known, speed - sog)
         if cog is not None and speed > 1e-9:
             course = to_direction(ne, nn)
-            g[course_i] = angle_like(g[course_i], course)
+            self._angle(stype, g, course_i, course)
             if mag_i is not None and num(g[mag_i]) is not None:
-                g[mag_i] = angle_like(g[mag_i], num(g[mag_i]) + course - cog)
+                self._angle(stype, g, mag_i, num(g[mag_i]) + course - cog)
 
     def _wind(self, stype: str, g: list[str], de: float, dn: float) -> list[str]:
         """Air velocity relative to the boat (or the water) plus the world vector (de, dn)."""
@@ -294,6 +315,7 @@ class Injector:
         known = [(i, u) for i, u in spd if u is not None and num(g[i]) is not None]
         if angle is None or not known:
             raise Skip(f"{stype} without its angle or speed")
+        tag = stype + (g[1].upper() if stype == "MWV" else "")  # R and T alternate in one MWV
         s = num(g[known[0][0]]) * known[0][1]
         r = math.radians(angle)
         fwd, stbd = -s * math.cos(r), -s * math.sin(r)
@@ -301,20 +323,21 @@ class Injector:
         fwd, stbd = fwd + cf, stbd + cs
         speed = math.hypot(fwd, stbd)
         new_angle = math.degrees(math.atan2(-stbd, -fwd))
-        _set_speeds(g, known, speed - s)
+        self._speeds(tag, g, known, speed - s)
         if speed < 1e-9:  # no wind at all: no direction to write, the recorded one stays
             return g
         if stype == "MWV":
-            g[0] = angle_like(g[0], new_angle)
-        else:
-            g[0] = angle_like(g[0], abs(new_angle))
-            if 0.0 < float(g[0]) < 180.0:  # dead ahead or astern keeps the recorded side
-                side = "L" if new_angle < 0 else "R"
-                g[1] = side.lower() if g[1].islower() else side
+            self._angle(tag, g, 0, new_angle)
+            return g
+        v = new_angle + self.carry.get((tag, 0), 0.0)  # signed: the carry keeps its side
+        g[0] = angle_like(g[0], abs(v))
+        self.carry[(tag, 0)] = v - math.copysign(float(g[0]), v)
+        if 0.0 < float(g[0]) < 180.0:  # dead ahead or astern keeps the recorded side
+            side = "L" if v < 0 else "R"
+            g[1] = side.lower() if g[1].islower() else side
         return g
 
-    @staticmethod
-    def _wind_world(g: list[str], de: float, dn: float) -> list[str]:
+    def _wind_world(self, g: list[str], de: float, dn: float) -> list[str]:
         """MWD: direction FROM (true, magnetic) and speed (knots, m/s) in the world frame."""
         known = [(i, u) for i, u in ((4, KN), (6, 1.0)) if len(g) > i and num(g[i]) is not None]
         d = num(g[0])
@@ -325,21 +348,19 @@ class Injector:
         ne, nn = we + de, wn + dn
         speed = math.hypot(ne, nn)
         new_from = math.degrees(math.atan2(-ne, -nn))
-        _set_speeds(g, known, speed - s)
+        self._speeds("MWD", g, known, speed - s)
         if speed < 1e-9:
             return g
-        g[0] = angle_like(g[0], new_from)
+        self._angle("MWD", g, 0, new_from)
         if num(g[2]) is not None:
-            g[2] = angle_like(g[2], num(g[2]) + new_from - d)
+            self._angle("MWD", g, 2, num(g[2]) + new_from - d)
         return g
 
     def _deeper(self, stype: str, g: list[str], level: float) -> list[str]:
         units = [(0, 1.0)] if stype == "DPT" else [(0, FOOT), (2, 1.0), (4, FATHOM)]
         for i, u in units:
             if len(g) > i and (v := num(g[i])) is not None:
-                v += level / u + self.carry.get((stype, i), 0.0)
-                g[i] = number_like(g[i], v)
-                self.carry[(stype, i)] = v - float(g[i])
+                self._number(stype, g, i, v + level / u)
         return g
 
 

@@ -10,14 +10,15 @@ refused in one line, as is a gzipped DataFlash or PD0 file (their readers take a
 
 from __future__ import annotations
 
-import gzip
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 from forcemap.host.decode.nmea import LineSplitter
 
 GZIP_MAGIC = b"\x1f\x8b"
+GZIP_WBITS = 16 + zlib.MAX_WBITS  # a gzip header and trailer around deflate data
 CHUNK_BYTES = 1 << 20
 
 
@@ -31,34 +32,47 @@ def is_gzip(path: str | Path) -> bool:
         return f.read(len(GZIP_MAGIC)) == GZIP_MAGIC
 
 
+def _gunzipped(f: BinaryIO, name: str, notes: list[str] | None) -> Iterator[bytes]:
+    """The decompressed bytes of a gzip file (every member of it), as they come."""
+    z = zlib.decompressobj(GZIP_WBITS)
+    fed = False  # the current member has been given compressed bytes
+    read = 0
+    while chunk := f.read(CHUNK_BYTES):
+        while chunk:
+            try:
+                out = z.decompress(chunk)
+            except zlib.error as e:
+                raise ImportFailed(
+                    f"{name}: damaged gzip data after {read:,} bytes ({e}); `gzip -t` says "
+                    "the same, `gunzip -c` recovers what it can"
+                ) from None
+            fed, chunk = True, b""
+            read += len(out)
+            if out:
+                yield out
+            if z.eof:  # a member ends: another may follow (a log appended to, or cat-ed)
+                chunk, z, fed = z.unused_data, zlib.decompressobj(GZIP_WBITS), False
+    if fed and not z.eof and notes is not None:
+        notes.append(
+            f"{name}: the gzip stream ends early (the file is cut short): read the {read:,} "
+            "bytes it holds"
+        )
+
+
 def capture_chunks(
     path: str | Path, notes: list[str] | None = None, limit: int | None = None
 ) -> Iterator[bytes]:
-    """The capture's bytes in chunks of up to ``CHUNK_BYTES``, decompressed when gzipped; at most
-    ``limit`` bytes when given. A gzip stream that ends early stops the chunks and appends a note to
-    ``notes``; damaged compressed data raises ImportFailed."""
+    """The capture's bytes in chunks, decompressed when gzipped; at most ``limit`` bytes when
+    given. A gzip stream that ends early stops the chunks and appends a note to ``notes``;
+    damaged compressed data raises ImportFailed."""
     name = Path(path).name
     gz = is_gzip(path)
-    opener = gzip.open if gz else open
     read = 0
-    with opener(path, "rb") as f:
-        while limit is None or read < limit:
-            want = CHUNK_BYTES if limit is None else min(CHUNK_BYTES, limit - read)
-            try:
-                chunk = f.read(want)
-            except EOFError:
-                if notes is not None:
-                    notes.append(
-                        f"{name}: the gzip stream ends early (the file is cut short): "
-                        f"read the {read:,} bytes it holds"
-                    )
-                return
-            except (gzip.BadGzipFile, zlib.error) as e:
-                raise ImportFailed(
-                    f"{name}: damaged gzip data after {read:,} bytes ({e}); "
-                    "`gzip -t` says the same, `gunzip -c` recovers what it can"
-                ) from None
-            if not chunk:
+    with open(path, "rb") as f:
+        source = _gunzipped(f, name, notes) if gz else iter(lambda: f.read(CHUNK_BYTES), b"")
+        for chunk in source:
+            if limit is not None and read + len(chunk) >= limit:
+                yield chunk[: limit - read]
                 return
             read += len(chunk)
             yield chunk
