@@ -32,11 +32,17 @@ start). A stamp more than an hour from the running clock is taken as damaged, an
 The date is the first RMC or ZDA date, midnight crossings counted, as ``forcemap import`` does, so
 the truth's ``t`` is the samples table's.
 
-Every rewritten field keeps its decimals and padding (``bench/nmea_fields_like.py``), and a modified
-sentence keeps the checksum convention it was written with (a correct one, or its bus's variant).
-A line that is not a sentence, a spliced one, one whose checksum matches no convention, or one with
-a field that is not a number, passes through untouched and is counted by reason. Lines and their
-endings are otherwise copied byte for byte; an injection of nothing reproduces the input exactly.
+Every rewritten field keeps its decimals and padding (``bench/nmea_fields_like.py``); its rounding
+error is carried into the same field's next value, so a change smaller than the log's resolution (a
+current's part of a wind angle in whole degrees, a level in decimetres) is not lost, on average, to
+rounding. A modified sentence keeps the checksum convention it was written with (a correct one, or
+its bus's variant, as Irene 2013-07-31's checksums over the address only). The sentence of a line is
+what follows its last ``$`` (junk or a cut sentence before it is kept as it is). A sentence whose
+checksum matches no convention, one that lacks what its rewriting needs (an apparent wind before
+any heading, a speed without its course) or has a field that is not a number, passes through
+untouched and is counted by reason; proprietary sentences and lines that are not sentences are
+copied. Lines and their endings are otherwise copied byte for byte; an injection of nothing
+reproduces the input exactly.
 """
 
 from __future__ import annotations
