@@ -66,6 +66,7 @@ from bench.inject_sentences import Report, inject_lines  # noqa: E402
 
 TRUTH_COLUMNS = ("t", "current_east", "current_north", "level", "offset_east", "offset_north")
 TRUTH_STEP_S = 1.0
+TRUTH_MARGIN_S = 10.0  # lines after the last stamp: the importer times them at the log's line rate
 
 __all__ = ["Current", "Effect", "Shape", "inject", "read_truth", "truth_path"]
 
@@ -81,7 +82,7 @@ def truth_path(out: str | Path) -> Path:
 def write_truth(path: Path, effect: Effect, t0: float, t1: float) -> None:
     """One row a second over the log: t (UNIX s), the current (east, north, m/s), the level (m)
     and the displacement since the log's start (east, north, m)."""
-    tau = np.arange(0.0, t1 - t0 + TRUTH_STEP_S, TRUTH_STEP_S)
+    tau = np.arange(0.0, t1 - t0 + TRUTH_MARGIN_S, TRUTH_STEP_S)
     zero = np.zeros_like(tau)
     ce, cn = effect.current.velocity(tau) if effect.current else (zero, zero)
     de, dn = effect.current.offset(tau) if effect.current else (zero, zero)

@@ -132,7 +132,7 @@ def survey(lines: list[bytes]) -> tuple[float, float, float, tuple[float, float]
         t = clock.stamp(stype, f, convention is not None)
         if t is not None:
             t0 = t if t0 is None else t0
-            t1 = t
+            t1 = t if t1 is None else max(t1, t)
         if fix is None and stype in POSITION:
             a, b, c, d = POSITION[stype]
             try:
