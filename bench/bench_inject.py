@@ -1,7 +1,8 @@
 """The injected real cases of issue 36, from the repository's root: `python bench/bench_inject.py`.
 
-Builds every case of bench/inject_cases.py and the clean log it is compared with, exactly as the tests
-do (tests/real_cases.py: bench/inject_nmea.py, `forcemap import`, `forcemap export`), and prints:
+Builds every case of bench/inject_cases.py and the clean log it is compared with, exactly as the
+tests do (tests/real_cases.py: bench/inject_nmea.py, `forcemap import`, `forcemap export`), and
+prints:
 
 - the CPU seconds of each build (injection, import and export together);
 - the recovery fits of bench/inject_verify.py (2-minute means against the truth; the difference from
@@ -67,9 +68,10 @@ def main() -> None:
         print(f"\n## {name}: {c.source}, CPU {cpu[1]:.1f} s (its clean log {cpu[0]:.1f} s)")
         eff = c.effect
         if eff.current:
-            print(f"current: {eff.current.shape.describe()} m/s toward {eff.current.toward_deg:g}")
+            cur = eff.current
+            print(f"current (m/s, toward {cur.toward_deg:g} deg): {cur.shape.describe()}")
         if eff.level:
-            print(f"level: {eff.level.describe()} m")
+            print(f"level (m): {eff.level.describe()}")
         table = read_table(str(built.csv))
         fits = recovery(table, read_truth(built.truth), read_table(str(clean.csv)), c.toward_deg)
         print(f"rows {len(table['t'])}")
@@ -80,9 +82,8 @@ def main() -> None:
             for label, b in (("injected", built), ("clean", clean)):
                 t = time.process_time()
                 said = diagnose(b.csv, target)
-                print(
-                    f"diagnose --target {target} ({label}, {time.process_time() - t:.0f} s CPU): {said}"
-                )
+                cpu_s = time.process_time() - t
+                print(f"diagnose --target {target} ({label}, {cpu_s:.0f} s CPU): {said}")
     summary = {n: str(cases(n).folder) for n in args.only}
     print("\n" + json.dumps(summary, indent=1))
 

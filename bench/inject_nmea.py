@@ -140,7 +140,7 @@ def inject(
 
 EPILOG = """\
 effects (SHAPE key=value ...; bench/inject_effects.py):
-  tidal     amplitude=A [period_s=44714.2] [phase_deg=0]    A cos(2 pi tau / P + phase), M2 by default
+  tidal     amplitude=A [period_s=44714.2] [phase_deg=0]    A cos(2 pi tau / P + phase); M2
   periodic  amplitude=A period_s=P [phase_deg=0]            a seiche (Lake Geneva: about 74 min)
   ramp      amplitude=A [ramp_s=the log's span]             A min(tau / ramp_s, 1): drift, stage
   step      amplitude=A [at_s=the middle] [width_s=1800]    A (1 + tanh((tau - at_s) / width_s)) / 2
@@ -241,9 +241,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     if eff.current is not None:
-        print(f"current: {eff.current.shape.describe()} m/s toward {eff.current.toward_deg:g} deg")
+        print(
+            f"current (m/s, toward {eff.current.toward_deg:g} deg): {eff.current.shape.describe()}"
+        )
     if eff.level is not None:
-        print(f"level: {eff.level.describe()} m")
+        print(f"level (m): {eff.level.describe()}")
     for line in rep.summary():
         print(line)
     print(f"-> {args.output}, truth {args.truth or truth_path(args.output)}")
