@@ -239,12 +239,39 @@ def revisit_folds(
         (REVISIT_STRETCHES * (t - t.min()) / span).astype(int), REVISIT_STRETCHES - 1
     )
     folds = stretch % max(2, min(k, REVISIT_STRETCHES // 2))
-    pairs = revisits(xy, t)
-    pairs = pairs[folds[pairs[:, 0]] != folds[pairs[:, 1]]]
-    rows = np.unique(pairs.ravel())
+    rows = revisited_rows(xy, t, folds)
     if len(rows) < min_rows:
         return None
     return folds, rows, stretch[rows]
+
+
+def revisited_rows(xy: np.ndarray, t: np.ndarray, folds: np.ndarray) -> np.ndarray:
+    """The samples with a sample of another fold within REVISIT_RADIUS_M and at least REVISIT_MIN_DT_S
+    apart (the rows of `revisits`' pairs that join two folds), without listing the pairs: a week at 1 Hz
+    over one reach has ~10^8 of them. Each fold's samples ask a tree of the others' for the nearest; only
+    those within REVISIT_MIN_DT_S of another fold's sample in time (where one stretch meets the next) look
+    at every neighbour's time."""
+    from scipy.spatial import cKDTree
+
+    hit = np.zeros(len(t), bool)
+    order = np.argsort(t, kind="stable")
+    ts, fs = t[order], folds[order]
+    for f in np.unique(folds):
+        mine, others = np.flatnonzero(folds == f), np.flatnonzero(folds != f)
+        if not len(others):
+            continue
+        tree = cKDTree(xy[others])
+        d, _ = tree.query(xy[mine], distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf))
+        near = d <= REVISIT_RADIUS_M
+        # another fold's sample closer in time than REVISIT_MIN_DT_S: the nearest may not count, look at all
+        other_t = ts[fs != f]
+        lo = np.searchsorted(other_t, t[mine] - REVISIT_MIN_DT_S, side="right")
+        hi = np.searchsorted(other_t, t[mine] + REVISIT_MIN_DT_S, side="left")
+        close = near & (hi > lo)
+        hit[mine[near & ~close]] = True
+        for i, nb in zip(mine[close], tree.query_ball_point(xy[mine[close]], REVISIT_RADIUS_M), strict=True):
+            hit[i] = bool(np.any(np.abs(t[others[nb]] - t[i]) >= REVISIT_MIN_DT_S))
+    return np.flatnonzero(hit)
 
 
 def crossline_rmse(sm) -> dict | None:
