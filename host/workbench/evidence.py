@@ -47,6 +47,8 @@ def small_blas():
 CHUNK_ROWS = 4096
 # a fast GP block's products with up to this many other columns come from sine tables (beyond: features)
 SINE_COLS = 8
+# with finufft (`nufft`): up to this many
+NUFFT_COLS = 160
 # a design with features below this size holds them; a larger one computes them chunk by chunk when needed
 DENSE_BYTES = 160 * 2**20
 
@@ -140,8 +142,10 @@ class Design:
         return G, b
 
     def _sines_pay(self, extra: int) -> bool:
-        """The fast block's products with the other columns (and `extra` more) from sine tables."""
-        return self.fast is not None and self.M - self.sizes[self.fast[0]] + extra <= SINE_COLS
+        """The fast block's products with the other columns (and `extra` more) from sine tables: a few columns,
+        or any covariate's with finufft (O(n w^D) a column, where the features cost O(n M))."""
+        limit = NUFFT_COLS if fourier.nufft.available() else SINE_COLS
+        return self.fast is not None and self.M - self.sizes[self.fast[0]] + extra <= limit
 
     def _fast_pass(self, rows, r: np.ndarray | None, want_gram: bool):
         """`_pass` without the fast block's features: its Gram matrix from cosine tables, its products with

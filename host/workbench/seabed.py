@@ -50,12 +50,12 @@ def seabed_path(depth: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
     for k0 in range(0, m, BLOCK):
         steps = _step_costs(d, tol, k0, min(m, k0 + BLOCK))
         for k in range(k0, min(m, k0 + BLOCK)):
-            lo = max(0, k - MAX_SKIP)
+            lo = k - MAX_SKIP if k > MAX_SKIP else 0
             best[k], back[k] = lead[k], -1
             if k == lo:
                 continue
             cost = best[lo:k] + steps[k - k0, MAX_SKIP - (k - lo) :]
-            i = int(np.argmin(cost))
+            i = cost.argmin()
             if cost[i] < best[k]:
                 best[k], back[k] = cost[i], lo + i
     end = best + _ends(d, tol, np.arange(m) >= m - 1 - MAX_SKIP, before=False)

@@ -260,7 +260,7 @@ def revisited_rows(xy: np.ndarray, t: np.ndarray, folds: np.ndarray) -> np.ndarr
         mine, others = np.flatnonzero(folds == f), np.flatnonzero(folds != f)
         if not len(others):
             continue
-        tree = cKDTree(xy[others])
+        tree = cKDTree(xy[others], balanced_tree=False, compact_nodes=False)  # the fastest to ask here
         d, _ = tree.query(xy[mine], distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf))
         near = d <= REVISIT_RADIUS_M
         # another fold's sample closer in time than REVISIT_MIN_DT_S: the nearest may not count, look at all
