@@ -69,3 +69,20 @@ def exponential_sums(angles: list[np.ndarray], W: np.ndarray, tops: list[int]) -
     plan.setpts(*pts)
     out = plan.execute(c if k > 1 else c[0])
     return out.reshape(k, *modes)
+
+
+def exponential_values(angles: list[np.ndarray], coeffs: np.ndarray, tops: list[int]) -> np.ndarray:
+    """sum_k coeffs[c, k_1 + K_1, (k_2 + K_2)] exp(i sum_d k_d u_di) at the points `angles`, (n, k) complex: a
+    type-2 non-uniform FFT (the transpose of `exponential_sums`), O(n w^D + K log K) per column."""
+    lib = _finufft()
+    if lib is None:
+        raise RuntimeError("finufft is not installed")
+    modes = tuple(2 * t + 1 for t in tops)
+    coeffs = np.ascontiguousarray(np.asarray(coeffs, complex).reshape(-1, *modes))
+    k, n = len(coeffs), len(angles[0])
+    if n == 0 or k == 0:
+        return np.zeros((n, k), complex)
+    plan = lib.Plan(2, modes, n_trans=k, eps=EPS, isign=1, nthreads=1, modeord=0)
+    plan.setpts(*[np.ascontiguousarray(a, dtype=float) for a in angles])
+    out = plan.execute(coeffs if k > 1 else coeffs[0])
+    return out.reshape(k, n).T

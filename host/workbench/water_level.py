@@ -269,7 +269,14 @@ def revisited_rows(xy: np.ndarray, t: np.ndarray, folds: np.ndarray) -> np.ndarr
         hi = np.searchsorted(other_t, t[mine] + REVISIT_MIN_DT_S, side="left")
         close = near & (hi > lo)
         hit[mine[near & ~close]] = True
-        for i, nb in zip(mine[close], tree.query_ball_point(xy[mine[close]], REVISIT_RADIUS_M), strict=True):
+        rows = mine[close]
+        # the 16 nearest first (the pass itself is a handful of them), every neighbour where those do not say
+        dk, jk = tree.query(xy[rows], k=16, distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf))
+        found = dk <= REVISIT_RADIUS_M
+        far = np.abs(t[others[np.minimum(jk, len(others) - 1)]] - t[rows][:, None]) >= REVISIT_MIN_DT_S
+        hit[rows[(found & far).any(axis=1)]] = True
+        todo = rows[~(found & far).any(axis=1) & found.all(axis=1)]
+        for i, nb in zip(todo, tree.query_ball_point(xy[todo], REVISIT_RADIUS_M), strict=True):
             hit[i] = bool(np.any(np.abs(t[others[nb]] - t[i]) >= REVISIT_MIN_DT_S))
     return np.flatnonzero(hit)
 
