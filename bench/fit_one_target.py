@@ -53,9 +53,13 @@ def main() -> None:
     ap.add_argument("table")
     ap.add_argument("target")
     ap.add_argument("--save")
-    ap.add_argument("--grid-m", type=float, help="grid cells of this many metres (default 100 x 100 nodes)")
+    ap.add_argument(
+        "--grid-m", type=float, help="grid cells of this many metres (default 100 x 100 nodes)"
+    )
     ap.add_argument("--unit-m", type=int, help="also the Gram product with this basis size")
-    ap.add_argument("--direct", action="store_true", help="the tables summed directly, as without finufft")
+    ap.add_argument(
+        "--direct", action="store_true", help="the tables summed directly, as without finufft"
+    )
     args = ap.parse_args()
     import contextlib
 
@@ -76,7 +80,9 @@ def main() -> None:
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     with small_blas(), direct:
         c0 = time.process_time()
-        res = fitting.fit_target(survey, args.target, ["const", "gp(position, matern32)"], progress=False)
+        res = fitting.fit_target(
+            survey, args.target, ["const", "gp(position, matern32)"], progress=False
+        )
         c1 = time.process_time()
         out = res.model.predict_grid(grid)
         c2 = time.process_time()

@@ -332,7 +332,9 @@ def make_survey(
     return path
 
 
-def write_long_survey(path, n: int, rate_hz: float = 1.0, seed: int = 0, day_s: float = 86_400.0) -> Path:
+def write_long_survey(
+    path, n: int, rate_hz: float = 1.0, seed: int = 0, day_s: float = 86_400.0
+) -> Path:
     """A long survey of `n` rows at `rate_hz` (10^6 rows at 1 Hz: 11.6 days), written one day at a time as
     Parquet row groups (CSV when `path` ends in .csv): each day a lawnmower flown from a random start with its
     own noise (seed + day), the time running on. Memory holds one day's columns, never the whole table."""

@@ -255,7 +255,10 @@ def _linear_by_nufft(term, A: np.ndarray, angles: list[np.ndarray]) -> np.ndarra
     full = np.zeros((k, *[2 * p + 1 for p in sizes]), complex)
     D = len(sizes)
     for signs in itertools.product((1, -1), repeat=D):
-        idx = tuple(slice(p + 1, None) if s > 0 else slice(p - 1, None, -1) for p, s in zip(sizes, signs, strict=True))
+        idx = tuple(
+            slice(p + 1, None) if s > 0 else slice(p - 1, None, -1)
+            for p, s in zip(sizes, signs, strict=True)
+        )
         full[(slice(None), *idx)] += math.prod(signs) * A
     full /= (2j) ** D * math.sqrt(float(np.prod(term.L)))
     return nufft.exponential_values(angles, full, list(sizes)).real

@@ -10,9 +10,7 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.workbench.cleaning import NumericColumn, to_numeric
-
 from forcemap.host.workbench.errors import WorkbenchError
-
 
 # rows read at a time: a million-row table is never held as Python strings (25 columns of them: ~2 GB)
 CHUNK_ROWS = 65_536
@@ -46,7 +44,10 @@ def _csv_chunks(path: Path, rows: int = CHUNK_ROWS) -> Iterator[tuple[list[str],
                             f"{path}: row {line} has {len(row)} cells, the header has {len(header)}"
                         )
                     good.append(row)
-                yield header, [list(c) for c in zip(*good, strict=True)] if good else [[] for _ in header]
+                yield (
+                    header,
+                    [list(c) for c in zip(*good, strict=True)] if good else [[] for _ in header],
+                )
                 if len(block) < rows:
                     return
     except UnicodeDecodeError:
@@ -175,7 +176,9 @@ class _Numbers:
             try:
                 values = np.asarray(cells, dtype=str).astype(float)
                 col = to_numeric(values)
-            except ValueError:  # words in this chunk: numbers elsewhere may still make the column numeric
+            except (
+                ValueError
+            ):  # words in this chunk: numbers elsewhere may still make the column numeric
                 col = to_numeric(cells, words=True)
         self.parts.append(col.values)
         self.not_numbers += [(i + self.rows, t) for i, t in col.not_numbers]
@@ -228,7 +231,11 @@ def read_numeric(path: str | Path) -> tuple[dict[str, NumericColumn], set[str], 
         raw = read_raw(path)
         cols = {name: to_numeric(cells) for name, cells in raw.items()}
         words = {name for name, c in cols.items() if c is None}
-        return {k: c for k, c in cols.items() if c is not None}, words, list(getattr(raw, "notes", []))
+        return (
+            {k: c for k, c in cols.items() if c is not None},
+            words,
+            list(getattr(raw, "notes", [])),
+        )
     chunks = _parquet_chunks(path) if suffix in (".parquet", ".pq") else _csv_chunks(path)
     acc: dict[str, _Numbers] = {}
     for names, cells in chunks:

@@ -260,7 +260,8 @@ def revisited_rows(xy: np.ndarray, t: np.ndarray, folds: np.ndarray) -> np.ndarr
         mine, others = np.flatnonzero(folds == f), np.flatnonzero(folds != f)
         if not len(others):
             continue
-        tree = cKDTree(xy[others], balanced_tree=False, compact_nodes=False)  # the fastest to ask here
+        # unbalanced, uncompacted: the same answers, the fastest to ask on a survey that revisits its ground
+        tree = cKDTree(xy[others], balanced_tree=False, compact_nodes=False)
         d, _ = tree.query(xy[mine], distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf))
         near = d <= REVISIT_RADIUS_M
         # another fold's sample closer in time than REVISIT_MIN_DT_S: the nearest may not count, look at all
@@ -271,9 +272,14 @@ def revisited_rows(xy: np.ndarray, t: np.ndarray, folds: np.ndarray) -> np.ndarr
         hit[mine[near & ~close]] = True
         rows = mine[close]
         # the 16 nearest first (the pass itself is a handful of them), every neighbour where those do not say
-        dk, jk = tree.query(xy[rows], k=16, distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf))
+        dk, jk = tree.query(
+            xy[rows], k=16, distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf)
+        )
         found = dk <= REVISIT_RADIUS_M
-        far = np.abs(t[others[np.minimum(jk, len(others) - 1)]] - t[rows][:, None]) >= REVISIT_MIN_DT_S
+        far = (
+            np.abs(t[others[np.minimum(jk, len(others) - 1)]] - t[rows][:, None])
+            >= REVISIT_MIN_DT_S
+        )
         hit[rows[(found & far).any(axis=1)]] = True
         todo = rows[~(found & far).any(axis=1) & found.all(axis=1)]
         for i, nb in zip(todo, tree.query_ball_point(xy[todo], REVISIT_RADIUS_M), strict=True):
