@@ -333,16 +333,22 @@ def make_survey(
 
 
 def write_long_survey(
-    path, n: int, rate_hz: float = 1.0, seed: int = 0, day_s: float = 86_400.0
+    path,
+    n: int,
+    rate_hz: float = 1.0,
+    seed: int = 0,
+    day_s: float = 86_400.0,
+    moored_s: float = 3_600.0,
 ) -> Path:
-    """A long survey of `n` rows at `rate_hz` (10^6 rows at 1 Hz: 11.6 days), written one day at a time as
-    Parquet row groups (CSV when `path` ends in .csv): each day a lawnmower flown from a random start with its
-    own noise (seed + day), the time running on. Memory holds one day's columns, never the whole table."""
+    """A long survey of `n` rows at `rate_hz` (10^6 rows at 1 Hz: 12.1 days of 23 hours), written one day at a
+    time as Parquet row groups (CSV when `path` ends in .csv): each day a lawnmower flown from a random start
+    with its own noise (seed + day), after `moored_s` at the bank (no rows: the boat moves to the next day's
+    start in that hour, not in a second). Memory holds one day's columns, never the whole table."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     path = Path(path)
-    per_day = int(day_s * rate_hz)
+    per_day = int((day_s - moored_s) * rate_hz)
     writer, done, day = None, 0, 0
     with path.open("w", newline="") if path.suffix == ".csv" else contextlib.nullcontext() as f:
         while done < n:
