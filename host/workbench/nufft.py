@@ -51,6 +51,18 @@ def direct() -> Iterator[None]:
         _direct = before
 
 
+def _points(angles: list[np.ndarray]) -> list[np.ndarray]:
+    """The angles as finufft takes them (in [-3 pi, 3 pi)): a point far outside the GP's box (a map cell beyond
+    it) taken modulo 2 pi, which the integer frequencies do not see."""
+    out = []
+    for a in angles:
+        a = np.ascontiguousarray(a, dtype=float)
+        if len(a) and np.abs(a).max() >= 3.0 * np.pi:
+            a = np.mod(a, 2.0 * np.pi)
+        out.append(a)
+    return out
+
+
 def exponential_sums(angles: list[np.ndarray], W: np.ndarray, tops: list[int]) -> np.ndarray:
     """F[c, k_1 + K_1, (k_2 + K_2)] = sum_i W[i, c] exp(i sum_d k_d u_di) for k_d = -K_d .. K_d (K_d = `tops`),
     at the points `angles` (one array per axis, each in [0, 2 pi)); (k, 2 K_1 + 1[, 2 K_2 + 1]) complex.
@@ -65,8 +77,7 @@ def exponential_sums(angles: list[np.ndarray], W: np.ndarray, tops: list[int]) -
         return np.zeros((k, *modes), complex)
     c = np.ascontiguousarray(W.T, dtype=complex)
     plan = lib.Plan(1, modes, n_trans=k, eps=EPS, isign=1, nthreads=1, modeord=0)
-    pts = [np.ascontiguousarray(a, dtype=float) for a in angles]
-    plan.setpts(*pts)
+    plan.setpts(*_points(angles))
     out = plan.execute(c if k > 1 else c[0])
     return out.reshape(k, *modes)
 
@@ -83,6 +94,6 @@ def exponential_values(angles: list[np.ndarray], coeffs: np.ndarray, tops: list[
     if n == 0 or k == 0:
         return np.zeros((n, k), complex)
     plan = lib.Plan(2, modes, n_trans=k, eps=EPS, isign=1, nthreads=1, modeord=0)
-    plan.setpts(*[np.ascontiguousarray(a, dtype=float) for a in angles])
+    plan.setpts(*_points(angles))
     out = plan.execute(coeffs if k > 1 else coeffs[0])
     return out.reshape(k, n).T
