@@ -12,7 +12,7 @@ import numpy as np
 from forcemap.host.workbench.cleaning import NumericColumn, to_numeric
 from forcemap.host.workbench.errors import WorkbenchError
 
-# rows read at a time: a million-row table is never held as Python strings (25 columns of them: ~2 GB)
+# rows read at a time: a million-row table is never held as Python strings (25 columns of them: ~2 GB, estimated)
 CHUNK_ROWS = 65_536
 
 
