@@ -7,8 +7,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.extras import install_hint
 from forcemap.host.progress import note
-from forcemap.host.workbench import clock_offset, time_terms
+from forcemap.host.workbench import clock_offset, nufft, time_terms
 from forcemap.host.workbench.cv import (
     DEFAULT_FOLDS,
     Calibration,
@@ -26,6 +27,9 @@ from forcemap.host.workbench.table import Survey, unit_of
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
 from forcemap.host.workbench.water_level import crossline_rmse
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
+
+# from this many rows on, the Gram tables' direct sums cost more than the rest of a fit (host/workbench/nufft.py)
+BIG_TABLE = 100_000
 
 
 def resolve_terms(
@@ -153,6 +157,8 @@ def fit_target(
         every = float(np.ptp(survey.trel)) / len(rows)
         hyper = f" (hyperparameters from {len(rows)} of them, one per {every:.1f} s)"
     note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples{hyper} ...", progress)
+    if survey.n >= BIG_TABLE and not nufft.available():
+        note(f"(a table this long fits several times faster with finufft: {install_hint('nufft')})", progress)
     clean = without_spikes(survey, target)[0]  # the rows the model is fitted on
     fold_ids = make_folds(clean, folds)
     # the Gram matrices are accumulated fold by fold: the CV then costs no second pass over the data

@@ -243,12 +243,54 @@ def revisit_folds(
         (REVISIT_STRETCHES * (t - t.min()) / span).astype(int), REVISIT_STRETCHES - 1
     )
     folds = stretch % max(2, min(k, REVISIT_STRETCHES // 2))
-    pairs = revisits(xy, t, radius_m)
-    pairs = pairs[folds[pairs[:, 0]] != folds[pairs[:, 1]]]
-    rows = np.unique(pairs.ravel())
+    rows = revisited_rows(xy, t, folds, radius_m)
     if len(rows) < min_rows:
         return None
     return folds, rows, stretch[rows]
+
+
+def revisited_rows(
+    xy: np.ndarray, t: np.ndarray, folds: np.ndarray, radius_m: float = REVISIT_RADIUS_M
+) -> np.ndarray:
+    """The samples with a sample of another fold within `radius_m` and at least REVISIT_MIN_DT_S
+    apart (the rows of `revisits`' pairs that join two folds), without listing the pairs: a week at 1 Hz
+    over one reach has ~10^8 of them. Each fold's samples ask a tree of the others' for the nearest; only
+    those within REVISIT_MIN_DT_S of another fold's sample in time (where one stretch meets the next) look
+    at every neighbour's time."""
+    from scipy.spatial import cKDTree
+
+    hit = np.zeros(len(t), bool)
+    order = np.argsort(t, kind="stable")
+    ts, fs = t[order], folds[order]
+    for f in np.unique(folds):
+        mine, others = np.flatnonzero(folds == f), np.flatnonzero(folds != f)
+        if not len(others):
+            continue
+        # unbalanced, uncompacted: the same answers, the fastest to ask on a survey that revisits its ground
+        tree = cKDTree(xy[others], balanced_tree=False, compact_nodes=False)
+        d, _ = tree.query(xy[mine], distance_upper_bound=np.nextafter(radius_m, np.inf))
+        near = d <= radius_m
+        # another fold's sample closer in time than REVISIT_MIN_DT_S: the nearest may not count, look at all
+        other_t = ts[fs != f]
+        lo = np.searchsorted(other_t, t[mine] - REVISIT_MIN_DT_S, side="right")
+        hi = np.searchsorted(other_t, t[mine] + REVISIT_MIN_DT_S, side="left")
+        close = near & (hi > lo)
+        hit[mine[near & ~close]] = True
+        rows = mine[close]
+        # the 16 nearest first (the pass itself is a handful of them), every neighbour where those do not say
+        dk, jk = tree.query(
+            xy[rows], k=16, distance_upper_bound=np.nextafter(radius_m, np.inf)
+        )
+        found = dk <= radius_m
+        far = (
+            np.abs(t[others[np.minimum(jk, len(others) - 1)]] - t[rows][:, None])
+            >= REVISIT_MIN_DT_S
+        )
+        hit[rows[(found & far).any(axis=1)]] = True
+        todo = rows[~(found & far).any(axis=1) & found.all(axis=1)]
+        for i, nb in zip(todo, tree.query_ball_point(xy[todo], radius_m), strict=True):
+            hit[i] = bool(np.any(np.abs(t[others[nb]] - t[i]) >= REVISIT_MIN_DT_S))
+    return np.flatnonzero(hit)
 
 
 def crossline_rmse(sm, radius_m: float = REVISIT_RADIUS_M) -> dict | None:

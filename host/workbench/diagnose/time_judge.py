@@ -29,21 +29,25 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from forcemap.host.workbench.diagnose.time_forms import (
+    M2_S,
+    FormLadder,
+    PermutedTimes,
+    Projector,
+    clipped,
+    nuisance,
+    pair_shares,
+    periodic_columns,
+)
 from forcemap.host.workbench.revisits import RevisitPairs
 
+__all__ = ["M2_S", "Form", "TimeVerdict", "judge_time"]
+
 PERMUTATIONS = 999
-# periods of the ladder: from this many stretches (a change faster than the paired unit cannot be judged)
-MIN_PERIOD_STRETCHES = 4.0
-MIN_PERIOD_S = 600.0
-LADDER = 24
-M2_S = 44714.16
-K1_S = 86164.09
 # the periods a tide has (s): semidiurnal 12.0-12.66 h, diurnal 23.93-25.82 h
 TIDAL_BANDS = ((12.0 * 3600, 12.66 * 3600), (23.93 * 3600, 25.82 * 3600))
 # forms closer than this in log-likelihood cannot be told apart (a likelihood ratio of e^2)
 TELL_APART = 2.0
-# pair differences beyond this many robust sd are clipped (a lost bottom, a spike the flags missed)
-CLIP_SD = 4.0
 
 
 @dataclass
@@ -84,80 +88,12 @@ class TimeVerdict:
         return self.rms_difference * math.sqrt(max(self.share, 0.0))
 
 
-def projected(d: np.ndarray, N: np.ndarray | None) -> np.ndarray:
-    """`d` (one column per vector component) with the columns of `N` projected out."""
-    if N is None or not len(N):
-        return d
-    Q, _ = np.linalg.qr(N)
-    return d - Q @ (Q.T @ d)
-
-
-def nuisance(rp: RevisitPairs, xy: np.ndarray, heading: np.ndarray | None) -> np.ndarray:
-    """What a pair's difference may owe to other than time: the displacement between its two samples (a
-    gradient of the field across the revisit radius) and two harmonics of the heading, differenced (an
-    instrument that reads differently with the bow's direction)."""
-    a, b = rp.pairs[:, 0], rp.pairs[:, 1]
-    cols = [xy[b, 0] - xy[a, 0], xy[b, 1] - xy[a, 1]]
-    if heading is not None and np.isfinite(heading).all():
-        h = np.radians(heading)
-        cols += [f(k * h[b]) - f(k * h[a]) for k in (1, 2) for f in (np.cos, np.sin)]
-    return np.column_stack(cols)
-
-
-def clipped(d: np.ndarray) -> np.ndarray:
-    """Each component clipped at CLIP_SD robust sd from zero."""
-    out = d.copy()
-    for c in range(d.shape[1]):
-        s = 1.4826 * np.median(np.abs(d[:, c] - np.median(d[:, c])))
-        if s > 0:
-            out[:, c] = np.clip(d[:, c], -CLIP_SD * s, CLIP_SD * s)
-    return out
-
-
-def periodic_shares(d: np.ndarray, ta: np.ndarray, tb: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """Share of the differences' sum of squares explained by a cos/sin pair at each frequency (a separate
-    pair per vector component), vectorised over the frequencies."""
-    C = np.cos(np.outer(tb, omega)) - np.cos(np.outer(ta, omega))
-    S = np.sin(np.outer(tb, omega)) - np.sin(np.outer(ta, omega))
-    cc, ss, cs = (C * C).sum(0), (S * S).sum(0), (C * S).sum(0)
-    det = cc * ss - cs**2
-    det = np.where(det > 1e-9 * (cc * ss) + 1e-300, det, np.inf)
-    q = np.zeros(len(omega))
-    for k in range(d.shape[1]):
-        cd, sd = C.T @ d[:, k], S.T @ d[:, k]
-        q += (ss * cd**2 - 2 * cs * cd * sd + cc * sd**2) / det
-    return q / float((d * d).sum())
-
-
-def drift_share(d: np.ndarray, ta: np.ndarray, tb: np.ndarray, span: float) -> float:
-    """Share explained by a quadratic in time (a drift), a separate one per vector component."""
-    u, v = ta / span, tb / span
-    A = np.column_stack([v - u, v**2 - u**2])
-    w, *_ = np.linalg.lstsq(A, d, rcond=None)
-    return float(((A @ w) ** 2).sum() / (d * d).sum()) if np.isfinite(w).all() else 0.0
-
-
-class FormLadder:
-    """The forms tried: a drift, then a periodic change at each period of the ladder and at M2 and K1."""
-
-    def __init__(self, span_s: float, stretch_s: float) -> None:
-        lo = max(MIN_PERIOD_STRETCHES * stretch_s, MIN_PERIOD_S)
-        hi = max(2.0 * span_s, 2.0 * lo)
-        self.periods = np.concatenate([np.geomspace(lo, hi, LADDER), [M2_S, K1_S]])
-        self.omega = 2.0 * np.pi / self.periods
-        self.span = span_s
-
-    def shares(self, d: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
-        """[drift, each period...] shares of the differences explained."""
-        return np.concatenate(
-            [[drift_share(d, ta, tb, self.span)], periodic_shares(d, ta, tb, self.omega)]
-        )
-
-    def form(self, i: int, share: float, p: float) -> Form:
-        if i == 0:
-            return Form("drift", None, share, p)
-        period = float(self.periods[i - 1])
-        return Form("tide" if is_tidal(period) else "periodic", period, share, p)
+def form_at(ladder: FormLadder, i: int, share: float, p: float) -> Form:
+    """The ladder's form i: the drift, or a periodic change (a tide when its period is tidal)."""
+    if i == 0:
+        return Form("drift", None, share, p)
+    period = float(ladder.periods[i - 1])
+    return Form("tide" if is_tidal(period) else "periodic", period, share, p)
 
 
 def kind_of(form: Form, span_s: float, sd_s: float | None) -> str:
@@ -188,37 +124,6 @@ def permutation_p(obs: np.ndarray, null: np.ndarray) -> tuple[np.ndarray, float]
     return per_form, float((1 + (z_null >= z_obs).sum()) / (1 + n))
 
 
-class PermutedTimes:
-    """The pairs' times under a permutation of the stretches, from sines and cosines computed once:
-    cos(w (t + s)) = cos(w t) cos(w s) - sin(w t) sin(w s), s each stretch's shift."""
-
-    def __init__(self, rp: RevisitPairs, omega: np.ndarray) -> None:
-        self.rp, self.omega = rp, omega
-        ta, tb = rp.times()
-        self.ta, self.tb = ta, tb
-        self.sa, self.sb = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
-        self.trig = [(np.cos(np.outer(x, omega)), np.sin(np.outer(x, omega))) for x in (ta, tb)]
-
-    def shares(self, d: np.ndarray, ladder: FormLadder, order: np.ndarray) -> np.ndarray:
-        starts = self.rp.stretch_s * np.arange(self.rp.n_stretches)
-        shift = starts[order] - starts
-        cw, sw = np.cos(np.outer(shift, self.omega)), np.sin(np.outer(shift, self.omega))
-        parts = []
-        for (c, s), st in zip(self.trig, (self.sa, self.sb), strict=True):
-            parts.append((c * cw[st] - s * sw[st], s * cw[st] + c * sw[st]))
-        (ca, sa), (cb, sb) = parts
-        C, S = cb - ca, sb - sa
-        cc, ss, cs = (C * C).sum(0), (S * S).sum(0), (C * S).sum(0)
-        det = cc * ss - cs**2
-        det = np.where(det > 1e-9 * (cc * ss) + 1e-300, det, np.inf)
-        q = np.zeros(len(self.omega))
-        for k in range(d.shape[1]):
-            cd, sd = C.T @ d[:, k], S.T @ d[:, k]
-            q += (ss * cd**2 - 2 * cs * cd * sd + cc * sd**2) / det
-        drift = drift_share(d, self.ta + shift[self.sa], self.tb + shift[self.sb], ladder.span)
-        return np.concatenate([[drift], q / float((d * d).sum())])
-
-
 def judge_time(
     d: np.ndarray,
     rp: RevisitPairs,
@@ -231,22 +136,21 @@ def judge_time(
     vector component, the later sample minus the earlier)."""
     d = np.asarray(d, float).reshape(len(rp.pairs), -1)
     rms = float(np.sqrt(np.mean((d * d).sum(axis=1))))
-    d = projected(clipped(d), nuisance(rp, xy, heading))
+    proj = Projector(nuisance(rp, xy, heading))
+    d = proj(clipped(d))
     span = float(np.ptp(rp.t))
     ladder = FormLadder(span, rp.stretch_s)
     ta, tb = rp.times()
-    obs = ladder.shares(d, ta, tb)
+    obs = ladder.shares(d, ta, tb, proj)
     rng = np.random.default_rng(seed)
-    pt = PermutedTimes(rp, ladder.omega)
-    null = np.array(
-        [pt.shares(d, ladder, rng.permutation(rp.n_stretches)) for _ in range(permutations)]
-    )
+    pt = PermutedTimes(rp, ladder, proj)
+    null = np.array([pt.shares(d, rng.permutation(rp.n_stretches)) for _ in range(permutations)])
     per_form, p = permutation_p(obs, null)
     best_i = best_form(obs, null)
     n_eff = max(rp.crossings, 2)
-    forms = [ladder.form(i, float(obs[i]), float(per_form[i])) for i in range(len(obs))]
+    forms = [form_at(ladder, i, float(obs[i]), float(per_form[i])) for i in range(len(obs))]
     best = forms[best_i]
-    sd = period_sd(d, ta, tb, best.period_s, n_eff) if best.period_s else None
+    sd = period_sd(d, ta, tb, best.period_s, n_eff, proj) if best.period_s else None
     best = Form(kind_of(best, span, sd), best.period_s, best.share, best.p_value)
     return TimeVerdict(
         pairs=len(rp.pairs),
@@ -255,7 +159,7 @@ def judge_time(
         stretch_s=rp.stretch_s,
         radius_m=rp.radius_m,
         rms_difference=rms,
-        share=cv_share(d, rp, ladder, best_i),
+        share=cv_share(d, rp, ladder.columns(best_i, ta, tb, proj)),
         p_value=p,
         permutations=permutations,
         best=best,
@@ -276,12 +180,13 @@ def log_lik(share: float, n_eff: int) -> float:
     return -0.5 * n_eff * math.log(max(1.0 - share, 1e-12))
 
 
-def period_sd(d, ta, tb, period_s: float, n_eff: int) -> float | None:
+def period_sd(d, ta, tb, period_s: float, n_eff: int, proj: Projector) -> float | None:
     """The period's sd from its profile likelihood: the half-width where it falls by 1/2 from its peak,
     on a fine grid of periods around it (None when the profile does not fall on both sides: the period
     is not determined by the survey)."""
     grid = period_s * np.geomspace(0.5, 2.0, 241)
-    ll = np.array([log_lik(s, n_eff) for s in periodic_shares(d, ta, tb, 2 * np.pi / grid)])
+    shares = pair_shares(d, *periodic_columns(ta, tb, 2 * np.pi / grid, proj))
+    ll = np.array([log_lik(s, n_eff) for s in shares])
     top = int(np.argmax(ll))
     inside = ll >= ll[top] - 0.5
     lo, hi = top, top
@@ -307,13 +212,11 @@ def indistinct(forms: list[Form], best_i: int, n_eff: int) -> list[str]:
     return out
 
 
-def cv_share(d: np.ndarray, rp: RevisitPairs, ladder: FormLadder, i: int, k: int = 5) -> float:
-    """The best form's share of the differences, cross-validated: its coefficients fitted on the pairs
-    away from a fold of stretches, judged on the pairs that touch it (pooled over the folds)."""
-    ta, tb = rp.times()
+def cv_share(d: np.ndarray, rp: RevisitPairs, A: np.ndarray, k: int = 5) -> float:
+    """A form's share of the differences, cross-validated: its coefficients fitted on the pairs away from
+    a fold of stretches, judged on the pairs that touch it (pooled over the folds)."""
     fold = rp.stretch % k
     fa, fb = fold[rp.pairs[:, 0]], fold[rp.pairs[:, 1]]
-    A = feature_differences(ladder, i, ta, tb)
     resid = np.zeros_like(d)
     for f in range(k):
         test = (fa == f) | (fb == f)
@@ -323,12 +226,3 @@ def cv_share(d: np.ndarray, rp: RevisitPairs, ladder: FormLadder, i: int, k: int
         w, *_ = np.linalg.lstsq(A[~test], d[~test], rcond=None)
         resid[test] = d[test] - A[test] @ w
     return float(1.0 - (resid * resid).sum() / (d * d).sum())
-
-
-def feature_differences(ladder: FormLadder, i: int, ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
-    """The columns of form `i` differenced over each pair."""
-    if i == 0:
-        u, v = ta / ladder.span, tb / ladder.span
-        return np.column_stack([v - u, v**2 - u**2])
-    w = ladder.omega[i - 1]
-    return np.column_stack([np.cos(w * tb) - np.cos(w * ta), np.sin(w * tb) - np.sin(w * ta)])

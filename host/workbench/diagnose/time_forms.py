@@ -1,0 +1,137 @@
+"""The forms a change in time can take, fitted to revisit differences: the shares of their sum of squares
+that a drift and a periodic change at each period explain, for the observed times and for any permutation of
+the stretches' times (host/workbench/diagnose/time_judge.py judges with them).
+
+A pair's difference owes something to other than time: the displacement between its two samples (the
+field's gradient across the revisit radius) and the heading of each pass (an instrument that reads
+differently with the bow's direction). Those columns are taken out of the differences and of every form's
+columns alike (Frisch, Waugh and Lovell: the share is then what the form adds to them).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from forcemap.host.workbench.revisits import RevisitPairs
+
+# periods of the ladder: from this many stretches (a change faster than the paired unit cannot be judged)
+MIN_PERIOD_STRETCHES = 4.0
+MIN_PERIOD_S = 600.0
+LADDER = 24
+M2_S = 44714.16
+K1_S = 86164.09
+# pair differences beyond this many robust sd are clipped (a lost bottom, a spike the flags missed)
+CLIP_SD = 4.0
+
+
+class Projector:
+    """Takes the span of the nuisance columns out of any columns."""
+
+    def __init__(self, N: np.ndarray | None) -> None:
+        self.Q = np.linalg.qr(N)[0] if N is not None and N.size else None
+
+    def __call__(self, A: np.ndarray) -> np.ndarray:
+        return A if self.Q is None else A - self.Q @ (self.Q.T @ A)
+
+
+def nuisance(rp: RevisitPairs, xy: np.ndarray, heading: np.ndarray | None) -> np.ndarray:
+    """The displacement between each pair's two samples and two harmonics of the heading, differenced."""
+    a, b = rp.pairs[:, 0], rp.pairs[:, 1]
+    cols = [xy[b, 0] - xy[a, 0], xy[b, 1] - xy[a, 1]]
+    if heading is not None and np.isfinite(heading).all():
+        h = np.radians(heading)
+        cols += [f(k * h[b]) - f(k * h[a]) for k in (1, 2) for f in (np.cos, np.sin)]
+    return np.column_stack(cols)
+
+
+def clipped(d: np.ndarray) -> np.ndarray:
+    """Each component clipped at CLIP_SD robust sd from zero."""
+    out = d.copy()
+    for c in range(d.shape[1]):
+        s = 1.4826 * np.median(np.abs(d[:, c] - np.median(d[:, c])))
+        if s > 0:
+            out[:, c] = np.clip(d[:, c], -CLIP_SD * s, CLIP_SD * s)
+    return out
+
+
+def pair_shares(d: np.ndarray, C: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """Share of the differences' sum of squares explained by each cos/sin column pair (a separate pair of
+    coefficients per vector component), vectorised over the pairs of columns."""
+    cc, ss, cs = (C * C).sum(0), (S * S).sum(0), (C * S).sum(0)
+    det = cc * ss - cs**2
+    det = np.where(det > 1e-9 * (cc * ss) + 1e-300, det, np.inf)
+    q = np.zeros(C.shape[1])
+    for k in range(d.shape[1]):
+        cd, sd = C.T @ d[:, k], S.T @ d[:, k]
+        q += (ss * cd**2 - 2 * cs * cd * sd + cc * sd**2) / det
+    return q / max(float((d * d).sum()), 1e-300)
+
+
+def periodic_columns(ta, tb, omega: np.ndarray, proj: Projector) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin at each frequency, differenced over each pair, the nuisance taken out."""
+    C = np.cos(np.outer(tb, omega)) - np.cos(np.outer(ta, omega))
+    S = np.sin(np.outer(tb, omega)) - np.sin(np.outer(ta, omega))
+    return proj(C), proj(S)
+
+
+def drift_columns(ta, tb, span: float, proj: Projector) -> np.ndarray:
+    """A quadratic in time, differenced over each pair, the nuisance taken out."""
+    u, v = ta / span, tb / span
+    return proj(np.column_stack([v - u, v**2 - u**2]))
+
+
+def share_of(d: np.ndarray, A: np.ndarray) -> float:
+    """Share of the differences' sum of squares explained by the columns A (least squares)."""
+    w, *_ = np.linalg.lstsq(A, d, rcond=None)
+    if not np.isfinite(w).all():
+        return 0.0
+    return float(((A @ w) ** 2).sum() / max(float((d * d).sum()), 1e-300))
+
+
+class FormLadder:
+    """The forms tried: a drift, then a periodic change at each period of the ladder and at M2 and K1."""
+
+    def __init__(self, span_s: float, stretch_s: float) -> None:
+        lo = max(MIN_PERIOD_STRETCHES * stretch_s, MIN_PERIOD_S)
+        hi = max(2.0 * span_s, 2.0 * lo)
+        self.periods = np.concatenate([np.geomspace(lo, hi, LADDER), [M2_S, K1_S]])
+        self.omega = 2.0 * np.pi / self.periods
+        self.span = span_s
+
+    def shares(self, d: np.ndarray, ta, tb, proj: Projector) -> np.ndarray:
+        """[drift, each period...] shares of the differences explained."""
+        C, S = periodic_columns(ta, tb, self.omega, proj)
+        drift = share_of(d, drift_columns(ta, tb, self.span, proj))
+        return np.concatenate([[drift], pair_shares(d, C, S)])
+
+    def columns(self, i: int, ta, tb, proj: Projector) -> np.ndarray:
+        """Form i's columns, differenced over each pair, the nuisance taken out."""
+        if i == 0:
+            return drift_columns(ta, tb, self.span, proj)
+        C, S = periodic_columns(ta, tb, self.omega[i - 1 : i], proj)
+        return np.column_stack([C, S])
+
+
+class PermutedTimes:
+    """The ladder's shares with the stretches' times permuted, from sines and cosines computed once:
+    cos(w (t + s)) = cos(w t) cos(w s) - sin(w t) sin(w s), s each stretch's shift."""
+
+    def __init__(self, rp: RevisitPairs, ladder: FormLadder, proj: Projector) -> None:
+        self.rp, self.ladder, self.proj = rp, ladder, proj
+        self.ta, self.tb = rp.times()
+        self.sa, self.sb = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
+        w = ladder.omega
+        self.trig = [(np.cos(np.outer(x, w)), np.sin(np.outer(x, w))) for x in (self.ta, self.tb)]
+
+    def shares(self, d: np.ndarray, order: np.ndarray) -> np.ndarray:
+        starts = self.rp.stretch_s * np.arange(self.rp.n_stretches)
+        shift = starts[order] - starts
+        w = self.ladder.omega
+        cw, sw = np.cos(np.outer(shift, w)), np.sin(np.outer(shift, w))
+        (ca, sa), (cb, sb) = [
+            (c * cw[st] - s * sw[st], s * cw[st] + c * sw[st])
+            for (c, s), st in zip(self.trig, (self.sa, self.sb), strict=True)
+        ]
+        C, S = self.proj(cb - ca), self.proj(sb - sa)
+        ta, tb = self.ta + shift[self.sa], self.tb + shift[self.sb]
+        drift = share_of(d, drift_columns(ta, tb, self.ladder.span, self.proj))
+        return np.concatenate([[drift], pair_shares(d, C, S)])
