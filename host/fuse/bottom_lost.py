@@ -3,7 +3,7 @@
 In deep water and a rough sea a single-beam sounder loses the bottom for minutes: its returns scatter
 from a few metres to most of the depth from one ping to the next (fish, a thermocline, aeration under
 the hull, the pulse's side lobes). False echoes among a bottom that is still there leave a continuous
-seabed under them, however many they are (forcemap.host.workbench.seabed finds its path); a lost
+seabed under them, however many they are (forcemap.host.fuse.seabed finds its path); a lost
 bottom does not, and the path drawn through its scatter is jagged. Two shares, along the track in a
 window of WINDOW soundings, say which:
 
@@ -21,14 +21,20 @@ MIN_SOUNDINGS soundings, the bottom is lost: the stretch runs out on either side
 it, or continuing their neighbours within the tolerance and a steep seabed's STEP_M), every sounding
 in it is flagged (one that lands near a path drawn through scatter is a coincidence, not the bottom),
 left out of the depth map, and the stretch is listed with its times.
+
+One home for the import (forcemap.host.convert.depth_findings: a ``qa.depth.bottom_lost`` finding and the
+rows marked ``bottom_lost``) and the workbench (forcemap.host.workbench.spikes: the rows left out of the
+depth map): ``depth_lost`` runs the whole test on a column of soundings.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.fuse.seabed import seabed_path
 
 WINDOW = 61
 PATH_SHARE = 0.5
@@ -40,6 +46,12 @@ MIN_SOUNDINGS = 30
 NEAR_M = 0.3
 NEAR_SHARE = 0.01
 RESUME = 3
+# rows are grouped into readings when at least this share repeats the row before (the simulator's
+# 4 rows per 1-Hz sounding: 75 %)
+HELD_SHARE = 0.7
+# the seabed path's tolerance: the spike floor of a sounding (0.5 m + 5 % of the depth)
+PATH_FLOOR_M = 0.5
+PATH_FLOOR_SHARE = 0.05
 
 
 @dataclass
@@ -165,3 +177,73 @@ def lost_mask(n: int, stretches: list[LostStretch]) -> np.ndarray:
     for s in stretches:
         mask[s.i0 : s.i1 + 1] = True
     return mask
+
+
+def runs_of(lost: np.ndarray, trel: np.ndarray) -> list[LostStretch]:
+    """The runs of readings marked lost, as stretches (whose share on a seabed is not known: NaN)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, lost.astype(int), 0]))
+    return [
+        LostStretch(int(a), int(b), float(trel[a]), float(trel[b]), float("nan"))
+        for a, b in zip(edges[::2], edges[1::2] - 1, strict=True)
+    ]
+
+
+def running(values: np.ndarray, window: int, fn) -> np.ndarray:
+    """`fn` (nan-aware) over a centred window of `window` rows, the window shrunk at the ends."""
+    half = window // 2
+    padded = np.concatenate([np.full(half, np.nan), values, np.full(half, np.nan)])
+    view = np.lib.stride_tricks.sliding_window_view(padded, window)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window gives NaN, as it should
+        return fn(view, axis=1)
+
+
+def readings_of(parts: list[np.ndarray]) -> np.ndarray:
+    """Each row's reading: rows that repeat the row before (a table sampled faster than the sensor
+    holds its last reading) are one reading, so that a window counts readings, not rows (at 4 rows
+    a sounding, a run of two false echoes filled 8 of 9 rows and beat the median)."""
+    same = np.ones(len(parts[0]) - 1, bool) if len(parts[0]) else np.zeros(0, bool)
+    for p in parts:
+        same &= (p[1:] == p[:-1]) | (np.isnan(p[1:]) & np.isnan(p[:-1]))
+    if not len(same) or same.mean() < HELD_SHARE:
+        # a coarse column repeats too (PacCupStart's DBT: 57 % of rows), but not as a rule: counted
+        # by readings, its window spanned a minute of a steep channel and flagged 71 real soundings
+        return np.arange(len(parts[0]))
+    return np.concatenate([[0], np.cumsum(~same)])
+
+
+def path_tolerance(depth: np.ndarray) -> np.ndarray:
+    """How far a step of the seabed's path may go before it costs a jump (the spike floor)."""
+    return PATH_FLOOR_M + PATH_FLOOR_SHARE * np.abs(depth)
+
+
+@dataclass
+class DepthLost:
+    """The test on one column of soundings: per reading and per row."""
+
+    group: np.ndarray  # each row's reading
+    first: np.ndarray  # each reading's first row
+    on_path: np.ndarray  # per reading: on the seabed's continuous path
+    stretches: list[LostStretch]  # by reading
+    lost: np.ndarray  # per reading: inside a stretch
+
+    @property
+    def rows(self) -> np.ndarray:
+        """Per row: inside a stretch."""
+        return self.lost[self.group]
+
+    def row_span(self, s: LostStretch) -> tuple[int, int]:
+        """The first and last row of a stretch."""
+        last = np.flatnonzero(self.group == s.i1)
+        return int(self.first[s.i0]), int(last[-1])
+
+
+def depth_lost(depth: np.ndarray, trel: np.ndarray) -> DepthLost:
+    """The bottom lost in a column of soundings (one per row, NaN where none; ``trel``: each row's
+    time in seconds): readings grouped, the seabed's path, the stretches."""
+    group = readings_of([depth])
+    first = np.flatnonzero(np.diff(group, prepend=-1))
+    d = depth[first]
+    on_path = seabed_path(d, path_tolerance(d))
+    stretches = lost_stretches(d, on_path, trel[first], running)
+    return DepthLost(group, first, on_path, stretches, lost_mask(len(d), stretches))
