@@ -46,6 +46,12 @@ MIN_SOUNDINGS = 30
 NEAR_M = 0.3
 NEAR_SHARE = 0.01
 RESUME = 3
+# the steepest seabed followed from one sounding to the next: 1 in 2 (27 deg) against the distance
+# travelled, beyond the spike floor
+MAX_SLOPE = 0.5
+# a window where the path climbs and falls faster than that, both ways, by more than this share of the
+# distance travelled (and each way beyond the floor) has no seabed under it
+REVERSAL_SHARE = 0.1
 # rows are grouped into readings when at least this share repeats the row before (the simulator's
 # 4 rows per 1-Hz sounding: 75 %)
 HELD_SHARE = 0.7
@@ -63,16 +69,19 @@ class LostStretch:
     t0: float  # seconds since the survey's start
     t1: float
     share: float  # the share of its soundings on a seabed
+    why: str = "scatter"  # "scatter" (no seabed under the soundings), "steep" (one no seabed can be)
 
     @property
     def n(self) -> int:
         return self.i1 - self.i0 + 1
 
     def text(self) -> str:
-        return (
-            f"{self.t0 / 60:.1f}-{self.t1 / 60:.1f} min ({self.n} soundings, "
-            f"{self.share:.0%} on a seabed)"
-        )
+        how = {
+            "scatter": f"{self.share:.0%} on a seabed",
+            "steep": "climbing and falling faster than a seabed",
+        }
+        evidence = "; ".join(how.get(w, w) for w in self.why.split("+"))
+        return f"{self.t0 / 60:.1f}-{self.t1 / 60:.1f} min ({self.n} soundings, {evidence})"
 
 
 def _tolerance(depth: np.ndarray) -> np.ndarray:
@@ -122,22 +131,32 @@ def _continues(depth: np.ndarray) -> np.ndarray:
 
 
 def lost_stretches(
-    depth: np.ndarray, on_path: np.ndarray, trel: np.ndarray, running: Callable
+    depth: np.ndarray,
+    on_path: np.ndarray,
+    trel: np.ndarray,
+    running: Callable,
+    step_m: np.ndarray | None = None,
 ) -> list[LostStretch]:
     """The stretches (by reading) where the bottom was lost; ``on_path``: the soundings on the
-    seabed's path (seabed.py), ``trel`` each reading's time, ``running`` the along-track window.
-    Readings without a sounding (NaN) are left out: the windows count soundings."""
+    seabed's path (seabed.py), ``trel`` each reading's time, ``running`` the along-track window,
+    ``step_m`` the distance travelled since the reading before (None: not known, so the steepness
+    test is not made). Readings without a sounding (NaN) are left out: the windows count soundings."""
     idx = np.flatnonzero(np.isfinite(depth))
     if len(idx) < MIN_SOUNDINGS:
         return []
-    found = _stretches(depth[idx], on_path[idx], trel[idx], running)
-    return [LostStretch(int(idx[s.i0]), int(idx[s.i1]), s.t0, s.t1, s.share) for s in found]
+    step = None
+    if step_m is not None:  # the distance between the soundings kept, across the NaN rows
+        step = np.diff(np.r_[0.0, np.nancumsum(np.nan_to_num(step_m))[idx]])
+    found = _stretches(depth[idx], on_path[idx], trel[idx], running, step)
+    return [
+        LostStretch(int(idx[s.i0]), int(idx[s.i1]), s.t0, s.t1, s.share, s.why) for s in found
+    ]
 
 
-def _stretches(
-    depth: np.ndarray, on_path: np.ndarray, trel: np.ndarray, running: Callable
-) -> list[LostStretch]:
-    bottom = on_bottom(depth, on_path)
+def _scatter_spans(
+    depth: np.ndarray, on_path: np.ndarray, bottom: np.ndarray, running: Callable
+) -> list[list[int]]:
+    """Where the soundings scatter with no seabed under them (their shares low, their jumps big)."""
     share = running(bottom.astype(float), WINDOW, np.nanmean)
     path = running(path_continuity(depth, on_path), WINDOW, np.nanmean)
     low = (np.nan_to_num(share, nan=1.0) < LOST_SHARE) & (np.nan_to_num(path, nan=1.0) < PATH_SHARE)
@@ -160,13 +179,69 @@ def _stretches(
             a += 1
         while b > a and near[b]:
             b -= 1
+        spans.append([int(a), int(b)])
+    return spans
+
+
+def impossible_steps(depth: np.ndarray, on_path: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Per reading, how far (m) the seabed's path climbs (+) or falls (-) into it beyond what a seabed
+    can between the two soundings: the spike floor, plus MAX_SLOPE x the distance travelled."""
+    p = np.flatnonzero(on_path & np.isfinite(depth))
+    if len(p) < 2:
+        return np.zeros(len(depth))
+    bed = np.interp(np.arange(len(depth)), p, depth[p])
+    change = np.diff(bed, prepend=bed[0])
+    allowed = path_tolerance(bed) + MAX_SLOPE * np.nan_to_num(step)
+    return np.sign(change) * np.maximum(np.abs(change) - allowed, 0.0)
+
+
+def _steep_spans(
+    depth: np.ndarray, on_path: np.ndarray, step: np.ndarray, running: Callable
+) -> list[list[int]]:
+    """Where the seabed's path climbs and falls, both ways, by more than REVERSAL_SHARE of the distance
+    travelled: a damped sounder that has lost the bottom glides from its shallowest reading to its
+    deepest and back (1.8 to 108 m and back within 37 m of travel), every step continuous, none of it
+    a seabed. A steep wall climbs or falls one way; sand bars and heave stay inside the floor."""
+    imp = impossible_steps(depth, on_path, step)
+    up = running(np.maximum(imp, 0.0), WINDOW, np.nansum)
+    down = running(np.maximum(-imp, 0.0), WINDOW, np.nansum)
+    travelled = running(np.nan_to_num(step), WINDOW, np.nansum)
+    floor = path_tolerance(running(depth, WINDOW, np.nanmedian))
+    turn = np.minimum(up, down)
+    steep = (turn > floor) & (2.0 * turn > REVERSAL_SHARE * travelled)
+    spans: list[list[int]] = []
+    edges = np.flatnonzero(np.diff(np.r_[0, steep.astype(int), 0]))
+    jumps = np.flatnonzero(imp)
+    for a, b in zip(edges[::2], edges[1::2] - 1, strict=True):
+        # from the first step beyond the floor the windows saw to the last
+        inside = jumps[(jumps >= a - WINDOW // 2) & (jumps <= b + WINDOW // 2)]
+        if len(inside):
+            spans.append([int(inside[0]), int(inside[-1])])
+    return spans
+
+
+def _stretches(
+    depth: np.ndarray,
+    on_path: np.ndarray,
+    trel: np.ndarray,
+    running: Callable,
+    step: np.ndarray | None,
+) -> list[LostStretch]:
+    bottom = on_bottom(depth, on_path)
+    found = [(a, b, "scatter") for a, b in _scatter_spans(depth, on_path, bottom, running)]
+    if step is not None:
+        found += [(a, b, "steep") for a, b in _steep_spans(depth, on_path, step, running)]
+    spans: list[list] = []
+    for a, b, why in sorted(found):
         if spans and a <= spans[-1][1] + RESUME:
             spans[-1][1] = max(spans[-1][1], b)
+            if why not in spans[-1][2]:
+                spans[-1][2] += "+" + why
         else:
-            spans.append([int(a), int(b)])
+            spans.append([a, b, why])
     return [
-        LostStretch(a, b, float(trel[a]), float(trel[b]), float(np.mean(bottom[a : b + 1])))
-        for a, b in spans
+        LostStretch(a, b, float(trel[a]), float(trel[b]), float(np.mean(bottom[a : b + 1])), why)
+        for a, b, why in spans
         if b - a + 1 >= MIN_SOUNDINGS
     ]
 
@@ -212,7 +287,7 @@ def readings_of(parts: list[np.ndarray]) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(~same)])
 
 
-def path_tolerance(depth: np.ndarray) -> np.ndarray:
+def path_tolerance(depth: np.ndarray | float) -> np.ndarray:
     """How far a step of the seabed's path may go before it costs a jump (the spike floor)."""
     return PATH_FLOOR_M + PATH_FLOOR_SHARE * np.abs(depth)
 
@@ -238,12 +313,17 @@ class DepthLost:
         return int(self.first[s.i0]), int(last[-1])
 
 
-def depth_lost(depth: np.ndarray, trel: np.ndarray) -> DepthLost:
+def depth_lost(depth: np.ndarray, trel: np.ndarray, xy: np.ndarray | None = None) -> DepthLost:
     """The bottom lost in a column of soundings (one per row, NaN where none; ``trel``: each row's
-    time in seconds): readings grouped, the seabed's path, the stretches."""
+    time in seconds; ``xy``: its position in metres, for the steepness test): readings grouped, the
+    seabed's path, the stretches."""
     group = readings_of([depth])
     first = np.flatnonzero(np.diff(group, prepend=-1))
     d = depth[first]
     on_path = seabed_path(d, path_tolerance(d))
-    stretches = lost_stretches(d, on_path, trel[first], running)
+    step = None
+    if xy is not None:
+        pos = xy[first]
+        step = np.r_[0.0, np.hypot(*np.diff(pos, axis=0).T)]
+    stretches = lost_stretches(d, on_path, trel[first], running, step)
     return DepthLost(group, first, on_path, stretches, lost_mask(len(d), stretches))

@@ -188,7 +188,7 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
     off = lost = np.zeros(len(first), bool)
     stretches: list[LostStretch] = []
     if fam == "depth" and len(parts) == 1:  # the reference from the seabed's continuous path only
-        found_lost = depth_lost(parts[0], survey.trel)
+        found_lost = depth_lost(parts[0], survey.trel, _xy(survey))
         stretches = found_lost.stretches
         lost = found_lost.lost | _marked_lost(survey, first)
         if lost.any() and not stretches:  # marked by the import, on soundings since changed
@@ -213,6 +213,12 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
         lost[group] if stretches else None,
         tuple(stretches),
     )
+
+
+def _xy(survey: Survey) -> np.ndarray | None:
+    """The rows' positions (m), for the bottom-lost test's steepness; None where a track has none."""
+    cols = getattr(survey, "columns", {})
+    return survey.xy if "x" in cols and "y" in cols else None
 
 
 def _marked_lost(survey: Survey, first: np.ndarray) -> np.ndarray:
