@@ -32,6 +32,7 @@ from forcemap.host.fuse.crossings import crossing_pairs
 MATCH_S = 2.0  # a reading of the other source this close in time is "the same instant"
 Z = 4.0  # disagreement beyond the sources' own scatter
 MIN_RUN = 5  # readings in a row that disagree: a stretch
+MIN_READINGS = 30
 SHARE_TIE = 0.02
 CROSS_RADIUS_M = 3.0
 CROSS_DT_S = 60.0
@@ -135,6 +136,10 @@ def compare(
         return []
     out = []
     sorted_ = {k: _sorted(*v) for k, v in readings.items()}
+    # a handful of readings (a sentence spliced under another talker) is not a sounder
+    sorted_ = {k: v for k, v in sorted_.items() if len(v[0]) >= MIN_READINGS or k == chosen}
+    if len(sorted_) < 2 or len(sorted_[chosen][0]) < MIN_READINGS:
+        return []
     ev = {k: _evidence(k, t, d, position(t) if position else None) for k, (t, d) in sorted_.items()}
     tc, dc = sorted_[chosen]
     for name, (t, d) in sorted_.items():

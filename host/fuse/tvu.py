@@ -22,6 +22,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.fuse import attitude
+from forcemap.host.fuse.attitude import ATTITUDE_SD_DEG
 
 Z95 = 1.96
 # S-44 6th ed., table 1: (a m, b) of the maximum allowable TVU at 95 %, strictest first
@@ -142,3 +144,47 @@ def sounding_tvu(
         position_sd * np.broadcast_to(np.asarray(slope, float), (n,)),
         np.broadcast_to(np.asarray(level_sd, float), (n,)).copy(),
     )
+
+
+def attitude_sd(
+    depth: np.ndarray,
+    depth_raw: np.ndarray | None,
+    roll: np.ndarray | None,
+    pitch: np.ndarray | None,
+    offset_m: float = 0.0,
+    attitude_sd_deg: float = ATTITUDE_SD_DEG,
+) -> np.ndarray:
+    """The attitude's term (1 sd, m) of each sounding of a table: where it was corrected (``depth_raw``
+    kept) the correction's sensitivity to the attitude's error, from the slant angle the correction
+    used, ``cos phi = depth / depth_raw`` below the transducer; where the hull's attitude is known but
+    no correction was made, the whole slant (attitude.correction_sd); without attitude, none."""
+    depth = np.asarray(depth, float)
+    out = np.zeros(len(depth))
+    if roll is not None:
+        out = np.nan_to_num(attitude.correction_sd(depth, offset_m, roll, pitch, None))
+    if depth_raw is not None:
+        rng = np.asarray(depth_raw, float) - offset_m
+        with np.errstate(all="ignore"):
+            cosphi = np.clip((depth - offset_m) / rng, 0.0, 1.0)
+        sd = rng * np.sqrt(1.0 - cosphi**2) * np.radians(attitude_sd_deg)
+        out = np.where(np.isfinite(sd), sd, out)
+    return out
+
+
+def table_tvu(
+    depth: np.ndarray,
+    xy: np.ndarray,
+    spec: SounderSpec,
+    depth_raw: np.ndarray | None = None,
+    roll: np.ndarray | None = None,
+    pitch: np.ndarray | None = None,
+    position_sd: float = POSITION_SD_M,
+    level_sd: np.ndarray | float = 0.0,
+    offset_m: float = 0.0,
+) -> Tvu:
+    """Each sounding's TVU of a samples table (rows in time order, ``xy`` metres): the bed's slope from
+    the soundings along the track, the attitude's term from the table's own columns."""
+    step = np.r_[0.0, np.hypot(*np.diff(np.asarray(xy, float), axis=0).T)]
+    slope = along_track_slope(depth, step)
+    att = attitude_sd(depth, depth_raw, roll, pitch, offset_m)
+    return sounding_tvu(depth, spec, att, slope, position_sd, level_sd)
