@@ -149,9 +149,23 @@ def effects_meta(sim: Any) -> dict[str, Any]:
             "sounder_noise_m": sim.sounder.noise,
             "false_echoes": sim.sounder.false_echoes,
             "bottom_lost_soundings": sim.sounder.lost_soundings,
+            "bottom_lost_stretches": _stretches(sim.sounder.lost_times),
+            "sounder_beam_deg": sim.sounder.beam_deg,
+            "sounder_range_m": sim.sounder.rough_range,
             "nmea_bus": sorted(sim.bus_faults) if sim.nmea_bus else None,
         },
     }
+
+
+def _stretches(times: list[float], gap: float = 1.5) -> list[list[float]]:
+    """Runs of soundings (s since the start) no more than ``gap`` apart: [first, last] of each."""
+    out: list[list[float]] = []
+    for t in times:
+        if out and t - out[-1][1] <= gap:
+            out[-1][1] = t
+        else:
+            out.append([t, t])
+    return out
 
 
 def write_mission(folder: Path, mission: ms.Mission, frame: LocalFrame) -> None:

@@ -183,6 +183,35 @@ def _scatter_spans(
     return spans
 
 
+def _bridged_spans(
+    depth: np.ndarray, on_path: np.ndarray, bottom: np.ndarray
+) -> list[list[int]]:
+    """Runs of at least MIN_SOUNDINGS soundings between two returns of the bottom (RESUME on it in a
+    row) where almost none is on it (under half LOST_SHARE) and they jump from ping to ping by more
+    than SCATTER_M + SCATTER_SHARE x the bed's depth: a stretch too short for the windows (the boat
+    crossing a deep patch past the sounder's range in a minute). False echoes never do it: they leave
+    the bottom under a share of the pings, and jump among themselves by metres in deep water."""
+    p = np.flatnonzero(on_path & np.isfinite(depth))
+    if len(p) < 2:
+        return []
+    bed = np.interp(np.arange(len(depth)), p, depth[p])
+    back = np.convolve(bottom.astype(int), np.ones(RESUME, int), "same") >= RESUME
+    near = bottom | _continues(depth)  # the last sounding of the bottom before it is not in it
+    spans = []
+    edges = np.flatnonzero(np.diff(np.r_[0, (~back).astype(int), 0]))
+    for a, b in zip(edges[::2], edges[1::2] - 1, strict=True):
+        while a < b and near[a]:
+            a += 1
+        while b > a and near[b]:
+            b -= 1
+        if b - a + 1 < MIN_SOUNDINGS or np.mean(bottom[a : b + 1]) >= 0.5 * LOST_SHARE:
+            continue
+        jump = float(np.median(np.abs(np.diff(depth[a : b + 1]))))
+        if jump > SCATTER_M + SCATTER_SHARE * float(np.median(bed[a : b + 1])):
+            spans.append([int(a), int(b)])
+    return spans
+
+
 def impossible_steps(depth: np.ndarray, on_path: np.ndarray, step: np.ndarray) -> np.ndarray:
     """Per reading, how far (m) the seabed's path climbs (+) or falls (-) into it beyond what a seabed
     can between the two soundings: the spike floor, plus MAX_SLOPE x the distance travelled."""
@@ -229,6 +258,7 @@ def _stretches(
 ) -> list[LostStretch]:
     bottom = on_bottom(depth, on_path)
     found = [(a, b, "scatter") for a, b in _scatter_spans(depth, on_path, bottom, running)]
+    found += [(a, b, "scatter") for a, b in _bridged_spans(depth, on_path, bottom)]
     if step is not None:
         found += [(a, b, "steep") for a, b in _steep_spans(depth, on_path, step, running)]
     spans: list[list] = []
