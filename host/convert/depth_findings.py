@@ -40,6 +40,15 @@ JACKKNIFE_BLOCKS = 10
 MIN_CROSSINGS = 30
 
 
+def arrays(rows: list[Mapping[str, Any]], names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Columns of float arrays (NaN where empty) from row dicts."""
+
+    def num(v: Any) -> float:
+        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else math.nan
+
+    return {c: np.array([num(r.get(c)) for r in rows], float) for c in names}
+
+
 def raw_depth(c: Mapping[str, np.ndarray]) -> np.ndarray:
     """The soundings as read: ``depth_raw`` where a tilt correction was made, else ``depth``."""
     raw = c.get("depth_raw")
@@ -247,8 +256,6 @@ def estimate(
 ) -> tuple[list[QaFinding], dict[str, Any]]:
     """The depth findings of a log's first pass, and the calibration's updates (lost stretches, a
     beam angle) for the second."""
-    from forcemap.host.convert.self_calibration import arrays
-
     names = ("t", "lat", "lon", "depth", "depth_raw", "roll", "pitch")
     c = arrays(rows, names)
     if not np.isfinite(c["depth"]).any():

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import Any
 
 import numpy as np
 from forcemap.host.convert import depth_findings
+from forcemap.host.convert.depth_findings import arrays
 from forcemap.host.convert.importers import ImportResult, import_file, import_to_mcap
 from forcemap.host.fuse import redundancy as rd
 from forcemap.host.fuse.calibration import Calibration
@@ -70,15 +70,6 @@ class SamplesSink:
     def depth_readings(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Each depth source's readings: (UNIX s, m)."""
         return {k: tuple(np.array(v, float).T) for k, v in self.depth.items() if len(v) > 1}  # type: ignore[misc]
-
-
-def arrays(rows: list[Mapping[str, Any]], names: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Columns of float arrays (NaN where empty) from row dicts."""
-
-    def num(v: Any) -> float:
-        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else math.nan
-
-    return {c: np.array([num(r.get(c)) for r in rows], float) for c in names}
 
 
 @dataclass

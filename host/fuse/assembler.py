@@ -115,6 +115,8 @@ class SampleAssembler:
         """A measurement: ``kind`` is app (speed, angle), true (speed, dir), stw (m/s,),
         depth (m,), temp (deg C,) or attitude (roll, pitch deg); ``label`` names the source and
         sentence."""
+        if kind == "depth":  # its own time: the tilt correction takes the attitude of that moment
+            value = (value[0], t)
         getattr(self, kind).add(t, value, label)
         if kind != "attitude":  # the hull's attitude describes a row, it never makes one
             self._pace(label, t)
@@ -234,19 +236,21 @@ class SampleAssembler:
         if att is not None:
             row.roll, row.pitch = att
             labels["attitude"] = self.attitude.label
-        self._sounding(row)
+        self._sounding(row, p.t)
         return labels
 
-    def _sounding(self, row: Sample) -> None:
-        """The depth corrected for the transducer's tilt where the beam angle is known (the reading
-        kept as ``depth_raw``), and the rows in a stretch where the bottom was lost marked."""
+    def _sounding(self, row: Sample, t: float) -> None:
+        """The depth corrected for the transducer's tilt where the beam angle is known, with the
+        hull's attitude at the sounding's own time (the reading kept as ``depth_raw``), and the rows
+        in a stretch where the bottom was lost marked."""
         cal = self.cal
         if row.depth is not None and row.roll is not None and cal.sounder_beam_deg is not None:
+            sounding = self.depth.at(t)
+            att = self.attitude.series.interpolate(sounding[1], MAX_AGE_S["attitude"])
+            roll, pitch = att if att is not None and att[0] is not None else (row.roll, row.pitch)
             row.depth_raw = row.depth
             row.depth = float(
-                attitude.corrected(
-                    row.depth, cal.depth_offset_m, row.roll, row.pitch, cal.sounder_beam_deg
-                )
+                attitude.corrected(row.depth, cal.depth_offset_m, roll, pitch, cal.sounder_beam_deg)
             )
         if cal.depth_lost:
             row.bottom_lost = float(any(a <= row.t <= b for a, b in cal.depth_lost))
