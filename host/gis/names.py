@@ -58,8 +58,8 @@ SURFACE_ATTRS: dict[str, dict[str, str]] = {
         "units": "1",
         "long_name": "depth hypotheses kept at the cell (more than one: its soundings disagree)",
     },
-    "surface_soundings": {
-        "standard_name": f"{_DEPTH} number_of_observations", "units": "1",
+    "surface_soundings": {  # CF's number_of_observations modifier is deprecated: no standard name
+        "units": "1",
         "long_name": "soundings that reached the cell",
     },
     "surface_support": {
