@@ -99,12 +99,16 @@ def _nearest(t_ref: np.ndarray, t: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _runs(mask: np.ndarray, t: np.ndarray) -> list[tuple[float, float]]:
+    """Runs of at least MIN_RUN disagreeing readings, those fewer than MIN_RUN apart joined (a
+    scattered reading agrees now and then by chance)."""
     edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
-    return [
-        (float(t[a]), float(t[b]))
-        for a, b in zip(edges[::2], edges[1::2] - 1, strict=True)
-        if b - a + 1 >= MIN_RUN
-    ]
+    runs: list[list[int]] = []
+    for a, b in zip(edges[::2], edges[1::2] - 1, strict=True):
+        if runs and a - runs[-1][1] <= MIN_RUN:
+            runs[-1][1] = b
+        else:
+            runs.append([a, b])
+    return [(float(t[a]), float(t[b])) for a, b in runs if b - a + 1 >= MIN_RUN]
 
 
 def _trust(a: SourceEvidence, b: SourceEvidence) -> tuple[str, str]:

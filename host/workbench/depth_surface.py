@@ -15,9 +15,9 @@ echosounder data"), the surface CARIS HIPS and QPS Qimera build, in a form a sin
 - the node's depth is the hypothesis most soundings support (CUBE's "number of samples"
   disambiguation); ties go to the smaller variance.
 
-A node's uncertainty is a sounding's there (the root mean square of its chosen soundings' propagated
-sd), not the sd of their mean: the soundings' errors share their sources (the sounder's calibration, the
-attitude, the position), and averaging hides none of that. Its TVU is 1.96 times that, graded against
+A node's uncertainty is a sounding's there (the harmonic mean of its chosen soundings' propagated
+variances: the nearest count most), not the sd of their mean: the soundings' errors share their sources
+(the sounder's calibration, the attitude, the position), and averaging hides none of that. Its TVU is 1.96 times that, graded against
 IHO S-44 (forcemap.host.fuse.tvu). A node no sounding reaches is empty: no cell is made from a lost
 stretch or from extrapolation (the GP map, forcemap.host.workbench.targets, is the continuous estimate).
 """
@@ -120,7 +120,7 @@ def _node(z: np.ndarray, var: np.ndarray) -> tuple[float, float, int, int, float
     mean: list[float] = []
     post: list[float] = []  # the hypothesis mean's variance
     count: list[int] = []
-    own: list[float] = []  # the sum of its soundings' variances
+    own: list[float] = []  # the sum of its soundings' inverse variances
     for zi, vi in zip(z.tolist(), var.tolist(), strict=True):
         j, score = -1, GATE
         for h in range(len(mean)):
@@ -131,13 +131,13 @@ def _node(z: np.ndarray, var: np.ndarray) -> tuple[float, float, int, int, float
             mean.append(zi)
             post.append(vi)
             count.append(1)
-            own.append(vi)
+            own.append(1.0 / vi)
             continue
         w = post[j] / (post[j] + vi)
         mean[j] += w * (zi - mean[j])
         post[j] = post[j] * vi / (post[j] + vi)
         count[j] += 1
-        own[j] += vi
+        own[j] += 1.0 / vi
     j = max(range(len(mean)), key=lambda h: (count[h], -post[h]))
     total = sum(count)
-    return mean[j], (own[j] / count[j]) ** 0.5, len(mean), total, count[j] / total
+    return mean[j], (count[j] / own[j]) ** 0.5, len(mean), total, count[j] / total
