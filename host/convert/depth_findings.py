@@ -97,7 +97,7 @@ def lost_finding(
         "ping or climbs and falls faster than 1 in 2 against the distance travelled",
         fix="marked: the rows stay, with bottom_lost = 1, and are left out of depth maps",
         applied=True,
-        extra={"stretches": ";".join(f"{a:.3f}-{b:.3f}" for a, b in unix),
+        extra={"stretches": ";".join(f"{a!r}-{b!r}" for a, b in unix),
                "soundings": str(n_lost)},
     ), unix  # fmt: skip
 
