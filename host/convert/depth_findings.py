@@ -196,7 +196,7 @@ def _tilt_result(
         f"crossings within {CROSS_RADIUS_M:g} m and {CROSS_DT_S:g} s apart; improvement "
         f"{np.mean(gain):.3f} ± {gain_sd:.3f} m (jackknife over {JACKKNIFE_BLOCKS} stretches)",
         fix, fix.startswith("applied"),
-        {"before_m": repr(before), "after_m": repr(after), "crossings": str(n)},
+        {"before_m": repr(float(before)), "after_m": repr(float(after)), "crossings": str(n)},
     ), apply  # fmt: skip
 
 
