@@ -19,11 +19,14 @@ are not in the sum (docs/SOUNDINGS.md says what that leaves out).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from forcemap.host.fuse import attitude
 from forcemap.host.fuse.attitude import ATTITUDE_SD_DEG
+from forcemap.host.log.qa_records import QaFinding
 
 Z95 = 1.96
 # S-44 6th ed., table 1: (a m, b) of the maximum allowable TVU at 95 %, strictest first
@@ -49,6 +52,42 @@ class SounderSpec:
 
     def sd(self, depth: np.ndarray) -> np.ndarray:
         return self.accuracy_m + self.accuracy_share * np.abs(np.asarray(depth, float))
+
+
+def position_sd(recorded: Sequence[QaFinding], source: str) -> tuple[float, str]:
+    """The horizontal 1-sd error of the positions (m): the noise the import measured of the source that
+    fed them (its ``qa.position.latency`` finding), else POSITION_SD_M; and where it came from."""
+    best = None
+    for f in recorded:
+        if f.category == "position" and f.extra.get("quantity") == "position":
+            try:
+                noise = float(f.extra.get("noise", "nan"))
+            except ValueError:
+                continue
+            if math.isfinite(noise) and (best is None or f.source == source):
+                best = (noise, f"the navigation's measured noise of {f.source}")
+    if best is None:
+        return POSITION_SD_M, f"{POSITION_SD_M:g} m, an autonomous GNSS fix's"
+    return max(best[0], 0.1), best[1]
+
+
+def spec_of(calibration: Mapping[str, str] | None) -> SounderSpec:
+    """The sounder's stated accuracy from a log's calibration record (boat.toml [sounder]), else the
+    default."""
+    cal = calibration or {}
+    try:
+        a, b = cal.get("sounder_accuracy_m"), cal.get("sounder_accuracy_share")
+        a = None if a in (None, "None") else float(a)
+        b = None if b in (None, "None") else float(b)
+    except ValueError:
+        a = b = None
+    if a is None and b is None:
+        return SounderSpec()
+    return SounderSpec(
+        a if a is not None else SOUNDER_DEFAULT[0],
+        b if b is not None else SOUNDER_DEFAULT[1],
+        True,
+    )
 
 
 def allowed(depth: np.ndarray, order: str) -> np.ndarray:

@@ -9,7 +9,6 @@ is the green line for Order 1a/1b.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -19,42 +18,6 @@ from forcemap.host.log.qa_records import QaFinding
 MEET_SHARE = 0.95  # S-44: an order is met where 95 % of the soundings meet its TVU
 MIN_RUN = 10  # soundings in a row that miss Order 1b: a stretch named
 TOP_STRETCHES = 3
-
-
-def position_sd(recorded: Sequence[QaFinding], source: str) -> tuple[float, str]:
-    """The horizontal 1-sd error of the positions (m): the noise the import measured of the source that
-    fed them (its ``qa.position.latency`` finding), else tvu.POSITION_SD_M; and where it came from."""
-    best = None
-    for f in recorded:
-        if f.category == "position" and f.extra.get("quantity") == "position":
-            try:
-                noise = float(f.extra.get("noise", "nan"))
-            except ValueError:
-                continue
-            if math.isfinite(noise) and (best is None or f.source == source):
-                best = (noise, f"the navigation's measured noise of {f.source}")
-    if best is None:
-        return tvu.POSITION_SD_M, f"{tvu.POSITION_SD_M:g} m, an autonomous GNSS fix's"
-    return max(best[0], 0.1), best[1]
-
-
-def spec_of(calibration: Mapping[str, str] | None) -> tvu.SounderSpec:
-    """The sounder's stated accuracy from a log's calibration record (boat.toml [sounder]), else the
-    default."""
-    cal = calibration or {}
-    try:
-        a, b = cal.get("sounder_accuracy_m"), cal.get("sounder_accuracy_share")
-        a = None if a in (None, "None") else float(a)
-        b = None if b in (None, "None") else float(b)
-    except ValueError:
-        a = b = None
-    if a is None and b is None:
-        return tvu.SounderSpec()
-    return tvu.SounderSpec(
-        a if a is not None else tvu.SOUNDER_DEFAULT[0],
-        b if b is not None else tvu.SOUNDER_DEFAULT[1],
-        True,
-    )
 
 
 def _stretches(miss: np.ndarray, t: np.ndarray, largest: np.ndarray) -> list[str]:
@@ -86,8 +49,8 @@ def s44_finding(
     if have.sum() < 10:
         return None
     lost = np.nan_to_num(c.get("bottom_lost", np.zeros(n))) > 0
-    sd_pos, pos_from = position_sd(recorded, source)
-    spec = spec_of(calibration)
+    sd_pos, pos_from = tvu.position_sd(recorded, source)
+    spec = tvu.spec_of(calibration)
     offset = float((calibration or {}).get("depth_offset_m", 0.0) or 0.0)
     t_ = tvu.table_tvu(
         depth, xy, spec, c.get("depth_raw"), c.get("roll"), c.get("pitch"), sd_pos, 0.0, offset

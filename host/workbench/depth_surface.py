@@ -73,10 +73,14 @@ def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> 
         cols.get("pitch"), position_sd,
     )  # fmt: skip
     slope = t_.position / max(position_sd, 1e-9)
+    sd = t_.sd
+    given = cols.get("depth_tvu")  # the export's, from the log's own sounder and position noise
+    if given is not None:
+        sd = np.where(np.isfinite(given), given / tvu.Z95, sd)
     return {
         "xy": survey.xy[keep],
         "depth": depth[keep],
-        "sd": t_.sd[keep],
+        "sd": sd[keep],
         "slope": slope[keep],
         "t": cols["t"][keep],
         "position_sd": position_sd,

@@ -23,8 +23,10 @@ MAX_MISSING_FRACTION = 0.05
 MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
-# an ADCP's flags, and the rows an import found the bottom lost in
-NOT_COVARIATES = {"t", "lat", "lon", "x", "y", "position_dr", "boat_vel_filled", "bottom_lost"}
+# an ADCP's flags, the rows an import found the bottom lost in, and each sounding's uncertainty
+NOT_COVARIATES = {
+    "t", "lat", "lon", "x", "y", "position_dr", "boat_vel_filled", "bottom_lost", "depth_tvu",
+}  # fmt: skip
 # flag columns (spike_depth, spike_current, ...): bookkeeping too
 FLAG_PREFIX = "spike_"
 # boat kinematics that respond to the current and wind pushing the boat (yaw_rate is not here: in a survey the
