@@ -29,7 +29,7 @@ def timing(logs: list[Path], repeat: int) -> None:
             with tempfile.TemporaryDirectory() as d:
                 out = {}
                 for step, args in (
-                    ("import", ["import", str(log), "-o", f"{d}/log.mcap", "--quiet"]),
+                    ("import", ["import", str(log), "-o", f"{d}/log.mcap"]),
                     ("export", ["export", f"{d}/log.mcap", "-o", f"{d}/log.csv"]),
                     ("grid", ["grid", f"{d}/log.csv", "-o", f"{d}/maps", "--quiet"]),
                 ):
@@ -117,7 +117,7 @@ def _real(path: Path) -> dict:
     from forcemap.host.cli import main
 
     with tempfile.TemporaryDirectory() as d:
-        assert main(["import", str(path), "-o", f"{d}/log.mcap", "--quiet"]) == 0
+        assert main(["import", str(path), "-o", f"{d}/log.mcap"]) == 0
         assert main(["check", f"{d}/log.mcap", "--json", f"{d}/c.json"]) == 0
         rep = json.loads(Path(f"{d}/c.json").read_text())
     depth = rep["categories"].get("depth", {}).get("findings", [])
