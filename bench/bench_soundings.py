@@ -31,7 +31,7 @@ def timing(logs: list[Path], repeat: int) -> None:
                 for step, args in (
                     ("import", ["import", str(log), "-o", f"{d}/log.mcap"]),
                     ("export", ["export", f"{d}/log.mcap", "-o", f"{d}/log.csv"]),
-                    ("grid", ["grid", f"{d}/log.csv", "-o", f"{d}/maps", "--quiet"]),
+                    ("grid", ["grid", f"{d}/log.csv", "-o", f"{d}/maps"]),
                 ):
                     t0 = time.process_time()
                     assert main(args) == 0, step

@@ -151,31 +151,39 @@ def tilt_finding(
             p95, unit="deg", threshold="a beam angle from boat.toml [sounder], or from the crossings",
             fix="" if beam is not None else "give [sounder] beam_angle_deg in boat.toml",
         ), None  # fmt: skip
-    prof = beam_profile(raw, roll, pitch, off, pairs)
-    blocks = np.minimum((JACKKNIFE_BLOCKS * (t[pairs[:, 0]] - t[0]) / max(np.ptp(t), 1e-9)).astype(int), JACKKNIFE_BLOCKS - 1)  # fmt: skip
-    if beam is not None:
-        b = beam
-    else:
-        b = float(BEAMS[int(np.argmin(prof[:-1]))])
+    # the pairs in JACKKNIFE_BLOCKS stretches of the log, by the time of their first sounding
+    span = max(float(np.ptp(t)), 1e-9)
+    blocks = np.minimum(
+        (JACKKNIFE_BLOCKS * (t[pairs[:, 0]] - t[0]) / span).astype(int), JACKKNIFE_BLOCKS - 1
+    )
+
+    def best(m: np.ndarray) -> float:  # the beam whose correction makes pairs[m] agree best
+        return float(BEAMS[int(np.argmin(beam_profile(raw, roll, pitch, off, pairs[m])[:-1]))])
+
+    b = beam if beam is not None else best(np.ones(len(pairs), bool))
     corr = attitude.corrected(raw, off, roll, pitch, b)
     gain = _pair_error(raw, pairs) - _pair_error(corr, pairs)
     gain_sd = _jackknife(lambda m: float(np.mean(gain[m])), blocks)
-    beam_sd = _jackknife(
-        lambda m: float(BEAMS[int(np.argmin(prof_of(raw, roll, pitch, off, pairs[m])))]), blocks
-    ) if beam is None else 0.0  # fmt: skip
+    beam_sd = 0.0 if beam is not None else _jackknife(best, blocks)
+    before = float(np.mean(_pair_error(raw, pairs)))
     return _tilt_result(
-        c, source, b, beam is not None, prof, gain, gain_sd, beam_sd, p95, len(pairs)
+        source, b, beam is not None, before, gain, gain_sd, beam_sd, p95, len(pairs)
     )
 
 
-def prof_of(raw, roll, pitch, off, pairs) -> np.ndarray:
-    return beam_profile(raw, roll, pitch, off, pairs)[:-1]
-
-
 def _tilt_result(
-    c, source, b, pinned, prof, gain, gain_sd, beam_sd, p95, n
+    source: str,
+    b: float,
+    pinned: bool,
+    before: float,
+    gain: np.ndarray,
+    gain_sd: float,
+    beam_sd: float,
+    p95: float,
+    n: int,
 ) -> tuple[QaFinding, float | None]:
-    before, after = prof[-1], float(prof[-1] - np.mean(gain))
+    """The finding of a beam angle ``b`` (pinned or estimated) and whether to apply it."""
+    after = before - float(np.mean(gain))
     sure = np.mean(gain) > 2.0 * gain_sd if np.isfinite(gain_sd) else False
     what = f"beam angle {b:.0f}° (boat.toml)" if pinned else f"beam angle {b:.0f} ± {beam_sd:.0f}°"
     msg = (
