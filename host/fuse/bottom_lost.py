@@ -22,6 +22,12 @@ it, or continuing their neighbours within the tolerance and a steep seabed's STE
 in it is flagged (one that lands near a path drawn through scatter is a coincidence, not the bottom),
 left out of the depth map, and the stretch is listed with its times.
 
+Two more signatures (issue 37, docs/SOUNDINGS.md): a run of at least MIN_SOUNDINGS soundings between
+two returns of the bottom with almost none on it (a deep patch crossed in a minute, too short for the
+windows); and, where the positions are known, a seabed path that climbs and falls faster than
+MAX_SLOPE against the distance travelled, both ways, by more than REVERSAL_SHARE of that distance in a
+window (a damped sounder gliding between its shallowest and deepest readings, every step continuous).
+
 One home for the import (forcemap.host.convert.depth_findings: a ``qa.depth.bottom_lost`` finding and the
 rows marked ``bottom_lost``) and the workbench (forcemap.host.workbench.spikes: the rows left out of the
 depth map): ``depth_lost`` runs the whole test on a column of soundings.
