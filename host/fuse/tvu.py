@@ -20,6 +20,7 @@ are not in the sum (docs/SOUNDINGS.md says what that leaves out).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -135,8 +136,9 @@ def along_track_slope(depth: np.ndarray, step_m: np.ndarray) -> np.ndarray:
     half = SLOPE_WINDOW // 2
     padded = np.r_[np.full(half, np.nan), slope, np.full(half, np.nan)]
     view = np.lib.stride_tricks.sliding_window_view(padded, SLOPE_WINDOW)
-    with np.errstate(all="ignore"):
-        med = np.nanmedian(np.where(np.isfinite(view), view, np.nan), axis=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a window of no slope gives NaN: none known
+        med = np.nanmedian(view, axis=1)
     out[ok] = np.nan_to_num(med)
     return np.clip(out, 0.0, 1.0)
 
