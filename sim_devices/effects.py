@@ -109,6 +109,32 @@ CATALOGUE: dict[str, EffectSpec] = {
             {"amplitude_m": 0.7, "period_s": 44712.0, "phase_deg": 0.0},
         ),
         EffectSpec(
+            "tidal_stream",
+            "world",
+            "a tidal stream along the river or estuary",
+            "the current along the channel (the flow direction in a lake) is river x the scenario's own plus "
+            "the astronomical tide at the run's UTC time: amplitude_m_s f cos(V + u - g) for M2 with Greenwich "
+            "phase phase_deg (nodal corrections f, u and argument V of host/vessel/tides.py), plus S2 with "
+            "s2_m_s and s2_phase_deg; river 0 is a stream that reverses at every slack water, river 1 a "
+            "river whose flow the tide modulates",
+            {
+                "amplitude_m_s": 0.8,
+                "phase_deg": 120.0,
+                "s2_m_s": 0.0,
+                "s2_phase_deg": 150.0,
+                "river": 0.0,
+            },
+        ),
+        EffectSpec(
+            "seiche",
+            "world",
+            "a lake's standing wave",
+            "the current along the flow direction (the channel in a river) gains amplitude_m_s "
+            "sin(2 pi t / period_s + phase_deg), t from the run's start: the basin's water sloshing "
+            "from end to end",
+            {"amplitude_m_s": 0.15, "period_s": 4440.0, "phase_deg": 0.0},
+        ),
+        EffectSpec(
             "stage",
             "world",
             "the river's stage follows its discharge",

@@ -304,9 +304,25 @@ def running(values: np.ndarray, window: int, fn) -> np.ndarray:
     half = window // 2
     padded = np.concatenate([np.full(half, np.nan), values, np.full(half, np.nan)])
     view = np.lib.stride_tricks.sliding_window_view(padded, window)
+    if fn is np.nanmedian:
+        return _nanmedian_rows(view)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window gives NaN, as it should
         return fn(view, axis=1)
+
+
+def _nanmedian_rows(view: np.ndarray, rows: int = 65_536) -> np.ndarray:
+    """np.nanmedian of every row, equal to it to the bit (the middle of the sorted finite values, the
+    mean of the two middle ones for an even count, NaN for none), a block of rows at a time: numpy's own
+    goes through masked arrays for short rows, 14 s for a million 61-wide windows."""
+    out = np.empty(len(view))
+    for a in range(0, len(view), rows):
+        s = np.sort(view[a : a + rows], axis=1)  # NaN last
+        k = np.count_nonzero(~np.isnan(s), axis=1)
+        idx = np.arange(len(s))
+        lo, hi = s[idx, np.maximum(k - 1, 0) // 2], s[idx, k // 2 - (k == 0)]
+        out[a : a + rows] = np.where(k > 0, np.where(k % 2 == 1, lo, (lo + hi) / 2), np.nan)
+    return out
 
 
 def readings_of(parts: list[np.ndarray]) -> np.ndarray:
