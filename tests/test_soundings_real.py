@@ -13,8 +13,6 @@ course): the tilt correction's gain at crossings is shown on the simulator (test
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 from forcemap.host.cli import main
@@ -23,33 +21,30 @@ from forcemap.host.workbench.depth_surface import CAPTURE
 from forcemap.host.workbench.spikes import target_spikes
 from forcemap.host.workbench.table import load_survey
 
-from tests.tools import csv_rows, real_data
+from tests.tools import csv_rows
 
 PACCUP = "nmea/PacCupStartNMEA.txt"
 BUNDG = "nmea/bundg_zeus_9.log"
 SEABED_SLOPE = 0.5  # a seabed falls or climbs less than 1 in 2 between two soundings
 
 
-def _imported(tmp_path_factory, log: str) -> dict:
-    d = tmp_path_factory.mktemp(log.split("/")[-1].replace(".", "_"))
-    assert main(["import", str(real_data() / log), "-o", str(d / "log.mcap")]) == 0
-    assert main(["export", str(d / "log.mcap"), "-o", str(d / "log.csv")]) == 0
-    assert main(["check", str(d / "log.mcap"), "--json", str(d / "check.json")]) == 0
-    header, rows = csv_rows(d / "log.csv")
+def _imported(built) -> dict:
+    """A real log as the run's shared cases import, export and check it (tests/real_cases.py)."""
+    header, rows = csv_rows(built.csv)
     cols = {
         h: np.array([float(r[i]) if r[i] else np.nan for r in rows]) for i, h in enumerate(header)
     }
-    return {"dir": d, "cols": cols, "check": json.loads((d / "check.json").read_text())}
+    return {"mcap": built.mcap, "csv": built.csv, "cols": cols, "check": built.check()}
 
 
 @pytest.fixture(scope="module")
-def paccup(tmp_path_factory):
-    return _imported(tmp_path_factory, PACCUP)
+def paccup(real_case):
+    return _imported(real_case(PACCUP))
 
 
 @pytest.fixture(scope="module")
-def bundg(tmp_path_factory):
-    return _imported(tmp_path_factory, BUNDG)
+def bundg(real_case):
+    return _imported(real_case(BUNDG))
 
 
 def _finding(check: dict, check_name: str, category: str = "depth") -> dict:
@@ -92,7 +87,7 @@ def _xy(c: dict) -> tuple[np.ndarray, np.ndarray]:
 def test_where_the_sounder_held_the_bottom_the_bed_is_continuous(paccup):
     """Between successive soundings the sounder held (not in the stretch, not a spike), the bed changes
     no faster than a seabed can against the distance travelled (the spike floor plus 1 in 2)."""
-    survey = load_survey(paccup["dir"] / "log.csv")
+    survey = load_survey(paccup["csv"])
     spikes = target_spikes(survey, "depth")
     held = ~spikes.flagged & (np.nan_to_num(survey.columns["bottom_lost"]) == 0)
     d, xy = survey.columns["depth"][held], survey.xy[held]
@@ -109,14 +104,9 @@ def test_no_map_cell_is_made_from_the_lost_stretch(paccup, tmp_path):
     from pyproj import Transformer
 
     out = tmp_path / "maps.nc"
-    assert (
-        main(
-            ["grid", str(paccup["dir"] / "log.csv"), "-o", str(out), "--target", "depth", "--quiet"]
-        )
-        == 0
-    )
+    assert main(["grid", str(paccup["csv"]), "-o", str(out), "--target", "depth", "--quiet"]) == 0
     ds = xr.open_dataset(out)
-    survey = load_survey(paccup["dir"] / "log.csv")
+    survey = load_survey(paccup["csv"])
     kept = ~target_spikes(survey, "depth").flagged
     lat, lon = survey.columns["lat"], survey.columns["lon"]
     epsg = int(ds.attrs["geospatial_crs"].split()[0].removeprefix("EPSG:"))
@@ -155,7 +145,7 @@ def test_s44_shares_in_check_and_the_report(paccup):
     assert 0 <= special <= f["value"] <= 100  # Special is stricter than Order 1a/1b
     assert "Order 1a/1b" in f["message"] and "Special" in f["message"]
     assert "where the bottom was lost left out" in f["message"]
-    html = "".join(qa_section(ReportContext(paccup["dir"] / "log.mcap", None, None, [], {})))  # type: ignore[arg-type]
+    html = "".join(qa_section(ReportContext(paccup["mcap"], None, None, [], {})))  # type: ignore[arg-type]
     assert "IHO S-44" in html and "Order 1a/1b" in html
 
 
