@@ -290,7 +290,7 @@ class Simulation(MissionLink):
                 p.wind_east, p.wind_north, p.current_east, p.current_north, *truth.wheels,
                 truth.app_speed, truth.app_angle,
             ))  # fmt: skip
-            self.extra.append((self.xte, self.nav.legs_done, self.throttle, s.u, s.v))
+            self.extra.append((self.xte, self.nav.legs_done, self.throttle, s.u, s.v, self.roll))
         self._flush(self._ns(t_new))
 
     def _instruments(

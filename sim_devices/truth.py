@@ -17,14 +17,14 @@ COLUMNS = (
     "t", "x", "y", "lat", "lon", "heading", "yaw_rate", "sog", "cog", "boat_east", "boat_north",
     "depth", "water_temp", "wind_east", "wind_north", "wind_speed", "wind_dir", "current_east",
     "current_north", "current_speed", "current_dir", "wheel1_speed", "wheel2_speed", "wheel3_speed",
-    "wheel4_speed", "app_wind_speed", "app_wind_angle", "water_level",
+    "wheel4_speed", "app_wind_speed", "app_wind_angle", "water_level", "roll",
 )  # fmt: skip
 FORMATS = {"t": "%.3f", "lat": "%.8f", "lon": "%.8f"}
 # the simulation's per-step rows and extras, in order
 TRACK = ("t", "x", "y", "heading", "yaw_rate", "sog", "boat_east", "boat_north", "depth",
          "water_temp", "wind_east", "wind_north", "current_east", "current_north", "wheel1_speed",
          "wheel2_speed", "wheel3_speed", "wheel4_speed", "app_wind_speed", "app_wind_angle")  # fmt: skip
-EXTRA = ("xte", "leg", "throttle", "u", "v")
+EXTRA = ("xte", "leg", "throttle", "u", "v", "roll")
 
 
 def compass(east: np.ndarray, north: np.ndarray) -> np.ndarray:
