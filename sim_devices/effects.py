@@ -77,6 +77,16 @@ CATALOGUE: dict[str, EffectSpec] = {
             {"k": 0.08},
         ),
         EffectSpec(
+            "heel",
+            "instrument",
+            "a hull that heels with the wind on its beam, and the sounder with it",
+            "roll = -max_deg min(1, (apparent wind / wind_ref)^2) sin(apparent wind angle): to leeward, "
+            "largest on a beam reach, none downwind; the sounder's first return is the bed's nearest "
+            "point inside its cone of beam_deg, so beyond half the beam it reads long "
+            "(forcemap.host.fuse.attitude); the autopilot's ATTITUDE reports the roll",
+            {"max_deg": 25.0, "wind_ref": 6.0, "beam_deg": 10.0},
+        ),
+        EffectSpec(
             "compass_deviation",
             "instrument",
             "uncompensated magnetic deviation",

@@ -11,7 +11,7 @@ def add_at(parser: argparse.ArgumentParser, what: str) -> None:
         "--at",
         metavar="TIME",
         help=f"{what}: ISO 8601 with its zone (2026-06-02T14:00Z, 2026-06-02T14:00+02:00), UNIX "
-        "seconds, or now (default: the survey's mid-time). A tide term predicts there; a GP in t "
+        "time, or now (default: the survey's mid-time). A tide term predicts there; a GP in t "
         "reverts to its mean beyond its lengthscale from the survey, and the output says so",
     )
 

@@ -88,7 +88,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--at",
         dest="start",
         metavar="TIME",
-        help="when the mission starts: ISO 8601 with its zone (2026-06-02T14:00Z), UNIX seconds, "
+        help="when the mission starts: ISO 8601 with its zone (2026-06-02T14:00Z), UNIX time, "
         "a date (its 00:00 UTC) or now (the default: a mission flown as soon as it is uploaded). A "
         "current with a tide or a seiche term is predicted for when the boat is on each line; "
         "with --season, the map's age is counted to it",

@@ -299,6 +299,17 @@ def evaluate(grid: MapGrid, model) -> Layer:
     pred = model.predict_grid(grid.local_xy[keep], grid.at)
     bands = layer_bands(model, pred)
     drop, notes = untrusted(grid, model, pred, keep)
+    if model.target == "depth":
+        from forcemap.host.gis.surface import far_from_soundings
+
+        sv = model.survey
+        far = ~drop & far_from_soundings(grid, sv.xy[np.isfinite(sv.columns["depth"])])[keep]
+        if far.any():
+            notes.append(
+                f"depth: {int(far.sum())} cells farther than {grid.max_distance:g} m from every "
+                "sounding the map was fitted on (only spikes or a lost stretch near them) left blank"
+            )
+        drop |= far
     cells = np.flatnonzero(keep)[~drop]
     out = {}
     for name, values in bands.items():
@@ -308,9 +319,11 @@ def evaluate(grid: MapGrid, model) -> Layer:
     vt = model.vector if "east" in pred else None
     layer = Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
     if model.target == "depth":
+        from forcemap.host.gis.surface import surface_bands
         from forcemap.host.workbench.water_level import map_datum
 
         layer.datum = map_datum(model.survey, list(model.terms), grid.at)
+        layer.bands.update(surface_bands(grid, model.survey))
     if grid.at is not None:
         from forcemap.host.workbench.time_terms import notes_at
 

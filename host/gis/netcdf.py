@@ -43,7 +43,14 @@ def to_dataset(grid: MapGrid):
                 attrs["forcemap_coverage95"] = layer.calibration.line()
             if layer.notes:
                 attrs["forcemap_notes"] = "; ".join(layer.notes)
-            if not (band == "sd" or band.endswith("_sd")):
+            if "flag_values" in attrs:  # CF flags: the values as the variable's own type
+                attrs["flag_values"] = np.array(attrs["flag_values"].split(), float)
+            if band == "surface":
+                sds = [variable_name(layer, b) for b in layer.bands if b.startswith("surface_")]
+                attrs["ancillary_variables"] = " ".join(sds)
+            elif band.startswith("surface_"):
+                pass
+            elif not (band == "sd" or band.endswith("_sd")):
                 sds = ["sd", "mean_sd"] if band == "mean" else [f"{band}_sd", f"{band}_mean_sd"]
                 sds = [variable_name(layer, sd) for sd in sds if sd in layer.bands]
                 if sds:

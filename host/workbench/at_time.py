@@ -9,7 +9,10 @@ from datetime import UTC, datetime
 
 from forcemap.host.workbench.errors import WorkbenchError
 
-FORMS = "ISO 8601 with its zone (2026-06-02T14:00Z, 2026-06-02T14:00+02:00), UNIX seconds, or now"
+FORMS = (
+    "ISO 8601 with its zone (2026-06-02T14:00Z, 2026-06-02T14:00+02:00), a date YYYY-MM-DD (its 00:00 "
+    "UTC), UNIX time, or now"
+)
 _DATE = re.compile(r"^\d{4}-\d{2}-\d{2}$")
 # before 1970 or after 2200 is a typo, not a survey
 EARLIEST, LATEST = 0.0, 7_258_118_400.0

@@ -36,7 +36,7 @@ _direct = False
 
 
 def available() -> bool:
-    """Whether the fast sums are at hand (`pip install forcemap[nufft]`) and not turned off by `direct()`."""
+    """Whether the fast sums are at hand (the `nufft` extra) and not turned off by `direct()`."""
     return not _direct and _finufft() is not None
 
 

@@ -151,8 +151,7 @@ def _hyper_block(model, t: np.ndarray, rows: np.ndarray | None) -> dict:
     """What the profile needs of a fitted base model on its hyperparameter rows (`rows`; None: all): their
     features, residual, posterior and noise."""
     rows = np.arange(len(t)) if rows is None else rows
-    sub = model.design_.subset(rows)
-    Phi = np.hstack(sub.blocks)
+    Phi = model.design_.rows(rows)
     r = model.scaled_residual_[rows]
     G, b = Phi.T @ Phi, Phi.T @ r
     _, _, _, post = evidence(

@@ -24,7 +24,10 @@ MAX_MISSING_FRACTION = 0.05
 MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
-NOT_COVARIATES = {"t", "lat", "lon", "x", "y", "position_dr", "boat_vel_filled"}  # an ADCP's flags
+# an ADCP's flags, the rows an import found the bottom lost in, and each sounding's uncertainty
+NOT_COVARIATES = {
+    "t", "lat", "lon", "x", "y", "position_dr", "boat_vel_filled", "bottom_lost", "depth_tvu",
+}  # fmt: skip
 # flag columns (spike_depth, spike_current, ...): bookkeeping too
 FLAG_PREFIX = "spike_"
 # boat kinematics that respond to the current and wind pushing the boat (yaw_rate is not here: in a survey the
@@ -67,7 +70,8 @@ def family(name: str) -> str | None:
     # the speed through water is the boat's velocity minus the measured current: it carries the current's noise
     if name.startswith("current_") or re.fullmatch(r"wheel\d+_speed", name) or name == "stw":
         return "current"
-    if name == "depth":
+    # the sounding as read before its tilt correction is the target's own raw reading
+    if name in ("depth", "depth_raw"):
         return "depth"
     return None
 

@@ -18,6 +18,7 @@ from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.fuse.crossings import crossing_pairs
 from forcemap.host.workbench.errors import WorkbenchError
 
 FEET = 0.3048
@@ -222,10 +223,7 @@ def reduce_to_gauge(survey, gauge: Gauge):
 def revisits(xy: np.ndarray, t: np.ndarray, radius_m: float = REVISIT_RADIUS_M) -> np.ndarray:
     """Pairs (i, j) of samples within `radius_m` of each other and at least REVISIT_MIN_DT_S apart:
     the places where the track crosses or revisits itself."""
-    from scipy.spatial import cKDTree
-
-    pairs = cKDTree(xy).query_pairs(radius_m, output_type="ndarray")
-    return pairs[np.abs(t[pairs[:, 0]] - t[pairs[:, 1]]) >= REVISIT_MIN_DT_S]
+    return crossing_pairs(xy, t, radius_m, REVISIT_MIN_DT_S)
 
 
 def revisit_folds(
