@@ -288,24 +288,26 @@ def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: d
 
 
 def _own_direction_after_time(ev: Evaluator, results: list[Candidate]) -> None:
-    """A speed target's own direction is derived from the target: when the flow changes in time (a tide
-    turns it and changes its strength together), its direction is a consequence of that change. Once time
-    is found it is credited only with what it adds to a model with time in it."""
+    """A speed target's own direction, and the heading relative to it, are derived from the target: when
+    the flow changes in time (a tide or a seiche turns it and changes its strength together), they follow
+    that change. Once time is found each is credited only with what it adds to a model with time in it."""
     vt = ev.sm.vector
     if vt is None or vt.aspect != "speed":
         return
-    own = vt.column("dir")
     t = next((c for c in results if c.covariate == "t" and c.significant), None)
-    d = next((c for c in results if c.covariate == own and c.improvement > 0), None)
-    if t is None or d is None:
+    if t is None:
         return
-    left = ev.pair_gain("t", own)
-    d.note = (
-        f"{own} is the target's own direction, and the {vt.prefix} changes in time: once time is in "
-        f"the model it adds {left:+.0%} (credited with that)"
-    )
-    d.improvement = min(d.improvement, left)
-    d.significant = d.significant and d.improvement >= FLOOR
+    for own in (vt.column("dir"), f"heading_rel_{vt.prefix}"):
+        d = next((c for c in results if c.covariate == own and c.improvement > 0), None)
+        if d is None:
+            continue
+        left = ev.pair_gain("t", own)
+        d.note = (
+            f"{own} is derived from the target's own direction, and the {vt.prefix} changes in time: "
+            f"once time is in the model it adds {left:+.0%} (credited with that)"
+        )
+        d.improvement = min(d.improvement, left)
+        d.significant = d.significant and d.improvement >= FLOOR
 
 
 def _evidence_first(results: list[Candidate]) -> list[Candidate]:

@@ -5,7 +5,7 @@ What is compared is what the current model leaves (every term found so far, the 
 residual, a vector's east and north residuals. The map takes out what the field does across the revisit
 radius; fitted without time, it cannot make the differences depend on time where there is no change in time,
 so the permutation null stays exact. Where there is one, the map takes part of it into the places the boat
-was at each time: the radius is kept to a fifth of the map's length scale, where the map cannot take much.
+was at each time: the radius is kept to half the map's length scale, where the map cannot take much.
 """
 
 from __future__ import annotations
