@@ -10,7 +10,7 @@ not support: whenever `t` is credited, its revisit p-value is the one that passe
 from __future__ import annotations
 
 import pytest
-from forcemap.host.workbench.diagnose import diagnose
+from forcemap.host.workbench.diagnose.rounds import diagnose
 from forcemap.host.workbench.fitting import fit_target
 from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import load_survey
