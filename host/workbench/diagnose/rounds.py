@@ -318,7 +318,8 @@ def _evidence_first(results: list[Candidate]) -> list[Candidate]:
         return results
     above = results[: results.index(lead)]
     names = ", ".join(f"{c.covariate} ({c.improvement:.0%}, p {c.p_value:.1e})" for c in above)
-    lead.note = f"ranked above {names}: a larger gain that fails the finding rule"
+    ranked = f"ranked above {names}: a larger gain that fails the finding rule"
+    lead.note = f"{lead.note}; {ranked}" if lead.note else ranked
     return [lead] + [c for c in results if c is not lead]
 
 
