@@ -1,9 +1,9 @@
 """Every real capture in ../shared/data/real goes through `forcemap import`; the counts are pinned.
 
-The NMEA captures go through the NMEA path and the tlogs through the MAVLink path. One small
-capture, and the first 3000 packets of a tlog, are written to real MCAP and read back; for the
-large files (plaka.log is 4 hours) the command runs the same way but writes to an in-memory counting
-log, to keep the suite fast.
+The NMEA captures go through the NMEA path and the tlogs through the MAVLink path. Each NMEA capture
+is imported to MCAP once per test run (tests/real_logs.py; test_qa_real.py and others read the same
+import) and its messages counted in the file; the first 3000 packets of a tlog are written to real
+MCAP and read back; the whole tlogs go to an in-memory counting log.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.convert import importers
 from forcemap.host.convert.importers import import_file, tlog_records, why_no_samples
 from forcemap.host.log.mcap import McapLog, read_messages
 
+from tests.real_logs import imported
 from tests.tools import real_data
 
 REAL = real_data()
@@ -210,7 +210,6 @@ TLOG = {
         NO_MEASUREMENTS,
     ),
 }
-TO_MCAP = {"bundg_zeus_9.log"}
 
 
 class CountingLog:
@@ -232,25 +231,6 @@ class CountingLog:
         pass
 
 
-@pytest.fixture
-def run_import(tmp_path, monkeypatch):
-    logs = []
-
-    def run(name, *extra):
-        if name not in TO_MCAP:
-
-            def fake(out, **kw):
-                logs.append(CountingLog(out))
-                return logs[-1]
-
-            monkeypatch.setattr(importers, "McapLog", fake)
-        path = next(REAL.rglob(name))
-        rc = main(["import", str(path), "-o", str(tmp_path), *extra])
-        return rc, (logs[-1] if logs else None), tmp_path
-
-    return run
-
-
 def test_every_real_file_is_covered():
     """Every data file under tests/data/real, in its folders (nmea/irene/ too), except adcp/: the
     ADCP readers' files, which tests/test_adcp.py::test_every_file_in_the_adcp_folder_is_read covers."""
@@ -265,22 +245,18 @@ def test_every_real_file_is_covered():
 
 
 @pytest.mark.parametrize("name", sorted(NMEA))
-def test_nmea_capture(name, run_import, capsys):
+def test_nmea_capture(name, tmp_path_factory):
     records, lines, accepted, rejected = NMEA[name]
-    rc, log, out = run_import(name, *NMEA_OPTIONS.get(name, []))
-    text = capsys.readouterr().out
-    assert rc == 0, text
+    log = next(REAL.rglob(name)).relative_to(REAL).as_posix()
+    imp = imported(tmp_path_factory, log, *NMEA_OPTIONS.get(name, []))
+    text = imp.out
+    assert imp.rc == 0, text + imp.err
     said = [ln for ln in text.splitlines() if "magnetic heading without variation: IGRF-14" in ln]
     assert len(said) == (name in NO_VARIATION), text
     assert f"{records} lines (nmea)" in text
     assert f"{sum(accepted.values())} accepted {dict(sorted(accepted.items()))}" in text
     assert f"{sum(rejected.values())} rejected {dict(sorted(rejected.items()))}" in text
-    if log is not None:
-        counts = log.counts
-    else:
-        files = list(out.glob("*.mcap"))
-        assert len(files) == 1
-        counts = Counter(m.topic for m in read_messages(files[0]))
+    counts = imp.topic_counts()
     assert counts["/nmea/sentence"] == lines
     assert counts["/fix"] > 0 and counts["/depth"] > 0
 

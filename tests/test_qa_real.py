@@ -13,6 +13,8 @@ import pytest
 from forcemap.host.cli import main
 from forcemap.host.fuse import redundancy as rd
 
+from tests.cache import shared_dir, shared_value
+from tests.real_logs import exported, imported
 from tests.tools import real_data
 
 NMEA = ("nmea/*.log", "nmea/*.txt", "nmea/irene/*.nmea")
@@ -58,23 +60,29 @@ LAKES = ("nmea/irene/irene_2008-08-20_geneva.nmea", "nmea/irene/irene_2014-06-27
 _DONE: dict[str, dict] = {}
 
 
+def _checked(factory, path, key: str) -> dict:
+    """`forcemap check PATH --json`'s report, once per test run."""
+
+    def build(folder) -> None:
+        assert main(["check", str(path), "--json", str(folder / "report.json")]) == 0
+
+    return json.loads((shared_dir(factory, f"check-{key}", build) / "report.json").read_text())
+
+
 def _run(log: str, tmp_path_factory) -> dict:
-    """import -> export -> check (on the MCAP and on the CSV), once per log."""
+    """import -> export -> check (on the MCAP and on the CSV), once per test run (tests/real_logs.py:
+    the imports other modules read too)."""
     if log in _DONE:
         return _DONE[log]
-    d = tmp_path_factory.mktemp(log.replace("/", "_").replace(".", "_"))
-    src = real_data() / log
     lenient = ["--nmea-checksum", "lenient"] if log == CHECKSUMS else []
-    out: dict = {"import": main(["import", str(src), "-o", str(d / "log.mcap"), *lenient])}
-    if out["import"] == 0:
-        assert main(["export", str(d / "log.mcap"), "-o", str(d / "log.csv")]) == 0
-        for kind, path in (("mcap", d / "log.mcap"), ("csv", d / "log.csv")):
-            assert main(["check", str(path), "--json", str(d / f"{kind}.json")]) == 0
-            out[kind] = json.loads((d / f"{kind}.json").read_text())
-        out["csv_path"] = d / "log.csv"
+    imp = imported(tmp_path_factory, log, *lenient)
+    out: dict = {"import": imp.rc}
+    if imp.rc == 0:
+        out["csv_path"] = exported(tmp_path_factory, log, *lenient)
+        for kind, path in (("mcap", imp.mcap), ("csv", out["csv_path"])):
+            out[kind] = _checked(tmp_path_factory, path, f"{log}-{kind}")
     else:  # check grades a raw capture that gives no samples, never refuses it
-        assert main(["check", str(src), "--json", str(d / "raw.json")]) == 0
-        out["raw"] = json.loads((d / "raw.json").read_text())
+        out["raw"] = _checked(tmp_path_factory, real_data() / log, f"{log}-raw")
     _DONE[log] = out
     return out
 
@@ -177,10 +185,14 @@ def test_no_row_is_lost_to_calibration(log, tmp_path_factory):
     assert n == out["mcap"]["rows"]
     applied = [f for c in out["mcap"]["categories"].values() for f in c["findings"] if f["applied"]]
     if applied:  # the instruments as read give the same rows as the calibrated import
-        raw = SamplesSink()
-        lenient = "lenient" if log == CHECKSUMS else "strict"
-        import_file(real_data() / log, raw, nmea_checksum=lenient)
-        assert len(raw.rows) == n
+
+        def rows_as_read() -> int:
+            raw = SamplesSink()
+            lenient = "lenient" if log == CHECKSUMS else "strict"
+            import_file(real_data() / log, raw, nmea_checksum=lenient)
+            return len(raw.rows)
+
+        assert shared_value(tmp_path_factory, f"rows-as-read-{log}", rows_as_read) == n
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
@@ -210,11 +222,14 @@ def test_a_checksum_variant_is_named_when_it_is_not_accepted(tmp_path):
     assert rep["rows"] == 0 and "address only" in why and "--nmea-checksum lenient" in why, why
 
 
-def test_a_table_is_checked_without_being_changed(tmp_path_factory):
+def test_a_table_is_checked_without_being_changed(tmp_path_factory, tmp_path):
     log = "nmea/irene/irene_2014-06-27_geneva.nmea"
     out = _run(log, tmp_path_factory)
-    before = out["csv_path"].read_bytes()
     gain = _finding(out["csv"], "speed_through_water", "gain")
     # the CSV holds the calibrated STW: its own estimate is near 1, and never marked applied
     assert not gain["applied"] and abs(gain["value"] - 1) < 0.01, gain["message"]
-    assert out["csv_path"].read_bytes() == before
+    table = tmp_path / "samples.csv"  # a copy: the shared table was checked before this test began
+    table.write_bytes(out["csv_path"].read_bytes())
+    before = table.read_bytes()
+    assert main(["check", str(table), "--json", str(tmp_path / "r.json")]) == 0
+    assert table.read_bytes() == before
