@@ -17,7 +17,8 @@ Use it under a session-scoped fixture (one build per worker process at most, the
     def paccup_import(tmp_path_factory):
         return shared_dir(tmp_path_factory, "paccup-import", lambda d: _import(PACCUP, d))
 
-Keys name what is built and from what (``nmea-PacCupStartNMEA.txt-import``); two builders with
+``build_once(folder, build)`` is the same for a folder of the caller's choosing (tests/real_cases.py
+keeps its cases in a folder of its own under ``run_dir``). Keys name what is built and from what (``nmea-PacCupStartNMEA.txt-import``); two builders with
 different recipes must not share a key. ``shared_value`` is the same for a picklable result.
 """
 
@@ -47,25 +48,28 @@ def run_dir(factory: pytest.TempPathFactory) -> Path:
     return root
 
 
-def shared_dir(factory: pytest.TempPathFactory, key: str, build: Callable[[Path], Any]) -> Path:
-    """The folder ``key``, made by ``build(folder)`` (which fills the empty folder it is given) once
-    per test run, whichever worker asks first."""
-    root = run_dir(factory)
-    name = _SAFE.sub("_", key)
-    final = root / name
-    if final.is_dir():
-        return final
-    with open(root / f"{name}.lock", "w") as lock:
+def build_once(folder: Path, build: Callable[[Path], Any]) -> Path:
+    """``folder``, made by ``build(tmp)`` (which fills the empty folder ``tmp``, renamed to ``folder``
+    when it returns) the first time any process asks; the others wait for it."""
+    if folder.is_dir():
+        return folder
+    with open(folder.with_name(f"{folder.name}.lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes, or the process ends
-        if not final.is_dir():
-            work = Path(tempfile.mkdtemp(prefix=f"{name}.building.", dir=root))
+        if not folder.is_dir():
+            work = Path(tempfile.mkdtemp(prefix=f"{folder.name}.building.", dir=folder.parent))
             try:
                 build(work)
             except BaseException:
                 shutil.rmtree(work, ignore_errors=True)
                 raise
-            os.replace(work, final)
-    return final
+            os.replace(work, folder)
+    return folder
+
+
+def shared_dir(factory: pytest.TempPathFactory, key: str, build: Callable[[Path], Any]) -> Path:
+    """The folder ``key`` of the run's shared folder, made by ``build(folder)`` (which fills the
+    empty folder it is given) once per test run, whichever worker asks first."""
+    return build_once(run_dir(factory) / _SAFE.sub("_", key), build)
 
 
 def shared_value(factory: pytest.TempPathFactory, key: str, compute: Callable[[], T]) -> T:

@@ -1,4 +1,9 @@
-"""The suite's own instruments: CPU seconds per test (``--cpu-top N``), load-independent.
+"""Fixtures every test module may ask for, and the suite's own instrument: CPU seconds per test.
+
+``real_case(name)``: a real log imported and exported once per test run (tests/real_cases.py, on
+tests/cache.py's one-build-per-run folders).
+
+``--cpu-top N``: the N tests and modules that used the most CPU, load-independent.
 
 Wall-clock durations (``--durations``) say how long a test waited on a busy machine; the CPU a test
 burns, its own process's and its subprocesses' (the daemon, the simulator, the map process, Dask's
@@ -15,6 +20,8 @@ import time
 from collections import defaultdict
 
 import pytest
+
+from tests.real_cases import Cases, shared_root
 
 CPU = "cpu_s"  # the user property: (own process, children) CPU seconds of one phase
 _PHASE_CPU = pytest.StashKey[dict[str, tuple[float, float]]]()
@@ -103,3 +110,9 @@ class _CpuTable:
 def pytest_configure(config: pytest.Config) -> None:
     if config.getoption("--cpu-top") > 0 and not hasattr(config, "workerinput"):
         config.pluginmanager.register(_CpuTable(), "forcemap-cpu-table")
+
+
+@pytest.fixture(scope="session")
+def real_case(tmp_path_factory) -> Cases:  # type: ignore[no-untyped-def]
+    """``real_case(name)``: a real log imported and exported once per run (tests/real_cases.py)."""
+    return Cases(shared_root(tmp_path_factory))

@@ -1,9 +1,9 @@
-"""Every real capture in ../shared/data/real goes through `forcemap import`; the counts are pinned.
+"""Every real capture in tests/data/real goes through `forcemap import`; the counts are pinned.
 
 The NMEA captures go through the NMEA path and the tlogs through the MAVLink path. Each NMEA capture
-is imported to MCAP once per test run (tests/real_logs.py; test_qa_real.py and others read the same
-import) and its messages counted in the file; the first 3000 packets of a tlog are written to real
-MCAP and read back; the whole tlogs go to an in-memory counting log.
+is imported once per test run and shared with the other modules that read it (tests/real_cases.py:
+the sfbay log alone takes about 100 s of CPU); its MCAP log is counted from the file's summary. The
+first 3000 packets of a tlog are written to real MCAP and read back.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from forcemap.host.cli import main
 from forcemap.host.convert.importers import import_file, tlog_records, why_no_samples
 from forcemap.host.log.mcap import McapLog, read_messages
 
-from tests.real_logs import imported
+from tests.real_cases import topic_counts
 from tests.tools import real_data
 
 REAL = real_data()
@@ -174,9 +174,31 @@ IRENE = {
     ),
 }
 NMEA.update(IRENE)
+# sfbay/PROVENANCE.md, counted the same way; gzipped, read as the file it holds. Rejected by hand: 13,094
+# lines without a checksum (13,091 $PSCI heartbeats, 2 bare "$", 1 cut GLL), 471 with bytes that are
+# not printable ASCII (NULs before a second $, mostly on VTG), 10 "Log created by gybelog" lines and
+# 2 checksums that fail (an MTW, a KIDBT)
+NMEA["swift-day1.nmea.gz"] = (
+    373525,
+    373525,
+    {
+        "DBT": 26497,
+        "GGA": 26500,
+        "GLL": 26500,
+        "GSA": 26500,
+        "HDM": 26498,
+        "MTW": 26494,
+        "RMC": 26502,
+        "VHW": 26501,
+        "VTG": 26064,
+        "VWR": 26494,
+        "other": 95398,  # GSV, RMB, APB, BWR
+    },
+    {"bad_checksum": 2, "no_checksum": 13094, "no_start": 10, "not_ascii": 471},
+)
 NMEA_OPTIONS = {"irene_2013-07-31_flensburg_checksums.nmea": ["--nmea-checksum", "lenient"]}
 # magnetic heading (HDG) and no variation in HDG or RMC: the declination is IGRF-14's, said once
-NO_VARIATION = {n for n in IRENE if "2014" not in n}
+NO_VARIATION = {n for n in IRENE if "2014" not in n} | {"swift-day1.nmea.gz"}
 NO_MEASUREMENTS = "no measurements in this log"
 TLOG = {
     "ardusub_2023-05-04_bluerov_small.tlog": (
@@ -245,18 +267,18 @@ def test_every_real_file_is_covered():
 
 
 @pytest.mark.parametrize("name", sorted(NMEA))
-def test_nmea_capture(name, tmp_path_factory):
+def test_nmea_capture(name, real_case):
     records, lines, accepted, rejected = NMEA[name]
-    log = next(REAL.rglob(name)).relative_to(REAL).as_posix()
-    imp = imported(tmp_path_factory, log, *NMEA_OPTIONS.get(name, []))
-    text = imp.out
-    assert imp.rc == 0, text + imp.err
+    built = real_case(next(REAL.rglob(name)).relative_to(REAL).as_posix())
+    assert built.case.checksum == ("lenient" if name in NMEA_OPTIONS else "strict")
+    rc, text = built.import_rc, built.import_text
+    assert rc == 0, text
     said = [ln for ln in text.splitlines() if "magnetic heading without variation: IGRF-14" in ln]
     assert len(said) == (name in NO_VARIATION), text
     assert f"{records} lines (nmea)" in text
     assert f"{sum(accepted.values())} accepted {dict(sorted(accepted.items()))}" in text
     assert f"{sum(rejected.values())} rejected {dict(sorted(rejected.items()))}" in text
-    counts = imp.topic_counts()
+    counts = topic_counts(built.mcap)
     assert counts["/nmea/sentence"] == lines
     assert counts["/fix"] > 0 and counts["/depth"] > 0
 
@@ -293,6 +315,49 @@ def test_dataflash_without_gps_says_so_in_one_line(tmp_path, capsys):
     res = import_file(path, log)
     assert res.format == "dataflash" and res.records == 7510  # as PROVENANCE.md counts them
     assert log.counts["/dataflash/ATT"] == 237 and log.counts["/fix"] == 0
+
+
+def _gzip(src: Path, out: Path, keep: float = 1.0) -> Path:
+    import gzip
+
+    data = gzip.compress(src.read_bytes(), mtime=0)
+    out.write_bytes(data[: int(len(data) * keep)])
+    return out
+
+
+def test_a_gzipped_capture_imports_as_the_file_it_holds(tmp_path):
+    """Read through one streamed gunzip (forcemap.host.convert.capture_file): the same lines, the
+    same counts and rows as the plain file, whatever its name."""
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    plain, gz = CountingLog(), CountingLog()
+    a = import_file(src, plain)
+    b = import_file(_gzip(src, tmp_path / "capture.dat"), gz)
+    assert b.format == "nmea" and b.records == a.records == NMEA[src.name][0]
+    assert b.counters["nmea"] == a.counters["nmea"] and gz.counts == plain.counts
+    assert gz.counts["/samples"] > 100
+
+
+def test_a_gzipped_capture_cut_short_gives_what_it_holds_and_says_so(tmp_path, capsys):
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    cut = _gzip(src, tmp_path / "cut.log.gz", keep=0.6)
+    assert main(["import", str(cut), "-o", str(tmp_path / "cut.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "the gzip stream ends early" in out, out
+    n = int(out.split(": ", 1)[1].split(" lines", 1)[0])
+    assert 0.3 * NMEA[src.name][0] < n < NMEA[src.name][0]  # about 60 % of the file's lines
+
+
+def test_a_damaged_or_unsupported_gzip_is_one_line(tmp_path, capsys):
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    bad = bytearray(_gzip(src, tmp_path / "x.gz").read_bytes())
+    bad[len(bad) // 2 : len(bad) // 2 + 64] = bytes(64)
+    (tmp_path / "bad.log.gz").write_bytes(bytes(bad))
+    dataflash = _gzip(REAL / "mavlink" / "ardusub_4.1_bluerov_small.BIN", tmp_path / "a.BIN.gz")
+    for path, says in ((tmp_path / "bad.log.gz", "damaged gzip data"), (dataflash, "gunzip")):
+        assert main(["import", str(path), "-o", str(tmp_path / "o.mcap")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "o.mcap").exists()
 
 
 def test_bad_inputs_are_one_line_errors(tmp_path, capsys):

@@ -7,17 +7,18 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.fuse import redundancy as rd
 
-from tests.cache import shared_dir, shared_value
-from tests.real_logs import exported, imported
+from tests.cache import shared_dir
+from tests.real_cases import topic_counts
 from tests.tools import real_data
 
-NMEA = ("nmea/*.log", "nmea/*.txt", "nmea/irene/*.nmea")
+NMEA = ("nmea/*.log", "nmea/*.txt", "nmea/irene/*.nmea", "nmea/sfbay/*.nmea.gz")
 MAVLINK = ("mavlink/*.tlog", "mavlink/*.BIN")
 LOGS = sorted(
     p.relative_to(real_data()).as_posix() for g in NMEA + MAVLINK for p in real_data().glob(g)
@@ -61,7 +62,7 @@ _DONE: dict[str, dict] = {}
 
 
 def _checked(factory, path, key: str) -> dict:
-    """`forcemap check PATH --json`'s report, once per test run."""
+    """`forcemap check PATH --json`'s report, once per test run (both xdist workers read it)."""
 
     def build(folder) -> None:
         assert main(["check", str(path), "--json", str(folder / "report.json")]) == 0
@@ -69,18 +70,37 @@ def _checked(factory, path, key: str) -> dict:
     return json.loads((shared_dir(factory, f"check-{key}", build) / "report.json").read_text())
 
 
-def _run(log: str, tmp_path_factory) -> dict:
-    """import -> export -> check (on the MCAP and on the CSV), once per test run (tests/real_logs.py:
-    the imports other modules read too)."""
+def _imported(factory, log: str) -> tuple[int, Path, Path]:
+    """A MAVLink log's import and export, once per test run: exit code, MCAP, CSV."""
+    src = real_data() / log
+
+    def build(folder) -> None:
+        rc = main(["import", str(src), "-o", str(folder / "log.mcap")])
+        if rc == 0:
+            assert main(["export", str(folder / "log.mcap"), "-o", str(folder / "log.csv")]) == 0
+        (folder / "rc.txt").write_text(str(rc))
+
+    folder = shared_dir(factory, f"import-{log}", build)
+    return int((folder / "rc.txt").read_text()), folder / "log.mcap", folder / "log.csv"
+
+
+def _run(log: str, tmp_path_factory, real_case) -> dict:
+    """import -> export -> check (on the MCAP and on the CSV), once per test run; an NMEA log's
+    import, export and MCAP check are the run's shared ones (tests/real_cases.py)."""
     if log in _DONE:
         return _DONE[log]
-    lenient = ["--nmea-checksum", "lenient"] if log == CHECKSUMS else []
-    imp = imported(tmp_path_factory, log, *lenient)
-    out: dict = {"import": imp.rc}
-    if imp.rc == 0:
-        out["csv_path"] = exported(tmp_path_factory, log, *lenient)
-        for kind, path in (("mcap", imp.mcap), ("csv", out["csv_path"])):
-            out[kind] = _checked(tmp_path_factory, path, f"{log}-{kind}")
+    built = real_case(log) if log.startswith("nmea/") else None
+    if built is not None:
+        out: dict = {"import": built.import_rc}
+        mcap, csv_path = built.mcap, built.csv
+    else:
+        rc, mcap, csv_path = _imported(tmp_path_factory, log)
+        out = {"import": rc}
+    if out["import"] == 0:
+        out["mcap"] = built.check() if built is not None else _checked(tmp_path_factory, mcap, f"{log}-mcap")  # fmt: skip
+        out["csv"] = _checked(tmp_path_factory, csv_path, f"{log}-csv")
+        out["csv_path"] = csv_path
+        out["built"] = built
     else:  # check grades a raw capture that gives no samples, never refuses it
         out["raw"] = _checked(tmp_path_factory, real_data() / log, f"{log}-raw")
     _DONE[log] = out
@@ -103,12 +123,12 @@ def _columns(path) -> dict[str, np.ndarray]:
 
 
 def test_the_corpus_is_all_there():
-    assert len(LOGS) == 12 and CHECKSUMS in LOGS
+    assert len(LOGS) == 13 and CHECKSUMS in LOGS and "nmea/sfbay/swift-day1.nmea.gz" in LOGS
 
 
 @pytest.mark.parametrize("log", LOGS)
-def test_import_export_and_check_run(log, tmp_path_factory):
-    out = _run(log, tmp_path_factory)
+def test_import_export_and_check_run(log, tmp_path_factory, real_case):
+    out = _run(log, tmp_path_factory, real_case)
     if log in NO_SAMPLES:
         assert out["import"] == 2
         rep = out["raw"]
@@ -126,16 +146,16 @@ def test_import_export_and_check_run(log, tmp_path_factory):
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_positions_agree_with_sog(log, tmp_path_factory):
-    rep = _run(log, tmp_path_factory)["mcap"]
+def test_positions_agree_with_sog(log, tmp_path_factory, real_case):
+    rep = _run(log, tmp_path_factory, real_case)["mcap"]
     f = _finding(rep, "position", "vs_sog")
     # the displacement between fixes over 30 s is the integrated ground velocity, within 2 %
     assert abs(f["value"] - 1) < 0.02, f["message"]
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_heading_change_agrees_with_the_rate_of_turn(log, tmp_path_factory):
-    rep = _run(log, tmp_path_factory)["mcap"]
+def test_heading_change_agrees_with_the_rate_of_turn(log, tmp_path_factory, real_case):
+    rep = _run(log, tmp_path_factory, real_case)["mcap"]
     f = _finding(rep, "rate_of_turn", "unit")
     if f is None:  # no heading, or never turned (bundg: 2.5 min on one course)
         assert rep["categories"]["heading"]["verdict"] == "red" or _finding(
@@ -165,8 +185,10 @@ def test_mavlink_attitude_yaw_change_agrees_with_its_yaw_rate(log):
 
 
 @pytest.mark.parametrize("log", LAKES)
-def test_a_lake_has_no_current_after_calibration_or_check_says_why(log, tmp_path_factory):
-    rep = _run(log, tmp_path_factory)["mcap"]
+def test_a_lake_has_no_current_after_calibration_or_check_says_why(
+    log, tmp_path_factory, real_case
+):
+    rep = _run(log, tmp_path_factory, real_case)["mcap"]
     f = _finding(rep, "speed_through_water", "current_mean")
     if f["value"] >= 0.1:  # not still water as measured: check says so, and says why it may be
         assert f["verdict"] != "green" and "leeway" in f["fix"], f
@@ -176,28 +198,26 @@ def test_a_lake_has_no_current_after_calibration_or_check_says_why(log, tmp_path
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_no_row_is_lost_to_calibration(log, tmp_path_factory):
+def test_no_row_is_lost_to_calibration(log, tmp_path_factory, real_case):
     from forcemap.host.convert.importers import import_file
     from forcemap.host.convert.self_calibration import SamplesSink
 
-    out = _run(log, tmp_path_factory)
+    out = _run(log, tmp_path_factory, real_case)
     n = len(_columns(out["csv_path"])["t"])
     assert n == out["mcap"]["rows"]
     applied = [f for c in out["mcap"]["categories"].values() for f in c["findings"] if f["applied"]]
     if applied:  # the instruments as read give the same rows as the calibrated import
-
-        def rows_as_read() -> int:
-            raw = SamplesSink()
-            lenient = "lenient" if log == CHECKSUMS else "strict"
-            import_file(real_data() / log, raw, nmea_checksum=lenient)
-            return len(raw.rows)
-
-        assert shared_value(tmp_path_factory, f"rows-as-read-{log}", rows_as_read) == n
+        if out["built"] is not None:  # the run's shared import without calibration
+            assert topic_counts(out["built"].uncalibrated())["/samples"] == n
+            return
+        raw = SamplesSink()
+        import_file(real_data() / log, raw)
+        assert len(raw.rows) == n
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_depth_is_continuous_where_check_says_so(log, tmp_path_factory):
-    out = _run(log, tmp_path_factory)
+def test_depth_is_continuous_where_check_says_so(log, tmp_path_factory, real_case):
+    out = _run(log, tmp_path_factory, real_case)
     f = _finding(out["mcap"], "depth", "continuity")
     if f is None:
         return
@@ -222,9 +242,9 @@ def test_a_checksum_variant_is_named_when_it_is_not_accepted(tmp_path):
     assert rep["rows"] == 0 and "address only" in why and "--nmea-checksum lenient" in why, why
 
 
-def test_a_table_is_checked_without_being_changed(tmp_path_factory, tmp_path):
+def test_a_table_is_checked_without_being_changed(tmp_path_factory, real_case, tmp_path):
     log = "nmea/irene/irene_2014-06-27_geneva.nmea"
-    out = _run(log, tmp_path_factory)
+    out = _run(log, tmp_path_factory, real_case)
     gain = _finding(out["csv"], "speed_through_water", "gain")
     # the CSV holds the calibrated STW: its own estimate is near 1, and never marked applied
     assert not gain["applied"] and abs(gain["value"] - 1) < 0.01, gain["message"]
