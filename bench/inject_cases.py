@@ -1,16 +1,16 @@
 """The real logs with a known effect that tests and benches share (tests/real_cases.py builds them).
 
-Each injected case is a real log of tests/data/real with one effect put in by ``bench/inject_nmea.py``,
-and names the clean log it is compared with. The parameters are physically plausible for the place
-(and are issue 36's):
+Each injected case is a real log of tests/data/real with one effect put in by
+``bench/inject_nmea.py``, and names the clean log it is compared with. The parameters are physically
+plausible for the place (and are issue 36's):
 
 - ``geneva_seiche``: Lake Geneva off Geneva (Irene, 2014-06-27, 2.4 h, the longer Geneva race), the
   lake's first longitudinal seiche (Merian: about 74 min) as a current of +-0.15 m/s along the Petit
   Lac's axis (030/210 deg);
 - ``lake_drift``: Lake Geneva off Lausanne (Irene, 2008-08-20, 1.7 h), a wind drift that builds
   steadily to 0.2 m/s over the race, along the Grand Lac's axis toward 250 deg (a bise);
-- ``fjord_tide``: the Flensburg Fjord race (Irene, 2013-08-03, 3.9 h), an M2 tidal stream of
-  +-0.26 m/s along the fjord's axis there (050/230 deg), phase 30 deg so that it turns mid-race;
+- ``fjord_tide``: the Flensburg Fjord race (Irene, 2013-08-03, 3.9 h), an M2 tidal stream of +-0.26
+  m/s along the fjord's axis there (050/230 deg), phase 30 deg so that it turns mid-race;
 - ``fjord_level``: the same race, the water rising 0.6 m (a smooth step, 45 min wide, mid-race: a
   Baltic wind set-up).
 

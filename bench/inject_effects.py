@@ -1,4 +1,5 @@
-"""The known effects ``bench/inject_nmea.py`` puts into a real log: a current c(t) and a water level L(t).
+"""The known effects ``bench/inject_nmea.py`` puts into a real log: a current c(t), a water level
+L(t).
 
 Each is a shape in time, measured from the log's start (tau = t - t0, seconds):
 
@@ -7,14 +8,14 @@ Each is a shape in time, measured from the log's start (tau = t - t0, seconds):
   longitudinal mode is about 74 min);
 - ``ramp``: ``A min(tau / ramp_s, 1)``, a drift or stage that grows at a steady rate (``ramp_s``
   defaults to the whole log);
-- ``step``: ``A (1 + tanh((tau - at_s) / width_s)) / 2``, a smooth change of state (a wind set-up,
-  a release from a dam) around ``at_s`` (default: the middle of the log).
+- ``step``: ``A (1 + tanh((tau - at_s) / width_s)) / 2``, a smooth change of state (a wind set-up, a
+  release from a dam) around ``at_s`` (default: the middle of the log).
 
 A current is a shape along a direction it sets TO (compass degrees, clockwise from true north): its
-velocity is ``shape(tau) * (sin toward, cos toward)``, and a negative value sets the other way. It is
-uniform in space (the same everywhere at one time): a tide or seiche varies over kilometres, a race
-area is one place, and what a test needs is a known function of time. Its displacement is the exact
-integral of the shape from the log's start, so ``d(t0) = 0``.
+velocity is ``shape(tau) * (sin toward, cos toward)``, and a negative value sets the other way. It
+is uniform in space (the same everywhere at one time): a tide or seiche varies over kilometres, a
+race area is one place, and what a test needs is a known function of time. Its displacement is the
+exact integral of the shape from the log's start, so ``d(t0) = 0``.
 
 An effect is written ``SHAPE key=value ...`` on the command line, e.g.
 ``"periodic amplitude=0.15 period_s=4440 toward=30"`` or ``"step amplitude=0.6 width_s=2700"``.

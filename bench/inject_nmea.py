@@ -32,11 +32,17 @@ start). A stamp more than an hour from the running clock is taken as damaged, an
 The date is the first RMC or ZDA date, midnight crossings counted, as ``forcemap import`` does, so
 the truth's ``t`` is the samples table's.
 
-Every rewritten field keeps its decimals and padding (``bench/nmea_fields_like.py``), and a modified
-sentence keeps the checksum convention it was written with (a correct one, or its bus's variant).
-A line that is not a sentence, a spliced one, one whose checksum matches no convention, or one with
-a field that is not a number, passes through untouched and is counted by reason. Lines and their
-endings are otherwise copied byte for byte; an injection of nothing reproduces the input exactly.
+Every rewritten field keeps its decimals and padding (``bench/nmea_fields_like.py``); its rounding
+error is carried into the same field's next value, so a change smaller than the log's resolution (a
+current's part of a wind angle in whole degrees, a level in decimetres) is not lost, on average, to
+rounding. A modified sentence keeps the checksum convention it was written with (a correct one, or
+its bus's variant, as Irene 2013-07-31's checksums over the address only). The sentence of a line is
+what follows its last ``$`` (junk or a cut sentence before it is kept as it is). A sentence whose
+checksum matches no convention, one that lacks what its rewriting needs (an apparent wind before
+any heading, a speed without its course) or has a field that is not a number, passes through
+untouched and is counted by reason; proprietary sentences and lines that are not sentences are
+copied. Lines and their endings are otherwise copied byte for byte; an injection of nothing
+reproduces the input exactly.
 """
 
 from __future__ import annotations
@@ -60,6 +66,7 @@ from bench.inject_sentences import Report, inject_lines  # noqa: E402
 
 TRUTH_COLUMNS = ("t", "current_east", "current_north", "level", "offset_east", "offset_north")
 TRUTH_STEP_S = 1.0
+TRUTH_MARGIN_S = 10.0  # lines after the last stamp: the importer times them at the log's line rate
 
 __all__ = ["Current", "Effect", "Shape", "inject", "read_truth", "truth_path"]
 
@@ -75,7 +82,7 @@ def truth_path(out: str | Path) -> Path:
 def write_truth(path: Path, effect: Effect, t0: float, t1: float) -> None:
     """One row a second over the log: t (UNIX s), the current (east, north, m/s), the level (m)
     and the displacement since the log's start (east, north, m)."""
-    tau = np.arange(0.0, t1 - t0 + TRUTH_STEP_S, TRUTH_STEP_S)
+    tau = np.arange(0.0, t1 - t0 + TRUTH_MARGIN_S, TRUTH_STEP_S)
     zero = np.zeros_like(tau)
     ce, cn = effect.current.velocity(tau) if effect.current else (zero, zero)
     de, dn = effect.current.offset(tau) if effect.current else (zero, zero)
@@ -133,7 +140,7 @@ def inject(
 
 EPILOG = """\
 effects (SHAPE key=value ...; bench/inject_effects.py):
-  tidal     amplitude=A [period_s=44714.2] [phase_deg=0]    A cos(2 pi tau / P + phase), M2 by default
+  tidal     amplitude=A [period_s=44714.2] [phase_deg=0]    A cos(2 pi tau / P + phase); M2
   periodic  amplitude=A period_s=P [phase_deg=0]            a seiche (Lake Geneva: about 74 min)
   ramp      amplitude=A [ramp_s=the log's span]             A min(tau / ramp_s, 1): drift, stage
   step      amplitude=A [at_s=the middle] [width_s=1800]    A (1 + tanh((tau - at_s) / width_s)) / 2
@@ -234,9 +241,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     if eff.current is not None:
-        print(f"current: {eff.current.shape.describe()} m/s toward {eff.current.toward_deg:g} deg")
+        print(
+            f"current (m/s, toward {eff.current.toward_deg:g} deg): {eff.current.shape.describe()}"
+        )
     if eff.level is not None:
-        print(f"level: {eff.level.describe()} m")
+        print(f"level (m): {eff.level.describe()}")
     for line in rep.summary():
         print(line)
     print(f"-> {args.output}, truth {args.truth or truth_path(args.output)}")

@@ -77,7 +77,7 @@ class Report:
 
 
 class Clock:
-    """Each sentence's UNIX time: its own stamp, else the last timed sentence's (see the docstring)."""
+    """Each sentence's UNIX time: its own stamp, else the last timed sentence's (module doc)."""
 
     def __init__(self, date0: float) -> None:
         self.date0 = date0
@@ -132,7 +132,7 @@ def survey(lines: list[bytes]) -> tuple[float, float, float, tuple[float, float]
         t = clock.stamp(stype, f, convention is not None)
         if t is not None:
             t0 = t if t0 is None else t0
-            t1 = t
+            t1 = t if t1 is None else max(t1, t)
         if fix is None and stype in POSITION:
             a, b, c, d = POSITION[stype]
             try:
@@ -146,7 +146,7 @@ def survey(lines: list[bytes]) -> tuple[float, float, float, tuple[float, float]
     return date0 or 0.0, t0, t1, fix
 
 
-# --- the rewriting ---------------------------------------------------------------------------------
+# --- the rewriting -----------------------------------------------------------------------------
 
 
 class Injector:
@@ -278,7 +278,9 @@ class Injector:
             g[i], g[h] = latlon_like(g[i], g[h], v, axis)
             self.carry[(stype, i)] = v - read_latlon(g[i], g[h])
 
-    def _ground_velocity(self, stype, g, at, speeds, ce, cn) -> None:  # type: ignore[no-untyped-def]
+    def _ground_velocity(  # type: ignore[no-untyped-def]
+        self, stype, g, at, speeds, ce, cn
+    ) -> None:
         """Speed fields ``speeds`` [(index, m/s per unit)] and the courses at ``at`` (speed, true
         course, magnetic course or None) become the recorded velocity plus (ce, cn)."""
         _, course_i, mag_i = at
@@ -364,7 +366,9 @@ class Injector:
         return g
 
 
-def inject_lines(lines: list[bytes], effect: Effect, true_wind: str = "water"):  # type: ignore[no-untyped-def]
+def inject_lines(
+    lines: list[bytes], effect: Effect, true_wind: str = "water"
+) -> tuple[list[bytes], Effect, Report]:
     """The lines with the effect injected (each line's ending kept), the truth's time span and
     the Report. ``lines`` are split on LF with their CR kept, so joining with LF gives the file."""
     date0, t0, t1, fix = survey(lines)

@@ -45,8 +45,8 @@ class Fit:
     def line(self) -> str:
         return (
             f"{self.quantity:<14} {self.how:<10} slope {self.slope:6.3f} ± {self.slope_se:.3f}  "
-            f"intercept {self.intercept:+.3f}  r {self.r:.3f}  bins {self.bins} (rho {self.rho:+.2f})  "
-            f"truth sd {self.truth_sd:.3f}"
+            f"intercept {self.intercept:+.3f}  r {self.r:.3f}  bins {self.bins} "
+            f"(rho {self.rho:+.2f})  truth sd {self.truth_sd:.3f}"
         )
 
 
@@ -97,7 +97,9 @@ def along(cols: dict[str, np.ndarray], unit: tuple[float, float], prefix: str) -
     return cols[prefix + "_east"] * unit[0] + cols[prefix + "_north"] * unit[1]
 
 
-def _matched(table: dict[str, np.ndarray], clean: dict[str, np.ndarray]):  # type: ignore[no-untyped-def]
+def _matched(
+    table: dict[str, np.ndarray], clean: dict[str, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the rows both tables have (the same time, to a microsecond)."""
     a = np.round(table["t"] * 1e6).astype(np.int64)
     b = np.round(clean["t"] * 1e6).astype(np.int64)

@@ -1,11 +1,12 @@
 """NMEA 0183 fields read and written back the way the log wrote them, for ``bench/inject_nmea.py``.
 
 A rewritten field keeps its number of decimals, its zero padding and an explicit ``+``, so a value
-that comes out the same as the recorded one is the recorded text byte for byte. Latitude and longitude keep their degree digits and minute decimals, and the hemisphere
-letter follows the sign. A checksum is recomputed with the convention the line was written with:
-the standard XOR, or the variant an instrument bus uses instead (forcemap.host.decode.nmea_checksum),
-in the same letter case. Fields are read with plain string splitting, not with forcemap's parser, so
-the injection does not lean on the code it tests.
+that comes out the same as the recorded one is the recorded text byte for byte. Latitude and
+longitude keep their degree digits and minute decimals, and the hemisphere letter follows the sign.
+A checksum is recomputed with the convention the line was written with: the standard XOR, or the
+variant an instrument bus uses instead (forcemap.host.decode.nmea_checksum), in the same letter
+case. Fields are read with plain string splitting, not with forcemap's parser, so the injection does
+not lean on the code it tests.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ def number_like(old: str, value: float) -> str:
 
 
 def angle_like(old: str, deg: float) -> str:
-    """A compass or relative angle in [0, 360) written as ``old`` was (359.96 at one decimal is 0.0)."""
+    """A compass or relative angle in [0, 360) written as ``old`` was (359.96 to 1 decimal: 0.0)."""
     dec = len(old.partition(".")[2])
     r = round(deg % 360.0, dec)
     if r >= 360.0:

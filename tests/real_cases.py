@@ -9,9 +9,10 @@ the pipeline's rows as the instruments read them (``import_to_mcap`` with no cal
 The sfbay log takes about 100 s of CPU to import, a 4-hour race 35 s: each is built once per run,
 also under ``pytest -n 2``, where each worker is its own session. The cases then live in a folder
 both workers share (the parent of the workers' temporary folders), and a case is built by the first
-worker that asks, under an exclusive ``flock`` on its lock file, into a temporary folder renamed into
-place when whole (tests/cache.py's ``build_once``); the other worker waits for it and reads it. A folder belongs to one test run (each
-run has its own base temporary folder), so a changed pipeline never reads an old build.
+worker that asks, under an exclusive ``flock`` on its lock file, into a temporary folder renamed
+into place when whole (tests/cache.py's ``build_once``); the other worker waits for it and reads it.
+A folder belongs to one test run (each run has its own base temporary folder), so a changed pipeline
+never reads an old build.
 """
 
 from __future__ import annotations

@@ -75,7 +75,8 @@ NMEA = {
             "VHW": 150,
             "VTG": 148,
             "ZDA": 154,
-            "other": 1619,
+            "XDR": 148,  # in "other" until the hull's heel and trim were read (issue 37)
+            "other": 1471,
         },
         {},
     ),

@@ -1,8 +1,8 @@
 """A real tidal current, from the pipeline's own current: San Francisco Bay's City Front on a flood.
 
-tests/data/real/nmea/sfbay/PROVENANCE.md: a racing yacht inside the Golden Gate, 2014-05-17, 16:37 to
-24:00 UTC, the instruments (speed log, compass) on until about 21:30. From the table the user gets
-(``forcemap import`` with its calibration, ``forcemap export``; shared for the run by
+tests/data/real/nmea/sfbay/PROVENANCE.md: a racing yacht inside the Golden Gate, 2014-05-17, 16:37
+to 24:00 UTC, the instruments (speed log, compass) on until about 21:30. From the table the user
+gets (``forcemap import`` with its calibration, ``forcemap export``; shared for the run by
 tests/real_cases.py), two properties any correct pipeline has on a flood tide there:
 
 - the stream sets along the channel, into the bay: every half hour from 17:30 to 21:00 UTC, the mean

@@ -1,11 +1,11 @@
-"""A capture file's bytes, gunzipped as they are read when the file is gzipped (users' logs often come
-as ``capture.nmea.gz``): the one place an importer opens a capture, so every format and every command
-that imports (``import``, ``check`` on a raw capture) reads a gzipped file as the file it holds, with
-no temporary file.
+"""A capture file's bytes, gunzipped as they are read when the file is gzipped (users' logs often
+come as ``capture.nmea.gz``): the one place an importer opens a capture, so every format and every
+command that imports (``import``, ``check`` on a raw capture) reads a gzipped file as the file it
+holds, with no temporary file.
 
 gzip is recognised by its first two bytes, whatever the file's name. A gzip stream cut short (a copy
-interrupted, a logger that lost power) gives the bytes it holds and says so in a note; a damaged one is
-refused in one line, as is a gzipped DataFlash or PD0 file (their readers take a plain file).
+interrupted, a logger that lost power) gives the bytes it holds and says so in a note; a damaged one
+is refused in one line, as is a gzipped DataFlash or PD0 file (their readers take a plain file).
 """
 
 from __future__ import annotations
