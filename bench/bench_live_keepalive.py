@@ -48,7 +48,7 @@ LEAN = """
 import asyncio, json, sys, time, websockets
 async def main(url):
     rtts, n = [], 0
-    async with websockets.connect(url, subprotocols=[%r], max_size=None, ping_interval=None) as ws:
+    async with websockets.connect(url, subprotocols=[@SUBPROTOCOL@], max_size=None, ping_interval=None) as ws:
         async def pinger():
             while True:
                 t0 = time.monotonic()
@@ -71,7 +71,7 @@ async def main(url):
     print(json.dumps({"messages": n, "pings": len(rtts), "rtt_max_s": max(rtts, default=None),
                       "rtt_median_s": sorted(rtts)[len(rtts) // 2] if rtts else None}))
 asyncio.run(main(sys.argv[1]))
-""" % SUBPROTOCOL
+""".replace("@SUBPROTOCOL@", repr(SUBPROTOCOL))
 
 
 def _burn(stop) -> None:
