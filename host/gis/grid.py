@@ -251,7 +251,7 @@ def untrusted(grid: MapGrid, model, pred: dict[str, np.ndarray], keep: np.ndarra
     drop = np.zeros(int(keep.sum()), bool)
     notes = []
     if cal is not None and grid.distance is not None:
-        far = grid.distance.ravel()[keep] > cal.reach_m
+        far = _distance(grid, model, keep) > cal.reach_m
         if far.any():
             notes.append(
                 f"{target}: {int(far.sum())} cells farther than {cal.reach_m:.0f} m from every sample left "
@@ -279,6 +279,16 @@ def untrusted(grid: MapGrid, model, pred: dict[str, np.ndarray], keep: np.ndarra
     return drop, notes
 
 
+def _distance(grid: MapGrid, model, keep: np.ndarray) -> np.ndarray:
+    """Each mapped cell's distance (m) to the nearest sample the model was fitted on (the grid's own
+    distance, to every sample, where the model has them all)."""
+    dist = grid.distance.ravel()[keep]  # type: ignore[union-attr]
+    root, index = model.survey.origin
+    if len(index) == root.n or grid.local_xy is None:
+        return dist
+    return np.fmax(dist, cKDTree(model.survey.xy).query(grid.local_xy[keep])[0])
+
+
 def evaluate(grid: MapGrid, model) -> Layer:
     """A fitted `SurveyModel` on the grid's mapped cells (NaN elsewhere, and where `untrusted`), as a `Layer`."""
     keep = grid.mask.ravel()
@@ -297,5 +307,7 @@ def evaluate(grid: MapGrid, model) -> Layer:
         from forcemap.host.workbench.water_level import map_datum
 
         layer.datum = map_datum(model.survey, list(model.terms))
+    rows = getattr(model, "rows", None)  # what the model left out for want of a reading
+    notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
     layer.notes, layer.calibration = notes, getattr(model, "calibration", None)
     return layer
