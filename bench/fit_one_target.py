@@ -35,12 +35,17 @@ def main() -> None:
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     t0, c0 = time.perf_counter(), time.process_time()
     with small_blas():
-        try:  # as fit_target: the folds of the rows the model is fitted on (spikes left out)
-            from forcemap.host.workbench.spikes import without_spikes
+        try:  # as fit_target: the folds of the rows the model is fitted on (with the target, spikes out)
+            from forcemap.host.workbench.target_rows import target_rows
 
-            clean = without_spikes(survey, args.target)[0]
+            clean = target_rows(survey, args.target).survey
         except ImportError:
-            clean = survey
+            try:
+                from forcemap.host.workbench.spikes import without_spikes
+
+                clean = without_spikes(survey, args.target)[0]
+            except ImportError:
+                clean = survey
         folds = fitting.make_folds(clean, "blocked")
         try:  # the Gram matrices accumulate fold by fold (this version's fit_target does it)
             from forcemap.host.workbench.survey_fits import survey_fits

@@ -112,9 +112,12 @@ def _stretch_text(t0: float, t1: float, rows: int) -> str:
 
 def too_few(rows: int, what: str) -> WorkbenchError:
     """The one refusal: too little is left to fit, and how much there is."""
-    return WorkbenchError(
-        f"only {rows} rows have {what}; a map needs at least {MIN_ROWS}"
-    )
+    if rows == 0:
+        return WorkbenchError(
+            f"no row has {what}: every cell is empty, not a number or inf (a map needs at least "
+            f"{MIN_ROWS} rows)"
+        )
+    return WorkbenchError(f"only {rows} rows have {what}; a map needs at least {MIN_ROWS}")
 
 
 def target_gaps(survey: Survey, target: str) -> Gaps:
