@@ -56,7 +56,7 @@ PROXY_LEFTOVER = 0.25
 # a direct cause within this many places of a leading proxy may take its place
 PROXY_WINDOW = 10
 ALPHA = 0.05
-PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab"}
+PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab", "throttle"}
 
 
 def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
@@ -312,7 +312,9 @@ def _component(sm: SurveyModel) -> str:
 def is_proxy(name: str) -> bool:
     """Covariates that stand in for a cause rather than being one: time (everything that changes along the
     track), the apparent wind (speed and angle), course and crab (on straight legs they follow the heading),
-    and the raw paddle-wheel speeds (the boat's speed through water, seen along one axis)."""
+    the throttle (a command, set leg by leg: it follows the heading too, and stands in for the speed
+    through the water), and the raw paddle-wheel speeds (the boat's speed through water, seen along one
+    axis)."""
     return name in PROXIES or re.fullmatch(r"wheel\d+_speed", name) is not None
 
 
