@@ -14,6 +14,7 @@ from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.cv import CVResult, paired_test, random_folds, repeated_blocked_folds
 from forcemap.host.workbench.model import Model, term_inputs
 from forcemap.host.workbench.spec import build_term, parse_term
+from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
 from forcemap.host.workbench.target_rows import target_rows
 from forcemap.host.workbench.targets import SurveyModel, survey_inputs
@@ -42,12 +43,19 @@ class Evaluator:
         folds: int,
         seed: int,
         rows_with: tuple[str, ...] = (),
+        like: Evaluator | None = None,
     ) -> None:
+        """`rows_with`: covariates whose rows the model is fitted on too; `like`: the evaluator of the
+        same model on more rows, whose hyperparameters it keeps (no optimiser: the same field)."""
         self.target = target
         self.given = (survey, terms, folds, seed)
-        self.sm = SurveyModel(
-            survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS, rows_with=rows_with
-        ).fit()
+        sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS, rows_with=rows_with)
+        if like is None:
+            self.sm = sm.fit()
+        else:
+            survey_fits(sm.survey).saved.update(survey_fits(like.sm.survey).shared_hypers())
+            p = like.sm.primary
+            self.sm = sm.fit(theta=p.theta_, n_basis=p.n_basis_)
         # the rows the model is fitted on: the target there, its spikes left out, every covariate there
         # (the clock correction is the model's own business)
         self.survey = survey = self.sm.rows.survey
@@ -80,7 +88,7 @@ class Evaluator:
         key = rows.survey.origin[1].tobytes()
         if key not in self._on_rows:
             extra = tuple(sorted(needs - set(self.sm.rows.covariates)))
-            self._on_rows[key] = Evaluator(survey, self.target, terms, folds, seed, extra)
+            self._on_rows[key] = Evaluator(survey, self.target, terms, folds, seed, extra, self)
         return self._on_rows[key]
 
     def rows_note(self, base: Evaluator) -> str:
@@ -93,7 +101,8 @@ class Evaluator:
         return (
             f"judged on the {self.survey.n:,} of {base.survey.n:,} rows that have it ("
             + "; ".join(left)
-            + ": gaps longer than its correlation time), the current model refitted on them"
+            + ": gaps longer than its correlation time), the current model refitted on them with "
+            "its hyperparameters"
         )
 
     @property
