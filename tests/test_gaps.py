@@ -170,6 +170,21 @@ def test_a_known_stretch_without_depth_is_named_by_its_times(river, tmp_path, ca
     assert stretch[0]["end_s"] == pytest.approx(419.0, abs=1.0)
 
 
+def test_the_plans_maps_use_the_rows_that_have_the_current(river, tmp_path):
+    from forcemap.host.plan.maps import survey_maps
+    from forcemap.host.workbench.table import load_survey
+
+    # one component lost is the vector lost: both are needed on a row
+    table, n = _blank(river, tmp_path / "p.csv", "current_east", lambda t, k: not 200.0 <= t < 320.0)
+    survey = load_survey(table)
+    lo, hi = survey.xy.min(axis=0), survey.xy.max(axis=0)
+    maps = survey_maps(table, survey, (lo[0], hi[0], lo[1], hi[1]), progress=False)
+    said = [x for x in maps.notes if x.startswith("current: ")]
+    assert any(x.startswith(f"current: {n} of 900 rows have no current (3-5 min") for x in said), said
+    assert np.isfinite(maps.current.east).all() and np.isfinite(maps.current.north).all()
+    assert survey.n == 900  # the table keeps every row: a row without current still has its depth
+
+
 def test_ten_rows_of_a_target_are_too_few_and_say_so(river, tmp_path, capsys):
     table, n = _blank(river, tmp_path / "ten.csv", "depth", lambda t, k: k % 90 == 0)
     assert n == 890
