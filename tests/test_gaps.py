@@ -18,7 +18,9 @@ import pytest
 from forcemap.host.cli import main
 from forcemap.host.season.engine import LocalRunner
 from forcemap.host.season.run import run_season
+from forcemap.host.season.stats import chunk_stats
 from forcemap.host.workbench.gaps import correlation_time
+from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices.season import make_season
 
 from bench.synth_survey import make_survey
@@ -172,7 +174,6 @@ def test_a_known_stretch_without_depth_is_named_by_its_times(river, tmp_path, ca
 
 def test_the_plans_maps_use_the_rows_that_have_the_current(river, tmp_path):
     from forcemap.host.plan.maps import survey_maps
-    from forcemap.host.workbench.table import load_survey
 
     # one component lost is the vector lost: both are needed on a row
     table, n = _blank(river, tmp_path / "p.csv", "current_east", lambda t, k: not 200.0 <= t < 320.0)
@@ -255,3 +256,12 @@ def test_season_keeps_the_depth_of_rows_without_current(tmp_path):
     assert one.stats["depth"].n == n  # and every row's depth, those without current too
     assert any(note.startswith(f"200 of {n:,} rows have no current") for note in one.notes)
     assert season.current is not None and len(season.current.scales) == 3
+    # exactly the statistics of the rows that have the current, as if the others were never logged
+    s = load_survey(paths[1])
+    ok = np.isfinite(s.columns["current_east"]) & np.isfinite(s.columns["current_north"])
+    Y = np.column_stack([s.columns["current_east"], s.columns["current_north"]])[ok]
+    Z = season.frame.xy(s.columns["lat"], s.columns["lon"])[ok]
+    ref = chunk_stats(season.frame.space_features, Z, Y)
+    for m in ("G", "B", "R"):
+        a, b = getattr(one.stats["current"], m), getattr(ref, m)
+        assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(b)), m

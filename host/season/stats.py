@@ -75,8 +75,8 @@ def masked_stats(
                 Gm = G - lack.T @ lack if len(lack) else G
             else:
                 Gm = Phi[m].T @ Phi[m]
-            ym = y[m]
-            part = Stats(Gm, Phi[m].T @ ym, ym.T @ ym, int(m.sum()))
+            ym = y if m.all() else np.where(m[:, None], y, 0.0)  # a row it lacks adds nothing
+            part = Stats(Gm, Phi.T @ ym, ym.T @ ym, int(m.sum()))
             out[name] = part if name not in out else out[name] + part
     for name, (Y, _) in targets.items():
         if name not in out:  # no rows at all
