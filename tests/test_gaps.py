@@ -81,7 +81,9 @@ def test_fit_and_grid_of_a_real_log_use_the_rows_that_have_the_target(fjord, cap
     for target, cols in (("current_speed", ["current_east", "current_north"]),):
         t, empty = _empty(table, cols)
         assert 0 < empty.sum() < 0.1 * len(empty)  # the log has gaps, and most rows have the target
-        code, out, err = _run(capsys, ["fit", table, "--target", target, "--no-plots", "--json", "-"])
+        code, out, err = _run(
+            capsys, ["fit", table, "--target", target, "--no-plots", "--json", "-"]
+        )
         assert code == 0, err
         gaps = json.loads(out)["gaps"]
         assert gaps["missing"]["missing"] == empty.sum() and gaps["rows"] == len(empty)
@@ -176,12 +178,16 @@ def test_the_plans_maps_use_the_rows_that_have_the_current(river, tmp_path):
     from forcemap.host.plan.maps import survey_maps
 
     # one component lost is the vector lost: both are needed on a row
-    table, n = _blank(river, tmp_path / "p.csv", "current_east", lambda t, k: not 200.0 <= t < 320.0)
+    table, n = _blank(
+        river, tmp_path / "p.csv", "current_east", lambda t, k: not 200.0 <= t < 320.0
+    )
     survey = load_survey(table)
     lo, hi = survey.xy.min(axis=0), survey.xy.max(axis=0)
     maps = survey_maps(table, survey, (lo[0], hi[0], lo[1], hi[1]), progress=False)
     said = [x for x in maps.notes if x.startswith("current: ")]
-    assert any(x.startswith(f"current: {n} of 900 rows have no current (3-5 min") for x in said), said
+    assert any(x.startswith(f"current: {n} of 900 rows have no current (3-5 min") for x in said), (
+        said
+    )
     assert np.isfinite(maps.current.east).all() and np.isfinite(maps.current.north).all()
     assert survey.n == 900  # the table keeps every row: a row without current still has its depth
 
@@ -194,7 +200,9 @@ def test_ten_rows_of_a_target_are_too_few_and_say_so(river, tmp_path, capsys):
     lines = [ln for ln in err.strip().splitlines() if not ln.startswith("note:")]
     assert lines == ["forcemap fit: only 10 rows have depth; a map needs at least 30"], err
     # the other targets of the table are untouched: its current is still mapped
-    code, _, err = _run(capsys, ["fit", table, "--target", "current_speed", "--no-plots", "--quiet"])
+    code, _, err = _run(
+        capsys, ["fit", table, "--target", "current_speed", "--no-plots", "--quiet"]
+    )
     assert code == 0, err
 
 

@@ -98,9 +98,7 @@ class Gaps:
             "what": self.what,
             "missing": self.count,
             "rows": self.n,
-            "stretches": [
-                {"start_s": a, "end_s": b, "rows": k} for a, b, k in self.stretches()
-            ],
+            "stretches": [{"start_s": a, "end_s": b, "rows": k} for a, b, k in self.stretches()],
         }
 
 
@@ -237,7 +235,10 @@ def bridged(survey: Survey, name: str) -> np.ndarray:
     root, index = survey.origin
     if root is not survey and name in root.columns:
         if not np.array_equal(root.columns[name][index], values, equal_nan=True):
-            root, index = survey, np.arange(survey.n)  # a column this survey changed (a clock offset)
+            root, index = (
+                survey,
+                np.arange(survey.n),
+            )  # a column this survey changed (a clock offset)
     key = ("bridged", name)
     if key not in root.cache:
         values_all = root.column(name)
