@@ -52,9 +52,10 @@ def student_t(survey, nu: float) -> tuple[np.ndarray, float]:
     sm = SurveyModel(survey, "depth").fit()
     X, y = sm.X, sm.y_primary
     # start from a robust line: the running median along the track (a Gaussian fit is 20 m off)
-    from forcemap.host.workbench.spikes import WINDOW, _running
+    from forcemap.host.fuse.bottom_lost import running
+    from forcemap.host.workbench.spikes import WINDOW
 
-    f = _running(y, WINDOW, np.nanmedian)
+    f = running(y, WINDOW, np.nanmedian)
     model = sm.primary
     for _ in range(IRLS_STEPS):
         r = y - f

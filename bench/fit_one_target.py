@@ -1,10 +1,12 @@
-"""One target of a survey the way `forcemap fit` does it, plus the map: fit, blocked 5-fold CV with 95 %
-intervals, and the mean and predictive sd on a 100 x 100 = 10,000-node grid over the survey. Prints one JSON
-line: the wall time of those steps (the table's reading is not counted), the process's peak RSS, and the
-results (for comparing two versions of the code). Run by `bench_gp.py --targets` in a fresh process per
-target, so that each peak RSS is that target's own.
+"""One target of a survey the way `forcemap fit` runs it (`fitting.fit_target`: spikes left out, the fit, its
+blocked 5-fold CV with 95 % intervals and the band's calibration, the crossline error for depth), then the mean and
+predictive sd on a grid over the survey (`--grid-m M`: M-metre cells over its extent, else 100 x 100 nodes).
+Prints one JSON line: the CPU seconds of the fit + CV and of the grid, the process's peak RSS, the basis, the CV
+error, and the CPU seconds of one plain Gram product n m^2 (n rows, m the target's largest basis, and m = `--unit-m`
+if given) timed in the same process: the figure a busy machine does not move. Run by `bench_gp.py` in a fresh
+process per target, so that each peak RSS is that target's own.
 
-    python bench/fit_one_target.py TABLE TARGET [--save OUT.npz]
+    python bench/fit_one_target.py TABLE TARGET [--save OUT.npz] [--grid-m 2] [--unit-m 1600] [--direct]
 """
 
 from __future__ import annotations
@@ -16,75 +18,103 @@ import time
 
 import numpy as np
 
+GRAM_ROWS = 65_536  # the plain Gram product is timed on this many rows and scaled by n / rows (flops are linear in n)
+
+
+def gram_product_s(n: int, m: int) -> float:
+    """CPU seconds of one plain Gram product F'F of an n x m matrix on one BLAS thread, in chunks of 4,096
+    rows (a million rows of 1,600 features would be 12.8 GB), timed on GRAM_ROWS rows (one chunk over and over:
+    a small n is timed as long as a large one) and scaled by n / GRAM_ROWS."""
+    from forcemap.host.workbench.evidence import small_blas
+
+    F = np.random.default_rng(0).standard_normal((4096, m))
+    G = np.zeros((m, m))
+    with small_blas():
+        G += F.T @ F  # warm-up: BLAS's first call
+        c = time.process_time()
+        for _ in range(GRAM_ROWS // 4096):
+            G += F.T @ F
+        return (time.process_time() - c) * n / GRAM_ROWS
+
+
+def grid_of(survey, grid_m: float | None) -> np.ndarray:
+    lo, hi = survey.xy.min(axis=0), survey.xy.max(axis=0)
+    if grid_m:
+        axes = [np.arange(a, b + grid_m, grid_m) for a, b in zip(lo, hi, strict=True)]
+    else:
+        axes = [np.linspace(a, b, 100) for a, b in zip(lo, hi, strict=True)]
+    gx, gy = np.meshgrid(*axes)
+    return np.column_stack([gx.ravel(), gy.ravel()])
+
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("table")
     ap.add_argument("target")
     ap.add_argument("--save")
+    ap.add_argument(
+        "--grid-m", type=float, help="grid cells of this many metres (default 100 x 100 nodes)"
+    )
+    ap.add_argument("--unit-m", type=int, help="also the Gram product with this basis size")
+    ap.add_argument(
+        "--direct", action="store_true", help="the tables summed directly, as without finufft"
+    )
     args = ap.parse_args()
+    import contextlib
+
     from forcemap.host.workbench import fitting
     from forcemap.host.workbench.model import small_blas
     from forcemap.host.workbench.table import load_survey
-    from forcemap.host.workbench.targets import SurveyModel
 
+    try:
+        from forcemap.host.workbench import nufft
+
+        direct = nufft.direct() if args.direct else contextlib.nullcontext()
+    except ImportError:  # a checkout before the NUFFT
+        direct = contextlib.nullcontext()
+    c_load = time.process_time()
     survey = load_survey(args.table)
-    lo, hi = survey.xy.min(axis=0), survey.xy.max(axis=0)
-    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 100), np.linspace(lo[1], hi[1], 100))
-    grid = np.column_stack([gx.ravel(), gy.ravel()])
+    load_s = time.process_time() - c_load
+    grid = grid_of(survey, args.grid_m)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    t0, c0 = time.perf_counter(), time.process_time()
-    with small_blas():
-        try:  # as fit_target: the folds of the rows the model is fitted on (with the target, spikes out)
-            from forcemap.host.workbench.target_rows import target_rows
-
-            clean = target_rows(survey, args.target).survey
-        except ImportError:
-            try:
-                from forcemap.host.workbench.spikes import without_spikes
-
-                clean = without_spikes(survey, args.target)[0]
-            except ImportError:
-                clean = survey
-        folds = fitting.make_folds(clean, "blocked")
-        try:  # the Gram matrices accumulate fold by fold (this version's fit_target does it)
-            from forcemap.host.workbench.survey_fits import survey_fits
-
-            survey_fits(clean).grams.plan = folds
-        except (ImportError, AttributeError):
-            pass
-        sm = SurveyModel(survey, args.target).fit()
-        t1 = time.perf_counter()
-        cv = sm.cv(folds)
-        t2 = time.perf_counter()
-        out = sm.predict_grid(grid)
-    t3, c3 = time.perf_counter(), time.process_time()
+    with small_blas(), direct:
+        c0 = time.process_time()
+        res = fitting.fit_target(
+            survey, args.target, ["const", "gp(position, matern32)"], progress=False
+        )
+        c1 = time.process_time()
+        out = res.model.predict_grid(grid)
+        c2 = time.process_time()
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    sm = res.model
     basis = sm.primary.n_basis_
-    print(
-        json.dumps(
-            {
-                "target": args.target,
-                "n": survey.n,
-                "fit_s": t1 - t0,
-                "cv_s": t2 - t1,
-                "grid_s": t3 - t2,
-                "total_s": t3 - t0,
-                "cpu_s": c3 - c0,
-                "rss_before_mb": rss0,
-                "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                "n_basis": max(basis.values()) if basis else 0,
-                "cv_rmse": cv.rmse,
-                "coverage95": cv.coverage95,
-            }
-        ),
-        flush=True,
-    )
+    m = max(basis.values()) if basis else 1
+    unit = gram_product_s(survey.n, m)
+    result = {
+        "target": args.target,
+        "n": survey.n,
+        "load_cpu_s": load_s,
+        "fit_cv_cpu_s": c1 - c0,
+        "grid_cpu_s": c2 - c1,
+        "grid_nodes": len(grid),
+        "cpu_s": c2 - c0,
+        "gram_s": unit,
+        "gram_m": m,
+        "rss_before_mb": rss0,
+        "peak_rss_mb": peak,
+        "n_basis": m,
+        "cv_rmse": res.cv.rmse,
+        "coverage95": res.cv.coverage95,
+    }
+    if args.unit_m:
+        result["unit_gram_s"] = gram_product_s(survey.n, args.unit_m)
+    print(json.dumps(result), flush=True)
     if args.save:
         np.savez(
             args.save,
             theta=sm.primary.theta_,
-            cv=cv.predicted,
-            lower=cv.lower,
+            cv=res.cv.predicted,
+            lower=res.cv.lower,
             mean=out["mean"],
             std=out["std"],
         )

@@ -12,6 +12,7 @@ each leg) and held: the speed through the water follows it, the ground speed fol
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -328,4 +329,44 @@ def make_survey(
         "false_echo_rows": [int(i) for i in echo_rows],
     }
     (out / "truth" / "effects.json").write_text(json.dumps(meta, indent=2))
+    return path
+
+
+def write_long_survey(
+    path,
+    n: int,
+    rate_hz: float = 1.0,
+    seed: int = 0,
+    day_s: float = 86_400.0,
+    moored_s: float = 3_600.0,
+) -> Path:
+    """A long survey of `n` rows at `rate_hz` (10^6 rows at 1 Hz: 12.1 days of 23 hours), written one day at a
+    time as Parquet row groups (CSV when `path` ends in .csv): each day a lawnmower flown from a random start
+    with its own noise (seed + day), after `moored_s` at the bank (no rows: the boat moves to the next day's
+    start in that hour, not in a second). Memory holds one day's columns, never the whole table."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    per_day = int((day_s - moored_s) * rate_hz)
+    writer, done, day = None, 0, 0
+    with path.open("w", newline="") if path.suffix == ".csv" else contextlib.nullcontext() as f:
+        while done < n:
+            rows = min(per_day, n - done)
+            cols = simulate([], seed + day, rows / rate_hz, rate_hz=rate_hz)
+            cols["t"] = cols["t"] + day * day_s
+            if f is not None:
+                w = csv.writer(f)
+                if day == 0:
+                    w.writerow(list(cols))
+                for row in zip(*cols.values(), strict=True):
+                    w.writerow([f"{v:.7f}" for v in row])
+            else:
+                table = pa.table(cols)
+                if writer is None:
+                    writer = pq.ParquetWriter(path, table.schema)
+                writer.write_table(table, row_group_size=65_536)
+            done, day = done + rows, day + 1
+    if writer is not None:
+        writer.close()
     return path

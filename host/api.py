@@ -14,6 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.workbench.at_time import parse_at
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.spec import BASELINE, check_terms, split_effects
 from forcemap.host.workbench.table import Survey as _Table
@@ -94,8 +95,10 @@ class Survey:
         fits: Iterable[Fit],
         resolution: float = DEFAULT_RESOLUTION_M,
         max_distance: float | None = None,
+        at: str | float | None = None,
     ):
-        """The fits' maps on one grid in the survey's UTM zone (`host.gis.grid.MapGrid`)."""
+        """The fits' maps on one grid in the survey's UTM zone (`host.gis.grid.MapGrid`), at time `at`
+        (`--at`'s forms: ISO 8601 with its zone, UNIX seconds, "now"; default the survey's mid-time)."""
         from forcemap.host.gis import need_gis
         from forcemap.host.gis.grid import evaluate, make_grid
 
@@ -107,6 +110,7 @@ class Survey:
                 "two targets map the same vector (say current_speed and current_dir); give one of them"
             )
         grid = make_grid(self.table, resolution, max_distance)
+        grid.at = None if at is None else parse_at(at)
         # one target per core: the work is in numpy and BLAS, which release the GIL
         workers = max(1, min(len(fits), os.cpu_count() or 1))
         with ThreadPoolExecutor(workers) as pool:
@@ -211,16 +215,36 @@ class Fit:
         terms = " + ".join(self.model_.terms) if hasattr(self, "model_") else "not fitted"
         return f"Fit({self.target!r}: {terms})"
 
-    def predict(self, lat, lon) -> dict[str, np.ndarray]:
-        """The model at positions (degrees): `mean`, `std` the predictive sd (what a new measurement there
-        would differ by: latent plus noise, scaled by the calibration), `mean_std` the sd of the mean alone
-        (and east/north/speed with their predictive sds for a vector)."""
+    def predict(self, lat, lon, at=None) -> dict[str, np.ndarray]:
+        """The model at positions (degrees) and time `at` (one for all, or one per position: `--at`'s forms,
+        ISO 8601 with its zone, UNIX seconds or "now"; default the survey's mid-time): `mean`, `std` the
+        predictive sd (what a new measurement there would differ by: latent plus noise, scaled by the
+        calibration), `mean_std` the sd of the mean alone (and east/north/speed with their predictive sds
+        for a vector)."""
         from forcemap.host.vessel.geodesy import LocalFrame
 
         model = self._fitted()
         s = model.survey
         x, y = LocalFrame(s.lat0, s.lon0).to_local(np.atleast_1d(lat), np.atleast_1d(lon))
-        return model.predict_grid(np.column_stack([x, y]))
+        when = None
+        if at is not None:
+            when = parse_at(at) if np.ndim(at) == 0 else np.array([parse_at(v) for v in at])
+        return model.predict_grid(np.column_stack([x, y]), when)
+
+    def notes_at(self, at) -> list[str]:
+        """What the model's time terms do at `at`: a tide predicts, a GP in time reverts to its mean
+        beyond its lengthscale from the survey (empty inside the survey's span)."""
+        from forcemap.host.workbench.time_terms import notes_at
+
+        model = self._fitted()
+        return notes_at(model.primary, model.survey, parse_at(at))
+
+    def tide(self) -> dict:
+        """The fitted tide and seiche: each constituent's amplitude and Greenwich phase with their sd
+        (`constituents`), a vector's tidal ellipses (`ellipses`), a seiche's estimated period (`seiche`)."""
+        from forcemap.host.workbench.time_terms import tide_summary
+
+        return tide_summary(self._fitted())
 
     def diagnose(self, rounds: int = 1, progress: bool = False):
         """Which physical effect this model is missing (`forcemap diagnose`): a `Diagnosis`."""
@@ -231,26 +255,38 @@ class Fit:
         with small_blas():
             return diagnose(self.survey_.table, self.target, model.terms, rounds, progress=progress)
 
-    def grid(self, resolution: float = DEFAULT_RESOLUTION_M, max_distance: float | None = None):
-        """This fit's map on a grid in the survey's UTM zone (`MapGrid`)."""
+    def grid(
+        self,
+        resolution: float = DEFAULT_RESOLUTION_M,
+        max_distance: float | None = None,
+        at: str | float | None = None,
+    ):
+        """This fit's map on a grid in the survey's UTM zone (`MapGrid`), at time `at` (default mid-survey)."""
         self._fitted()
-        return self.survey_.grid([self], resolution, max_distance)
+        return self.survey_.grid([self], resolution, max_distance, at)
 
     def to_xarray(
-        self, resolution: float = DEFAULT_RESOLUTION_M, max_distance: float | None = None
+        self,
+        resolution: float = DEFAULT_RESOLUTION_M,
+        max_distance: float | None = None,
+        at: str | float | None = None,
     ):
-        """The map as a CF-1.8 `xarray.Dataset` (what `forcemap grid -o maps.nc` writes)."""
+        """The map as a CF-1.8 `xarray.Dataset` (what `forcemap grid -o maps.nc` writes), at time `at`."""
         from forcemap.host.gis.netcdf import to_dataset
 
-        return to_dataset(self.grid(resolution, max_distance))
+        return to_dataset(self.grid(resolution, max_distance, at))
 
     def to_geotiff(
-        self, path: str | Path, resolution: float = DEFAULT_RESOLUTION_M, force: bool = False
+        self,
+        path: str | Path,
+        resolution: float = DEFAULT_RESOLUTION_M,
+        force: bool = False,
+        at: str | float | None = None,
     ) -> Path:
-        """Write the map as a Cloud Optimized GeoTIFF (an existing file only with `force`)."""
+        """Write the map as a Cloud Optimized GeoTIFF (an existing file only with `force`), at time `at`."""
         from forcemap.host.gis.geotiff import write_geotiff
         from forcemap.host.outputs import check_output
 
         out = check_output(path, [self.survey_.path], force=force)
-        grid = self.grid(resolution)
+        grid = self.grid(resolution, at=at)
         return write_geotiff(grid, grid.layers[self.target], out)

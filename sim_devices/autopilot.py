@@ -49,6 +49,7 @@ class NavState:
     nav_bearing_deg: float = 0.0  # the guidance's desired heading
     target_bearing_deg: float = 0.0  # bearing to the waypoint
     wp_dist: float = 0.0
+    roll_deg: float = 0.0  # the hull's heel, starboard down positive (the `heel` effect)
 
 
 def nav_state(
@@ -226,7 +227,8 @@ class Autopilot:
         yaw = math.radians(f.heading)
         if yaw > math.pi:
             yaw -= 2 * math.pi
-        roll, pitch = self.rng.gauss(0.0, 0.02), self.rng.gauss(0.0, 0.02)
+        roll = math.radians(s.roll_deg) + self.rng.gauss(0.0, 0.02)
+        pitch = self.rng.gauss(0.0, 0.02)
         return self.mav.attitude_encode(f.boot_ms, roll, pitch, yaw, 0.0, 0.0, s.yaw_rate)
 
     def _vfr_hud(self, s: NavState, f: _Fix):  # type: ignore[no-untyped-def]

@@ -77,6 +77,16 @@ CATALOGUE: dict[str, EffectSpec] = {
             {"k": 0.08},
         ),
         EffectSpec(
+            "heel",
+            "instrument",
+            "a hull that heels with the wind on its beam, and the sounder with it",
+            "roll = -max_deg min(1, (apparent wind / wind_ref)^2) sin(apparent wind angle): to leeward, "
+            "largest on a beam reach, none downwind; the sounder's first return is the bed's nearest "
+            "point inside its cone of beam_deg, so beyond half the beam it reads long "
+            "(forcemap.host.fuse.attitude); the autopilot's ATTITUDE reports the roll",
+            {"max_deg": 25.0, "wind_ref": 6.0, "beam_deg": 10.0},
+        ),
+        EffectSpec(
             "compass_deviation",
             "instrument",
             "uncompensated magnetic deviation",
@@ -97,6 +107,32 @@ CATALOGUE: dict[str, EffectSpec] = {
             "the water surface moves by amplitude_m sin(2 pi (t - mid) / period_s + phase): every sounding is "
             "deeper by the level; phase_deg 0 is mid-tide, rising, at the survey's middle",
             {"amplitude_m": 0.7, "period_s": 44712.0, "phase_deg": 0.0},
+        ),
+        EffectSpec(
+            "tidal_stream",
+            "world",
+            "a tidal stream along the river or estuary",
+            "the current along the channel (the flow direction in a lake) is river x the scenario's own plus "
+            "the astronomical tide at the run's UTC time: amplitude_m_s f cos(V + u - g) for M2 with Greenwich "
+            "phase phase_deg (nodal corrections f, u and argument V of host/vessel/tides.py), plus S2 with "
+            "s2_m_s and s2_phase_deg; river 0 is a stream that reverses at every slack water, river 1 a "
+            "river whose flow the tide modulates",
+            {
+                "amplitude_m_s": 0.8,
+                "phase_deg": 120.0,
+                "s2_m_s": 0.0,
+                "s2_phase_deg": 150.0,
+                "river": 0.0,
+            },
+        ),
+        EffectSpec(
+            "seiche",
+            "world",
+            "a lake's standing wave",
+            "the current along the flow direction (the channel in a river) gains amplitude_m_s "
+            "sin(2 pi t / period_s + phase_deg), t from the run's start: the basin's water sloshing "
+            "from end to end",
+            {"amplitude_m_s": 0.15, "period_s": 4440.0, "phase_deg": 0.0},
         ),
         EffectSpec(
             "stage",

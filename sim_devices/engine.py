@@ -35,7 +35,7 @@ from .jetyak import JETYAK, ROVER_GAINS
 from .machine_emu import PWRON_RESET
 from .mission_link import MissionLink
 from .nmea_bus import BUS_BYTES_PER_S, Motion, NmeaBus, make_bus
-from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Sounder, Uart
+from .nmea_sounder import BAUD_BYTES_PER_S, Garbler, Uart, heel_roll, make_sounder, transducer_tilt
 
 Sink = Callable[[str, int, bytes], Any]
 Progress = Callable[[float, float], Any]
@@ -166,22 +166,11 @@ class Simulation(MissionLink):
         self.autopilot.uplink.accepted = self._mission_items()
         off = self._effect("clock_offset")
         self.mav_latency_ns = int(float(off["offset_s"]) * 1e9) if off else 0
-        snd = tables.get("sounder", {})
-        echoes = [f.rate for f in self.faults if f.kind == "false_echoes"]
-        self.sounder = Sounder(
-            self.seed * 1000 + 7,
-            float(snd.get("offset_m", 0.2)),
-            float(snd.get("noise_m", 0.03)),
-            false_echo_rate=float(snd.get("false_echo_rate", max(echoes, default=0.0))),
-            bottom_lost=next(
-                (
-                    (f.start(self.duration), f.end(self.duration))
-                    for f in self.faults
-                    if f.kind == "bottom_lost"
-                ),
-                None,
-            ),  # fmt: skip
-        )
+        self.sounder = make_sounder(
+            self.seed * 1000 + 7, tables.get("sounder", {}), self.faults, self.duration,
+            self._effect("heel"),
+        )  # fmt: skip
+        self.roll = 0.0
         self.bus: NmeaBus | None = None
         if self.nmea_bus:
             self.bus = make_bus(self.geo, self.seed * 1000 + 13, self.scenario, self.faults)
@@ -292,6 +281,7 @@ class Simulation(MissionLink):
         rel_f, rel_s = rel_e * sp + rel_n * cp, rel_e * cp - rel_n * sp
         truth = self.sensors.truth(s.u, s.v, s.r, rel_f, rel_s)
         heading_deg = math.degrees(s.psi) % 360.0
+        self.roll = heel_roll(self._effect("heel"), truth.app_speed, truth.app_angle)
         if self.instruments:
             self._instruments(t_prev, t_new, truth, sog, heading_deg)
         if self.k % TRUTH_EVERY == 0:
@@ -300,7 +290,7 @@ class Simulation(MissionLink):
                 p.wind_east, p.wind_north, p.current_east, p.current_north, *truth.wheels,
                 truth.app_speed, truth.app_angle,
             ))  # fmt: skip
-            self.extra.append((self.xte, self.nav.legs_done, self.throttle, s.u, s.v))
+            self.extra.append((self.xte, self.nav.legs_done, self.throttle, s.u, s.v, self.roll))
         self._flush(self._ns(t_new))
 
     def _instruments(
@@ -322,7 +312,10 @@ class Simulation(MissionLink):
         self.bridge.advance_to(u1)
         if t_new + 1e-9 >= self.next_sound:
             self.next_sound += 1.0
-            lines = self.sounder.sentences(p.depth, p.water_temp, t_new)
+            tilt = (0.0, 0.0, 0.0)
+            if self.sounder.beam_deg is not None:
+                tilt = transducer_tilt(self.world, s.x, s.y, heading_deg, self.roll)
+            lines = self.sounder.sentences(p.depth, p.water_temp, t_new, tilt)
             if self.garbler is not None:
                 lines = self.garbler.apply(lines)
             data = "".join(x + "\r\n" for x in lines).encode("ascii", "replace")
@@ -340,7 +333,9 @@ class Simulation(MissionLink):
             self.xte,
             self.psi_d,
         )
-        msgs = self.autopilot.messages(nav_state(*nav))
+        state = nav_state(*nav)
+        state.roll_deg = self.roll
+        msgs = self.autopilot.messages(state)
         msgs += self.autopilot.uplink_due(t_new)
         if msgs:
             for t_ns, piece in self.uart_mav.send(self._ns(t_new), b"".join(msgs)):

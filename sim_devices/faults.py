@@ -51,6 +51,8 @@ KINDS: dict[str, str] = {
     "position_jump": "NMEA bus: the GNSS's fixes are 500 km north of the boat from `at` for `for` s",
     "bottom_lost": "the sounder loses the bottom from `at` for `for` s: its returns scatter "
     "from 3 to 70 m",
+    "beyond_range": "the sounder's range is `range` m (default 90) and the sea is rough: where the bed "
+    "is deeper, it loses the bottom and its returns scatter from 3 m to its range",
     "speed_log": "NMEA bus: the speed log reads STW / `gain` (default 1.06) and its axis is turned "
     "`misalign` deg (default 2) clockwise from the compass's: HCHDG reads heading - misalign",
     "dead_log": "NMEA bus: the speed log reads 0.00 kn from `at` for `for` s",
@@ -137,6 +139,7 @@ def parse_one(spec: str) -> Fault:
             "nmea_garbage": "depth",
             "false_echoes": "depth",
             "bottom_lost": "depth",
+            "beyond_range": "depth",
             **dict.fromkeys(BUS_KINDS, "nmea"),
         }.get(kind, "all"),
     )
@@ -153,6 +156,8 @@ def parse_one(spec: str) -> Fault:
         elif k == "cause":
             f.cause = int(v)
         elif k in ("gain", "misalign") and kind == "speed_log":
+            f.params[k] = float(v)
+        elif k == "range" and kind == "beyond_range":
             f.params[k] = float(v)
         else:
             raise ValueError(f"fault {kind} has no parameter {k!r}")

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
 import random
 
 import pynmea2
+from forcemap.host.fuse.attitude import reading_over_slope
 
 BAUD_BYTES_PER_S = 480.0  # 4800 baud, 8N1: ten bits a byte
 LOST_RANGE = (3.0, 70.0)  # m: the returns of a sounder that has lost the bottom
@@ -43,6 +45,8 @@ class Sounder:
         max_range: float = 100.0,
         false_echo_rate: float = 0.0,
         bottom_lost: tuple[float, float] | None = None,
+        beam_deg: float | None = None,
+        rough_range: float | None = None,
     ) -> None:
         self.rng = random.Random(seed)
         self.offset = offset_m
@@ -54,6 +58,12 @@ class Sounder:
         # scatter from LOST_RANGE[0] to LOST_RANGE[1] m from one ping to the next
         self.bottom_lost = bottom_lost
         self.lost_soundings = 0
+        # the beam's full angle: the first return is the bed's nearest point in the cone (None: the
+        # vertical, as a sounder on a level hull over a gentle bed reads)
+        self.beam_deg = beam_deg
+        # beyond this depth below the transducer, in a rough sea, the bottom is lost (None: never)
+        self.rough_range = rough_range
+        self.lost_times: list[float] = []  # s since the run's start, of every sounding lost
 
     def _false_echo(self, depth: float) -> bool:
         """In deep water a weak bottom return loses to a school of fish or the thermocline:
@@ -61,14 +71,30 @@ class Sounder:
         p = self.false_echo_rate * min(max((depth - 40.0) / 30.0, 0.0), 1.0)
         return p > 0 and self.rng.random() < p
 
-    def sentences(self, depth: float, temp: float, t: float = 0.0) -> list[str]:
+    def sentences(
+        self,
+        depth: float,
+        temp: float,
+        t: float = 0.0,
+        tilt: tuple[float, float, float] = (0, 0, 0),
+    ) -> list[str]:
         """DPT, DBT and MTW for the true depth below the surface and the water temperature
-        (``t``: seconds since the run's start, for the bottom lost)."""
-        d = max(depth - self.offset + self.rng.gauss(0.0, self.noise), 0.1)
+        (``t``: seconds since the run's start, for the bottom lost; ``tilt``: the transducer's tilt
+        from the vertical, the bed's slope, both deg, and the lean's direction from down-slope)."""
+        below = depth - self.offset
+        if self.beam_deg is not None:
+            below = reading_over_slope(below, tilt[0], tilt[1], self.beam_deg, tilt[2])
+        d = max(below + self.rng.gauss(0.0, self.noise), 0.1)
         lost = self.bottom_lost
+        beyond = self.rough_range is not None and depth - self.offset > self.rough_range
         if lost is not None and lost[0] <= t < lost[1]:
             self.lost_soundings += 1
+            self.lost_times.append(t)
             d = self.rng.uniform(*LOST_RANGE)
+        elif beyond:
+            self.lost_soundings += 1
+            self.lost_times.append(t)
+            d = self.rng.uniform(LOST_RANGE[0], float(self.rough_range))
         elif self._false_echo(depth):
             self.false_echoes += 1
             d = self.rng.uniform(3.0, 20.0)
@@ -79,6 +105,48 @@ class Sounder:
             ),
             sentence("SD", "MTW", (f"{temp + self.rng.gauss(0.0, 0.05):.1f}", "C")),
         ]
+
+
+def make_sounder(
+    seed: int, table: dict, faults: list, duration: float, heel: dict | None
+) -> Sounder:
+    """The scenario's sounder (its ``[sounder]`` table) with the run's faults (false echoes, the
+    bottom lost, a range in a rough sea) and the `heel` effect's beam."""
+    echoes = [f.rate for f in faults if f.kind == "false_echoes"]
+    rough = [f.params.get("range", 90.0) for f in faults if f.kind == "beyond_range"]
+    lost = [(f.start(duration), f.end(duration)) for f in faults if f.kind == "bottom_lost"]
+    return Sounder(
+        seed,
+        float(table.get("offset_m", 0.2)),
+        float(table.get("noise_m", 0.03)),
+        false_echo_rate=float(table.get("false_echo_rate", max(echoes, default=0.0))),
+        bottom_lost=lost[0] if lost else None,
+        beam_deg=float(heel["beam_deg"]) if heel else None,
+        rough_range=min(rough) if rough else None,
+    )
+
+
+def heel_roll(heel: dict | None, app_speed: float, app_angle: float) -> float:
+    """The hull's roll (deg, starboard down positive) under the `heel` effect's parameters: to
+    leeward, ``-max_deg min(1, (app_speed / wind_ref)^2) sin(app_angle)``; 0 without it."""
+    if heel is None:
+        return 0.0
+    strength = min(1.0, (app_speed / float(heel["wind_ref"])) ** 2)
+    return -float(heel["max_deg"]) * strength * math.sin(math.radians(app_angle))
+
+
+def transducer_tilt(
+    world, x: float, y: float, heading_deg: float, roll: float
+) -> tuple[float, float, float]:
+    """The transducer's tilt (deg), the bed's slope under it (deg) and the lean's direction from the
+    down-slope direction (deg): a hull heeled to starboard points its transducer to port."""
+    h = 1.0
+    gx = (world.depth(x + h, y) - world.depth(x - h, y)) / (2 * h)
+    gy = (world.depth(x, y + h) - world.depth(x, y - h)) / (2 * h)
+    slope = math.degrees(math.atan(math.hypot(gx, gy)))
+    down = math.degrees(math.atan2(gx, gy))  # toward deeper water, compass
+    lean = heading_deg - 90.0 if roll >= 0 else heading_deg + 90.0
+    return (abs(roll), slope, lean - down)
 
 
 class Garbler:

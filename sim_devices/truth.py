@@ -17,14 +17,14 @@ COLUMNS = (
     "t", "x", "y", "lat", "lon", "heading", "yaw_rate", "sog", "cog", "boat_east", "boat_north",
     "depth", "water_temp", "wind_east", "wind_north", "wind_speed", "wind_dir", "current_east",
     "current_north", "current_speed", "current_dir", "wheel1_speed", "wheel2_speed", "wheel3_speed",
-    "wheel4_speed", "app_wind_speed", "app_wind_angle", "water_level",
+    "wheel4_speed", "app_wind_speed", "app_wind_angle", "water_level", "roll",
 )  # fmt: skip
 FORMATS = {"t": "%.3f", "lat": "%.8f", "lon": "%.8f"}
 # the simulation's per-step rows and extras, in order
 TRACK = ("t", "x", "y", "heading", "yaw_rate", "sog", "boat_east", "boat_north", "depth",
          "water_temp", "wind_east", "wind_north", "current_east", "current_north", "wheel1_speed",
          "wheel2_speed", "wheel3_speed", "wheel4_speed", "app_wind_speed", "app_wind_angle")  # fmt: skip
-EXTRA = ("xte", "leg", "throttle", "u", "v")
+EXTRA = ("xte", "leg", "throttle", "u", "v", "roll")
 
 
 def compass(east: np.ndarray, north: np.ndarray) -> np.ndarray:
@@ -149,9 +149,23 @@ def effects_meta(sim: Any) -> dict[str, Any]:
             "sounder_noise_m": sim.sounder.noise,
             "false_echoes": sim.sounder.false_echoes,
             "bottom_lost_soundings": sim.sounder.lost_soundings,
+            "bottom_lost_stretches": _stretches(sim.sounder.lost_times),
+            "sounder_beam_deg": sim.sounder.beam_deg,
+            "sounder_range_m": sim.sounder.rough_range,
             "nmea_bus": sorted(sim.bus_faults) if sim.nmea_bus else None,
         },
     }
+
+
+def _stretches(times: list[float], gap: float = 1.5) -> list[list[float]]:
+    """Runs of soundings (s since the start) no more than ``gap`` apart: [first, last] of each."""
+    out: list[list[float]] = []
+    for t in times:
+        if out and t - out[-1][1] <= gap:
+            out[-1][1] = t
+        else:
+            out.append([t, t])
+    return out
 
 
 def write_mission(folder: Path, mission: ms.Mission, frame: LocalFrame) -> None:

@@ -84,11 +84,13 @@ def test_csv_keeps_order_leaves_out_empty_columns_and_writes_blanks(tmp_path):
             "current_dir",
         )
     ]
-    assert header == expected + ["extra_probe"]  # None throughout and text columns are left out
+    # None throughout and text columns are left out; each sounding's TVU follows (issue 37)
+    assert header == expected + ["extra_probe", "depth_tvu"]
     assert len(rows) == 41
     first = dict(zip(header, rows[1], strict=True))
     assert first["depth"] == "" and float(first["t"]) == T0 and first["extra_probe"] == "1.25"
     assert float(dict(zip(header, rows[10], strict=True))["depth"]) == pytest.approx(2.09)
+    assert first["depth_tvu"] == "" and float(dict(zip(header, rows[10], strict=True))["depth_tvu"]) > 0
 
 
 def test_parquet_has_nulls_and_float_columns(tmp_path):

@@ -17,6 +17,7 @@ import xarray as xr
 from forcemap.host.cli import main
 from forcemap.host.extras import install_hint
 from forcemap.host.gis.grid import cell_of, make_grid, utm_epsg
+from forcemap.host.gis.surface import SURFACE_BANDS
 from forcemap.host.workbench.table import load_survey
 from pyproj import Transformer
 
@@ -58,8 +59,9 @@ def test_geotiff_round_trip_and_cog_profile(fitted):
     survey, fits, out, summary = fitted
     lat, lon = _samples(survey)
     assert summary["crs"] == "EPSG:32732"  # its centre, 6.001 E, is in zone 32 (south)
+    surface = list(SURFACE_BANDS)  # depth's CUBE-like surface beside the GP's bands (issue 37)
     for target, bands in (
-        ("depth", ["mean", "sd", "mean_sd"]),
+        ("depth", ["mean", "sd", "mean_sd"] + surface),
         (
             "current_speed",
             ["east", "north", "east_sd", "north_sd", "speed", "speed_sd", "dir", "speed_mean_sd"],
@@ -68,6 +70,7 @@ def test_geotiff_round_trip_and_cog_profile(fitted):
         with rasterio.open(out / f"{target}.tif") as ds:
             assert ds.crs.to_epsg() == int(summary["crs"].split(":")[1])
             assert list(ds.descriptions) == bands
+            bands = [b for b in bands if b not in surface]
             assert ds.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG"
             assert ds.profile["tiled"] and ds.profile["compress"] == "deflate"
             assert math.isnan(ds.nodata)

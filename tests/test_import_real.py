@@ -1,9 +1,9 @@
-"""Every real capture in ../shared/data/real goes through `forcemap import`; the counts are pinned.
+"""Every real capture in tests/data/real goes through `forcemap import`; the counts are pinned.
 
-The NMEA captures go through the NMEA path and the tlogs through the MAVLink path. One small
-capture, and the first 3000 packets of a tlog, are written to real MCAP and read back; for the
-large files (plaka.log is 4 hours) the command runs the same way but writes to an in-memory counting
-log, to keep the suite fast.
+The NMEA captures go through the NMEA path and the tlogs through the MAVLink path. Each NMEA capture
+is imported once per test run and shared with the other modules that read it (tests/real_cases.py:
+the sfbay log alone takes about 100 s of CPU); its MCAP log is counted from the file's summary. The
+first 3000 packets of a tlog are written to real MCAP and read back.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.convert import importers
 from forcemap.host.convert.importers import import_file, tlog_records, why_no_samples
 from forcemap.host.log.mcap import McapLog, read_messages
 
+from tests.real_cases import topic_counts
 from tests.tools import real_data
 
 REAL = real_data()
@@ -75,7 +75,8 @@ NMEA = {
             "VHW": 150,
             "VTG": 148,
             "ZDA": 154,
-            "other": 1619,
+            "XDR": 148,  # in "other" until the hull's heel and trim were read (issue 37)
+            "other": 1471,
         },
         {},
     ),
@@ -174,9 +175,31 @@ IRENE = {
     ),
 }
 NMEA.update(IRENE)
+# sfbay/PROVENANCE.md, counted the same way; gzipped, read as the file it holds. Rejected by hand: 13,094
+# lines without a checksum (13,091 $PSCI heartbeats, 2 bare "$", 1 cut GLL), 471 with bytes that are
+# not printable ASCII (NULs before a second $, mostly on VTG), 10 "Log created by gybelog" lines and
+# 2 checksums that fail (an MTW, a KIDBT)
+NMEA["swift-day1.nmea.gz"] = (
+    373525,
+    373525,
+    {
+        "DBT": 26497,
+        "GGA": 26500,
+        "GLL": 26500,
+        "GSA": 26500,
+        "HDM": 26498,
+        "MTW": 26494,
+        "RMC": 26502,
+        "VHW": 26501,
+        "VTG": 26064,
+        "VWR": 26494,
+        "other": 95398,  # GSV, RMB, APB, BWR
+    },
+    {"bad_checksum": 2, "no_checksum": 13094, "no_start": 10, "not_ascii": 471},
+)
 NMEA_OPTIONS = {"irene_2013-07-31_flensburg_checksums.nmea": ["--nmea-checksum", "lenient"]}
 # magnetic heading (HDG) and no variation in HDG or RMC: the declination is IGRF-14's, said once
-NO_VARIATION = {n for n in IRENE if "2014" not in n}
+NO_VARIATION = {n for n in IRENE if "2014" not in n} | {"swift-day1.nmea.gz"}
 NO_MEASUREMENTS = "no measurements in this log"
 TLOG = {
     "ardusub_2023-05-04_bluerov_small.tlog": (
@@ -210,7 +233,6 @@ TLOG = {
         NO_MEASUREMENTS,
     ),
 }
-TO_MCAP = {"bundg_zeus_9.log"}
 
 
 class CountingLog:
@@ -232,25 +254,6 @@ class CountingLog:
         pass
 
 
-@pytest.fixture
-def run_import(tmp_path, monkeypatch):
-    logs = []
-
-    def run(name, *extra):
-        if name not in TO_MCAP:
-
-            def fake(out, **kw):
-                logs.append(CountingLog(out))
-                return logs[-1]
-
-            monkeypatch.setattr(importers, "McapLog", fake)
-        path = next(REAL.rglob(name))
-        rc = main(["import", str(path), "-o", str(tmp_path), *extra])
-        return rc, (logs[-1] if logs else None), tmp_path
-
-    return run
-
-
 def test_every_real_file_is_covered():
     """Every data file under tests/data/real, in its folders (nmea/irene/ too), except adcp/: the
     ADCP readers' files, which tests/test_adcp.py::test_every_file_in_the_adcp_folder_is_read covers."""
@@ -265,22 +268,18 @@ def test_every_real_file_is_covered():
 
 
 @pytest.mark.parametrize("name", sorted(NMEA))
-def test_nmea_capture(name, run_import, capsys):
+def test_nmea_capture(name, real_case):
     records, lines, accepted, rejected = NMEA[name]
-    rc, log, out = run_import(name, *NMEA_OPTIONS.get(name, []))
-    text = capsys.readouterr().out
+    built = real_case(next(REAL.rglob(name)).relative_to(REAL).as_posix())
+    assert built.case.checksum == ("lenient" if name in NMEA_OPTIONS else "strict")
+    rc, text = built.import_rc, built.import_text
     assert rc == 0, text
     said = [ln for ln in text.splitlines() if "magnetic heading without variation: IGRF-14" in ln]
     assert len(said) == (name in NO_VARIATION), text
     assert f"{records} lines (nmea)" in text
     assert f"{sum(accepted.values())} accepted {dict(sorted(accepted.items()))}" in text
     assert f"{sum(rejected.values())} rejected {dict(sorted(rejected.items()))}" in text
-    if log is not None:
-        counts = log.counts
-    else:
-        files = list(out.glob("*.mcap"))
-        assert len(files) == 1
-        counts = Counter(m.topic for m in read_messages(files[0]))
+    counts = topic_counts(built.mcap)
     assert counts["/nmea/sentence"] == lines
     assert counts["/fix"] > 0 and counts["/depth"] > 0
 
@@ -317,6 +316,49 @@ def test_dataflash_without_gps_says_so_in_one_line(tmp_path, capsys):
     res = import_file(path, log)
     assert res.format == "dataflash" and res.records == 7510  # as PROVENANCE.md counts them
     assert log.counts["/dataflash/ATT"] == 237 and log.counts["/fix"] == 0
+
+
+def _gzip(src: Path, out: Path, keep: float = 1.0) -> Path:
+    import gzip
+
+    data = gzip.compress(src.read_bytes(), mtime=0)
+    out.write_bytes(data[: int(len(data) * keep)])
+    return out
+
+
+def test_a_gzipped_capture_imports_as_the_file_it_holds(tmp_path):
+    """Read through one streamed gunzip (forcemap.host.convert.capture_file): the same lines, the
+    same counts and rows as the plain file, whatever its name."""
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    plain, gz = CountingLog(), CountingLog()
+    a = import_file(src, plain)
+    b = import_file(_gzip(src, tmp_path / "capture.dat"), gz)
+    assert b.format == "nmea" and b.records == a.records == NMEA[src.name][0]
+    assert b.counters["nmea"] == a.counters["nmea"] and gz.counts == plain.counts
+    assert gz.counts["/samples"] > 100
+
+
+def test_a_gzipped_capture_cut_short_gives_what_it_holds_and_says_so(tmp_path, capsys):
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    cut = _gzip(src, tmp_path / "cut.log.gz", keep=0.6)
+    assert main(["import", str(cut), "-o", str(tmp_path / "cut.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "the gzip stream ends early" in out, out
+    n = int(out.split(": ", 1)[1].split(" lines", 1)[0])
+    assert 0.3 * NMEA[src.name][0] < n < NMEA[src.name][0]  # about 60 % of the file's lines
+
+
+def test_a_damaged_or_unsupported_gzip_is_one_line(tmp_path, capsys):
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    bad = bytearray(_gzip(src, tmp_path / "x.gz").read_bytes())
+    bad[len(bad) // 2 : len(bad) // 2 + 64] = bytes(64)
+    (tmp_path / "bad.log.gz").write_bytes(bytes(bad))
+    dataflash = _gzip(REAL / "mavlink" / "ardusub_4.1_bluerov_small.BIN", tmp_path / "a.BIN.gz")
+    for path, says in ((tmp_path / "bad.log.gz", "damaged gzip data"), (dataflash, "gunzip")):
+        assert main(["import", str(path), "-o", str(tmp_path / "o.mcap")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "o.mcap").exists()
 
 
 def test_bad_inputs_are_one_line_errors(tmp_path, capsys):

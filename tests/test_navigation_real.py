@@ -1,7 +1,8 @@
 """Navigation smoothed on every real NMEA log that imports (issue 29): no row lost, and positions that
 agree with the receiver's own speed over ground.
 
-Two properties per log, each checked by hand on the logs:
+Two properties per log, each checked by hand on the logs (each imported once per run, without
+calibration, and shared: tests/real_cases.py):
 - every row the pipeline made is still there, at the same time, with every column it had;
 - the speed from successive rows agrees with the receiver's own SOG (its raw readings, not the
   table's) within 0.5 m/s at p95, the SOG taken at the lag the smoother measured for it against
@@ -24,7 +25,6 @@ import pytest
 from forcemap.host.convert import nav_readings
 from forcemap.host.convert import navigation_table as nt
 from forcemap.host.convert.export import samples_table
-from forcemap.host.convert.importers import import_to_mcap
 from forcemap.host.vessel.geodesy import LocalFrame
 
 from tests.tools import real_data
@@ -39,6 +39,7 @@ LOGS = {
     "nmea/irene/irene_2013-07-31_flensburg_checksums.nmea": "lenient",  # its checksum variant
     "nmea/irene/irene_2013-08-03_flensburg.nmea": "strict",
     "nmea/irene/irene_2014-06-27_geneva.nmea": "strict",
+    "nmea/sfbay/swift-day1.nmea.gz": "strict",  # 7.4 h, gzipped
 }
 MAX_MISMATCH = 0.5  # m/s at p95 (issue 29)
 MIN_SPAN_S = 1.0  # speed over rows at least this far apart
@@ -88,9 +89,10 @@ def against_sog(cols: dict[str, np.ndarray], t_sog, sog, lag: float | None) -> f
 
 
 @pytest.mark.parametrize("name", LOGS)
-def test_real_log_smoothed(name, tmp_path):
-    out = tmp_path / "log.mcap"
-    import_to_mcap(REAL / name, out, nmea_checksum=LOGS[name])
+def test_real_log_smoothed(name, real_case):
+    built = real_case(name)
+    assert built.case.checksum == LOGS[name]
+    out = built.uncalibrated()  # the run's one import of it as the instruments read it
     logged = samples_table([out], navigation="logged")
     smoothed = samples_table([out])
     lc, sc = _columns(logged), _columns(smoothed)

@@ -68,6 +68,8 @@ def test_samples_are_table_rows(survey):
     r = rows[len(rows) // 2]
     from_elsewhere = {"stw", "current_speed_stw", "current_dir_stw"}
     from_elsewhere |= {"wind_speed_instrument", "wind_dir_instrument"}
+    # no beam angle in the boat file (no tilt correction, no raw reading kept); no bottom lost
+    from_elsewhere |= {"depth_raw", "bottom_lost"}
     assert all(r[k] is not None for k in SAMPLE_COLUMNS if k not in from_elsewhere), r
     assert all(r[k] is None for k in from_elsewhere), r  # empty, not zero: no log, no wind sensor
     assert 0 <= r["heading"] < 360 and 0 <= r["wind_dir"] < 360 and 0 <= r["current_dir"] < 360

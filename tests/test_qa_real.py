@@ -13,9 +13,10 @@ import pytest
 from forcemap.host.cli import main
 from forcemap.host.fuse import redundancy as rd
 
+from tests.real_cases import topic_counts
 from tests.tools import real_data
 
-NMEA = ("nmea/*.log", "nmea/*.txt", "nmea/irene/*.nmea")
+NMEA = ("nmea/*.log", "nmea/*.txt", "nmea/irene/*.nmea", "nmea/sfbay/*.nmea.gz")
 MAVLINK = ("mavlink/*.tlog", "mavlink/*.BIN")
 LOGS = sorted(
     p.relative_to(real_data()).as_posix() for g in NMEA + MAVLINK for p in real_data().glob(g)
@@ -58,20 +59,28 @@ LAKES = ("nmea/irene/irene_2008-08-20_geneva.nmea", "nmea/irene/irene_2014-06-27
 _DONE: dict[str, dict] = {}
 
 
-def _run(log: str, tmp_path_factory) -> dict:
-    """import -> export -> check (on the MCAP and on the CSV), once per log."""
+def _run(log: str, tmp_path_factory, real_case) -> dict:
+    """import -> export -> check (on the MCAP and on the CSV), once per log; an NMEA log's import
+    and export are the run's shared ones (tests/real_cases.py)."""
     if log in _DONE:
         return _DONE[log]
     d = tmp_path_factory.mktemp(log.replace("/", "_").replace(".", "_"))
     src = real_data() / log
-    lenient = ["--nmea-checksum", "lenient"] if log == CHECKSUMS else []
-    out: dict = {"import": main(["import", str(src), "-o", str(d / "log.mcap"), *lenient])}
+    if log.startswith("nmea/"):
+        built = real_case(log)
+        out: dict = {"import": built.import_rc}
+        mcap, csv_path = built.mcap, built.csv
+    else:
+        out = {"import": main(["import", str(src), "-o", str(d / "log.mcap")])}
+        mcap, csv_path = d / "log.mcap", d / "log.csv"
+        if out["import"] == 0:
+            assert main(["export", str(mcap), "-o", str(csv_path)]) == 0
     if out["import"] == 0:
-        assert main(["export", str(d / "log.mcap"), "-o", str(d / "log.csv")]) == 0
-        for kind, path in (("mcap", d / "log.mcap"), ("csv", d / "log.csv")):
+        for kind, path in (("mcap", mcap), ("csv", csv_path)):
             assert main(["check", str(path), "--json", str(d / f"{kind}.json")]) == 0
             out[kind] = json.loads((d / f"{kind}.json").read_text())
-        out["csv_path"] = d / "log.csv"
+        out["csv_path"] = csv_path
+        out["built"] = built if log.startswith("nmea/") else None
     else:  # check grades a raw capture that gives no samples, never refuses it
         assert main(["check", str(src), "--json", str(d / "raw.json")]) == 0
         out["raw"] = json.loads((d / "raw.json").read_text())
@@ -95,12 +104,12 @@ def _columns(path) -> dict[str, np.ndarray]:
 
 
 def test_the_corpus_is_all_there():
-    assert len(LOGS) == 12 and CHECKSUMS in LOGS
+    assert len(LOGS) == 13 and CHECKSUMS in LOGS and "nmea/sfbay/swift-day1.nmea.gz" in LOGS
 
 
 @pytest.mark.parametrize("log", LOGS)
-def test_import_export_and_check_run(log, tmp_path_factory):
-    out = _run(log, tmp_path_factory)
+def test_import_export_and_check_run(log, tmp_path_factory, real_case):
+    out = _run(log, tmp_path_factory, real_case)
     if log in NO_SAMPLES:
         assert out["import"] == 2
         rep = out["raw"]
@@ -118,16 +127,16 @@ def test_import_export_and_check_run(log, tmp_path_factory):
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_positions_agree_with_sog(log, tmp_path_factory):
-    rep = _run(log, tmp_path_factory)["mcap"]
+def test_positions_agree_with_sog(log, tmp_path_factory, real_case):
+    rep = _run(log, tmp_path_factory, real_case)["mcap"]
     f = _finding(rep, "position", "vs_sog")
     # the displacement between fixes over 30 s is the integrated ground velocity, within 2 %
     assert abs(f["value"] - 1) < 0.02, f["message"]
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_heading_change_agrees_with_the_rate_of_turn(log, tmp_path_factory):
-    rep = _run(log, tmp_path_factory)["mcap"]
+def test_heading_change_agrees_with_the_rate_of_turn(log, tmp_path_factory, real_case):
+    rep = _run(log, tmp_path_factory, real_case)["mcap"]
     f = _finding(rep, "rate_of_turn", "unit")
     if f is None:  # no heading, or never turned (bundg: 2.5 min on one course)
         assert rep["categories"]["heading"]["verdict"] == "red" or _finding(
@@ -157,8 +166,10 @@ def test_mavlink_attitude_yaw_change_agrees_with_its_yaw_rate(log):
 
 
 @pytest.mark.parametrize("log", LAKES)
-def test_a_lake_has_no_current_after_calibration_or_check_says_why(log, tmp_path_factory):
-    rep = _run(log, tmp_path_factory)["mcap"]
+def test_a_lake_has_no_current_after_calibration_or_check_says_why(
+    log, tmp_path_factory, real_case
+):
+    rep = _run(log, tmp_path_factory, real_case)["mcap"]
     f = _finding(rep, "speed_through_water", "current_mean")
     if f["value"] >= 0.1:  # not still water as measured: check says so, and says why it may be
         assert f["verdict"] != "green" and "leeway" in f["fix"], f
@@ -168,24 +179,26 @@ def test_a_lake_has_no_current_after_calibration_or_check_says_why(log, tmp_path
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_no_row_is_lost_to_calibration(log, tmp_path_factory):
+def test_no_row_is_lost_to_calibration(log, tmp_path_factory, real_case):
     from forcemap.host.convert.importers import import_file
     from forcemap.host.convert.self_calibration import SamplesSink
 
-    out = _run(log, tmp_path_factory)
+    out = _run(log, tmp_path_factory, real_case)
     n = len(_columns(out["csv_path"])["t"])
     assert n == out["mcap"]["rows"]
     applied = [f for c in out["mcap"]["categories"].values() for f in c["findings"] if f["applied"]]
     if applied:  # the instruments as read give the same rows as the calibrated import
+        if out["built"] is not None:  # the run's shared import without calibration
+            assert topic_counts(out["built"].uncalibrated())["/samples"] == n
+            return
         raw = SamplesSink()
-        lenient = "lenient" if log == CHECKSUMS else "strict"
-        import_file(real_data() / log, raw, nmea_checksum=lenient)
+        import_file(real_data() / log, raw)
         assert len(raw.rows) == n
 
 
 @pytest.mark.parametrize("log", [g for g in LOGS if g not in NO_SAMPLES])
-def test_depth_is_continuous_where_check_says_so(log, tmp_path_factory):
-    out = _run(log, tmp_path_factory)
+def test_depth_is_continuous_where_check_says_so(log, tmp_path_factory, real_case):
+    out = _run(log, tmp_path_factory, real_case)
     f = _finding(out["mcap"], "depth", "continuity")
     if f is None:
         return
@@ -210,9 +223,9 @@ def test_a_checksum_variant_is_named_when_it_is_not_accepted(tmp_path):
     assert rep["rows"] == 0 and "address only" in why and "--nmea-checksum lenient" in why, why
 
 
-def test_a_table_is_checked_without_being_changed(tmp_path_factory):
+def test_a_table_is_checked_without_being_changed(tmp_path_factory, real_case):
     log = "nmea/irene/irene_2014-06-27_geneva.nmea"
-    out = _run(log, tmp_path_factory)
+    out = _run(log, tmp_path_factory, real_case)
     before = out["csv_path"].read_bytes()
     gain = _finding(out["csv"], "speed_through_water", "gain")
     # the CSV holds the calibrated STW: its own estimate is near 1, and never marked applied

@@ -15,7 +15,8 @@ from forcemap.sim_devices.fields import World
 
 EFFECT_NAMES = [
     "depth_current", "dam_release", "gusts", "bank_shelter",
-    "wheel_misalignment", "anemometer_upwash", "compass_deviation", "clock_offset", "tide", "stage",
+    "wheel_misalignment", "anemometer_upwash", "heel", "compass_deviation", "clock_offset", "tide",
+    "tidal_stream", "seiche", "stage",
 ]  # fmt: skip
 
 

@@ -1,5 +1,5 @@
 """False echoes as the local majority (issue 20): depth's spike reference is the seabed's continuous
-path along the track (forcemap.host.workbench.seabed), not a running median that follows the echoes
+path along the track (forcemap.host.fuse.seabed), not a running median that follows the echoes
 where they outnumber the bottom. Known truth: bench.synth_survey's echo rows, and the simulator's
 deep basin where every sounding of 3-20 m is an echo."""
 
@@ -11,9 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from forcemap.host.fuse.bottom_lost import running
+from forcemap.host.fuse.seabed import seabed_path
 from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.seabed import seabed_path
-from forcemap.host.workbench.spikes import WINDOW, _running, find_spikes
+from forcemap.host.workbench.spikes import WINDOW, find_spikes
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.targets import SurveyModel
 
@@ -50,7 +51,7 @@ def test_echoes_that_outnumber_the_seabed_are_flagged_and_the_map_is_the_sounder
     # the setting: in the stretch the echoes are the majority, and so the 9-sounding median
     # is an echo (shallower than 30 m) for most of its soundings
     assert truth[lo:hi].mean() > 0.55
-    median = _running(survey.columns["depth"], WINDOW, np.nanmedian)
+    median = running(survey.columns["depth"], WINDOW, np.nanmedian)
     assert (median[lo:hi] < 30.0).mean() > 0.5
     with small_blas():
         sm = SurveyModel(survey, "depth").fit()

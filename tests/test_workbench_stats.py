@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from forcemap.host.workbench import evidence, fourier
+from forcemap.host.workbench import evidence, fourier, nufft
 from forcemap.host.workbench.model import Model, basis_stats, fixed_basis
 from forcemap.host.workbench.terms import HilbertGPTerm
 
@@ -38,9 +38,14 @@ def test_cosine_tables_equal_the_direct_products(field, dims, n_basis):
     np.testing.assert_allclose(table, direct, rtol=1e-10, atol=1e-12 * direct.max())
     # the linear forms (a mean, covariances) from sine tables, and the cosines of `waves` as the Gram's
     W = rng.standard_normal((n_basis, 3))
-    waves = fourier.waves(term, Z)
-    lin = fourier.linear_form(term, Z, fourier.linear_table(term, W), waves)
+    lin = fourier.linear_form(term, Z, fourier.linear_table(term, W), fourier.waves(term, Z))
     np.testing.assert_allclose(lin, F @ W, rtol=0, atol=1e-12 * np.abs(F @ W).max())
+    with nufft.direct():  # the tables themselves, as without finufft
+        waves = fourier.waves(term, Z)
+        lin = fourier.linear_form(term, Z, fourier.linear_table(term, W), waves)
+        np.testing.assert_allclose(lin, F @ W, rtol=0, atol=1e-12 * np.abs(F @ W).max())
+        table = fourier.quadratic_form(term, Z, fourier.variance_table(term, C), waves)
+        np.testing.assert_allclose(table, direct, rtol=1e-10, atol=1e-12 * direct.max())
     for got, want in zip(waves[0], fourier._cosines(term, Z), strict=True):
         assert got.shape == want.shape and np.abs(got - want).max() < 1e-13
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from forcemap.host.cli.at_option import add_at, at_time
 from forcemap.host.cli.common import (
     add_effects,
     add_json,
@@ -33,10 +34,15 @@ examples:
   forcemap fit survey.csv --target current_speed --effects "power(depth),t"
   forcemap fit survey.csv --target wind_dir --effects heading --json fit.json
   forcemap fit survey.parquet --target depth --model spec.toml
+  forcemap fit survey.csv --target current_speed --effects tide --at 2026-06-02T14:00Z
 
 terms: gp(INPUTS, KERNEL) with kernel linear, rbf, matern12, matern32, matern52 or periodic (angles);
   linear(COV); power(COV) = a*COV^b; cos(ANGLE) = a*cos(ANGLE-phase); user(COV, module:function).
   A bare name is its default term: gp(NAME, periodic) for an angle, gp(NAME, matern32) otherwise.
+  tide: tidal constituents chosen by the Rayleigh criterion for the record's span (tide(M2, K1): those;
+  tide(position): varying over the survey), with nodal corrections: amplitudes and Greenwich phases with
+  their sd, a vector's tidal ellipses; it predicts at any time (--at). seiche: a cos/sin pair at a period
+  estimated from the data (recorded as seiche(4436 s)); seiche(74 min) a given one.
   clock_offset (wind and current) re-references the vector with the heading and ground velocity shifted by the
   offset that makes it steadiest in turns; clock_offset(+1.5 s) uses a given offset.
 spec.toml:  terms = ["const", "gp(position, matern32)", "user(depth, mylaws:manning)"]
@@ -64,6 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="blocked",
         help="CV folds (default blocked)",
     )
+    add_at(parser, "also predict the target at this time over the surveyed places")
     add_json(parser)
     parser.add_argument("--no-plots", action="store_true", help="do not write residual plots")
     add_quiet(parser)
@@ -81,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
     terms, target = resolve_terms(args.model, args.effects, args.target)
     target = require_target(target)
     check_terms(terms)
+    at = at_time(args)
     check_json_output(args)
     ws = prepare_workspace(args)
     survey = Survey(load_table(args))
@@ -89,15 +97,55 @@ def run(args: argparse.Namespace) -> int:
     )
     result, entry = fit.result_, fit.entry_
     print_notes(survey.table)
-    write_json(args.json, result.to_json())
+    report = result.to_json()
+    if at is not None:
+        report["at"] = prediction_at(fit, at)
+    write_json(args.json, report)
     out = human(args)
     from forcemap.host.qa.report import check_table, summary
 
     for line in summary(check_table(args.table).findings):  # `forcemap check` has the whole report
         print(line, file=out)
     print(result.summary(), file=out)
+    if at is not None:
+        print(prediction_line(report["at"]), file=out)
     if not args.no_plots:
         for p in save_residual_plots(args.table, result, entry["fit"]):
             print(f"wrote {p}", file=out)
     print(f"saved fit {entry['fit']} in {ws}", file=out)
     return 0
+
+
+def prediction_at(fit, at: float, most: int = 2000) -> dict:
+    """The fitted target at UNIX time `at` over the survey's own places (at most `most` of them): its mean,
+    range and mean predictive sd there, and what the time terms do at that time."""
+    import numpy as np
+    from forcemap.host.workbench.time_terms import iso, notes_at
+
+    s = fit.model_.survey
+    idx = np.unique(np.linspace(0, s.n - 1, min(most, s.n)).astype(int))
+    pred = fit.model_.predict_grid(s.xy[idx], at)
+    mean = pred["mean"]
+    return {
+        "target": fit.target,
+        "time": iso(at),
+        "unix_s": at,
+        "places": len(idx),
+        "mean": float(np.mean(mean)),
+        "min": float(np.min(mean)),
+        "max": float(np.max(mean)),
+        "sd": float(np.mean(pred["std"])),
+        "notes": notes_at(fit.model_.primary, s, at),
+    }
+
+
+def prediction_line(p: dict) -> str:
+    """`prediction_at` in words, with its notes."""
+    from forcemap.host.workbench.table import unit_of
+
+    unit = f" {u}" if (u := unit_of(p["target"])) else ""
+    head = (
+        f"at {p['time']}: {p['target']} over the {p['places']} surveyed places {p['mean']:.4g}{unit} "
+        f"on average ({p['min']:.4g} to {p['max']:.4g}; predictive sd {p['sd']:.3g}{unit})"
+    )
+    return "\n".join([head] + [f"  {n}" for n in p["notes"]])

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from forcemap.host.cli.at_option import add_at, at_time
 from forcemap.host.cli.common import (
     add_json,
     add_keep_outliers,
@@ -79,6 +80,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="leave cells empty farther than this from every sample (default: 8 %% of the survey's "
         "larger side, at least 10 m)",
     )
+    add_at(parser, "the time the maps are for (the NetCDF's time, the GeoTIFF's time tag)")
     add_json(parser, "the grid and the files")
     add_quiet(parser)
     add_keep_outliers(parser)
@@ -132,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
     if args.mask_distance is not None:
         positive("--mask-distance", args.mask_distance)
     check_json_output(args)
+    at_time(args)  # a bad --at is refused before any fit
     prepare_workspace(args)
     out = Path(args.output)
     if not out.suffix and out.exists() and not out.is_dir():
@@ -163,7 +166,7 @@ def _run(args: argparse.Namespace, out: Path) -> int:
     with small_blas():
         fits, skipped = _latest_fits(survey, targets, progress)
         note(f"gridding at {args.resolution:g} m ...", progress)
-        grid = survey.grid(fits, args.resolution, args.mask_distance)
+        grid = survey.grid(fits, args.resolution, args.mask_distance, at_time(args))
     print_notes(survey.table)
     for t, why in skipped.items():
         print(f"note: skipped {t}: {why}; the other maps are written", file=sys.stderr)
@@ -186,7 +189,8 @@ def _run(args: argparse.Namespace, out: Path) -> int:
     out = human(args)
     print(
         f"{grid.zone_name} (EPSG:{grid.epsg}), {grid.nx} x {grid.ny} cells of {grid.resolution:g} m, "
-        f"{int(grid.mask.sum())} mapped",
+        f"{int(grid.mask.sum())} mapped, at {grid.time_iso()}"
+        + ("" if grid.at is not None else " (the survey's mid-time; --at for another)"),
         file=out,
     )
     for t, layer in grid.layers.items():
@@ -228,6 +232,7 @@ def _summary(grid, written: list[Path], skipped: dict[str, str]) -> dict:
         "shape": [grid.ny, grid.nx],
         "mapped_cells": int(grid.mask.sum()),
         "mask_distance_m": grid.max_distance,
+        "time": grid.time_iso(),
         "targets": {t: " + ".join(layer.terms) for t, layer in grid.layers.items()},
         "coverage95": {
             t: layer.calibration.to_json()

@@ -22,6 +22,7 @@ from forcemap.host.outputs import check_output
 EPILOG = """\
 examples:
   forcemap import capture.nmea                 # -> capture.mcap beside it
+  forcemap import race.nmea.gz -o race.mcap    # gzipped: read as the file it holds
   forcemap import flight.tlog -o logs/         # -> logs/flight.mcap
   forcemap import capture.txt --from nmea -o survey.mcap --boat boat.toml
   forcemap import transect.PD0 --reference gps # a moving-boat ADCP (the [adcp] extra)
@@ -45,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "file",
         metavar="FILE",
         help="NMEA 0183 capture (text), MAVLink telemetry log (.tlog), DataFlash log (.BIN) or "
-        "TRDI PD0 ADCP file",
+        "TRDI PD0 ADCP file; a capture or tlog may be gzipped (capture.nmea.gz)",
     )
     add_output(
         parser,

@@ -37,6 +37,10 @@ examples:
   forcemap plan survey.csv --mission survey.plan -o planned           # QGC .plan: also planned.plan
   forcemap plan logs/run-1.mcap --mission my.toml --boat boat.toml -o planned --json -
   forcemap plan survey.csv --mission survey.waypoints -o planned --upload /dev/ttyACM0,115200
+  forcemap plan survey.csv --mission survey.waypoints -o planned --start 2026-06-02T23:00Z
+
+--start (default now) is when the mission is flown: a current fitted with a tide or a seiche term
+(`forcemap fit --effects tide`) is predicted for when the boat will be on each line.
 
 writes PLANNED.waypoints (QGC WPL 110: load it in Mission Planner or QGroundControl), PLANNED.toml
 (`forcemap sim --mission PLANNED.toml`) and PLANNED.json (waypoints, intended lines, the prediction);
@@ -80,9 +84,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a `forcemap season` of this river: say how old the map is and what that costs",
     )
     parser.add_argument(
+        "--start",
         "--at",
-        metavar="YYYY-MM-DD",
-        help="when the mission will be flown, for the map's age (default: now)",
+        dest="start",
+        metavar="TIME",
+        help="when the mission starts: ISO 8601 with its zone (2026-06-02T14:00Z), UNIX time, "
+        "a date (its 00:00 UTC) or now (the default: a mission flown as soon as it is uploaded). A "
+        "current with a tide or a seiche term is predicted for when the boat is on each line; "
+        "with --season, the map's age is counted to it",
     )
     add_keep_outliers(parser)
 
@@ -123,24 +132,38 @@ def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
             print(f"the {what} mission makes no headway toward waypoint {tr.stuck_at}")
 
 
+def mission_start(args: argparse.Namespace) -> float:
+    """--start as UNIX seconds (now by default); a bad one is one line and exit 2."""
+    from forcemap.host.workbench.at_time import parse_at
+
+    return parse_at(args.start or "now", "--start")
+
+
 def map_age_note(args: argparse.Namespace, map_time: float) -> str:
     """`--season`: how old the map is when the mission is flown, and how fast maps age on this river."""
-    import calendar
 
     from forcemap.host.errors import CliError
     from forcemap.host.season.staleness import plan_note
     from forcemap.host.workbench.errors import WorkbenchError
 
-    at = time.time()
-    if args.at:
-        try:
-            at = float(calendar.timegm(time.strptime(args.at, "%Y-%m-%d")))
-        except ValueError:
-            raise CliError(f"--at {args.at}: give a date as YYYY-MM-DD") from None
     try:
-        return plan_note(args.season, map_time, at)
+        return plan_note(args.season, map_time, mission_start(args))
     except WorkbenchError as e:
         raise CliError(str(e)) from None
+
+
+def adjusting(progress: bool):  # type: ignore[no-untyped-def]
+    """The adjuster's progress callback: one line per prediction, with the time so far."""
+    t0 = time.perf_counter()
+
+    def step(i: int, n: int) -> None:
+        if progress:
+            print(
+                f"adjusting: prediction {i} of {n} ({time.perf_counter() - t0:.1f} s)",
+                file=sys.stderr,
+            )
+
+    return step
 
 
 def run(args: argparse.Namespace) -> int:
@@ -150,10 +173,12 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.plan.maps import survey_maps
     from forcemap.host.plan.mission_io import output_paths, read_mission, write_outputs
     from forcemap.host.plan.planner import plan_mission
+    from forcemap.host.plan.predict import longest_s
     from forcemap.host.plan.workspace_io import save_plan
     from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.errors import WorkbenchError
     from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.time_terms import iso
 
     progress = not args.quiet
     if args.output.is_dir():  # a folder: the three files named like the mission
@@ -166,6 +191,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.table.exists():
         raise CliError(f"no such table {args.table}")
     boat = load_boat(args.boat)
+    start = mission_start(args)
     mission = read_mission(args.mission, args.scenario)
     try:
         survey = load_survey(args.table, keep_outliers=args.keep_outliers)
@@ -174,27 +200,20 @@ def run(args: argparse.Namespace) -> int:
         wps = frame.points_to_local(mission.latlon)
         lines = frame.points_to_local(mission.lines_latlon)
         lo, hi = wps.min(axis=0) - MARGIN_M, wps.max(axis=0) + MARGIN_M
-        maps = survey_maps(args.table, survey, (lo[0], hi[0], lo[1], hi[1]), progress)
+        span = 1.5 * longest_s(wps, boat)  # run-ins and overruns lengthen the adjusted mission
+        maps = survey_maps(args.table, survey, (lo[0], hi[0], lo[1], hi[1]), progress, start, span)
     except WorkbenchError as e:
         raise CliError(str(e)) from e
     for n in maps.notes:
         print(f"note: {n}", file=sys.stderr)
-    t0 = time.perf_counter()
-
-    def step(i: int, n: int) -> None:
-        if progress:
-            print(
-                f"adjusting: prediction {i} of {n} ({time.perf_counter() - t0:.1f} s)",
-                file=sys.stderr,
-            )
-
-    result = plan_mission(wps, mission.speeds, lines, maps, boat, step)
+    result = plan_mission(wps, mission.speeds, lines, maps, boat, adjusting(progress))
     out = human(args)
-    print(f"boat: {boat.describe()}", file=out)
+    print(f"boat: {boat.describe()}\nmission start: {iso(start)}", file=out)
     if age_note:
         print(age_note, file=out)
     print_table(result, out)
     report = result.to_json()
+    report["start"] = iso(start)
     if age_note:
         report["map_age"] = age_note
     plan = result.planned.plan

@@ -27,6 +27,13 @@ def add_replan_arguments(parser: argparse.ArgumentParser) -> None:
         "it when it is predicted to hold the lines better (needs --mavlink; docs/PLAN.md)",
     )
     parser.add_argument(
+        "--replan-terms",
+        metavar="TERMS",
+        help="with --replan: the refit's terms beyond the baseline, comma-separated (e.g. tide: the "
+        "rest of the mission is planned in the current the tide will bring when the boat is on each "
+        "line; default none: the mapped current so far)",
+    )
+    parser.add_argument(
         "--replan-bound",
         type=float,
         default=30.0,
@@ -64,6 +71,12 @@ def replan_service(args: argparse.Namespace) -> Any:
             "--replan needs --mavlink: the autopilot to read the mission from and upload to"
         )
     positive("--replan-bound", args.replan_bound)
+    from forcemap.host.workbench.spec import BASELINE, check_terms, split_effects
+
+    terms = None
+    if getattr(args, "replan_terms", None):
+        terms = list(BASELINE) + [t for t in split_effects(args.replan_terms) if t not in BASELINE]
+        check_terms(terms)
     from forcemap.host.plan.boat_model import load_boat
     from forcemap.host.plan.mission_io import read_mission
     from forcemap.host.plan.service import ReplanService
@@ -84,6 +97,8 @@ def replan_service(args: argparse.Namespace) -> Any:
         if d is not None:
             d.post("/daemon/event", DaemonEvent("replan", {"message": text}))
 
-    svc = ReplanService(mission, load_boat(None), send, record, log, bound_m=args.replan_bound)
+    svc = ReplanService(
+        mission, load_boat(None), send, record, log, bound_m=args.replan_bound, terms=terms
+    )
     svc.box = box  # type: ignore[attr-defined]
     return svc

@@ -2,7 +2,7 @@
 
 Read with pymavlink's ``DFReader``. Values are taken in the log's own units: the format's built-in
 scales (``c``, ``C``, ``e``, ``E``, ``L``) are applied by DFReader, and a field's FMTU multiplier
-(from MULT) where the format has none. Used: GPS (position, ground speed and course), ATT (yaw),
+(from MULT) where the format has none. Used: GPS (position, ground speed and course), ATT (yaw; roll and pitch),
 RFND (echo sounder, distance below the transducer), WNDV (a sailboat's wind vane: its true wind,
 ``DrTru``/``SpdTru``). Every record is also logged raw on ``/dataflash/<NAME>``. Times are the
 log's GPS-based UTC when it has GPS, else seconds since boot.
@@ -84,7 +84,8 @@ class DataflashDecoder:
             gps = {"fix_type": int(m.Status), "lat": lat, "lon": lon, "alt": alt, "eph": None}
             return "GPS_RAW_INT", gps | {"sog": v(m, "Spd"), "cog": v(m, "GCrs")}
         if ty == "ATT":
-            return "ATTITUDE", {"heading": v(m, "Yaw") % 360.0, "yaw_rate": None}
+            att = {"roll_deg": v(m, "Roll"), "pitch_deg": v(m, "Pitch")}
+            return "ATTITUDE", {"heading": v(m, "Yaw") % 360.0, "yaw_rate": None, **att}
         if ty == "RFND":
             orient = int(getattr(m, "Orient", RFND_DOWNWARD))
             if orient != RFND_DOWNWARD:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, TextIO
 from xml.sax.saxutils import escape
 
+import numpy as np
 from forcemap.host.errors import CliError
 from forcemap.host.log.mcap import MCAP_MAGIC, FileScan, read_messages
 from forcemap.host.log.messages import SAMPLE_COLUMNS
@@ -158,10 +159,42 @@ def samples_table(
     keep = [c for c in candidates if c == "t" or any(_number(r.get(c)) is not None for r in unique)]
     rows = [[_number(r.get(c)) for c in keep] for r in unique]
     if not smooth or not rows:
-        return Table(keep, rows, cuts)
+        return with_tvu(Table(keep, rows, cuts), paths)
     remove = remove_latency if remove_latency is not None else settings[1] != "keep"
     columns, rows, _ = nt.smooth(keep, rows, paths, nav_messages, remove_latency=remove)
-    return Table(columns, rows, cuts)
+    return with_tvu(Table(columns, rows, cuts), paths)
+
+
+def with_tvu(table: Table, paths: Sequence[str | os.PathLike[str]]) -> Table:
+    """The table with each sounding's TVU, ``depth_tvu`` (m, 95 %; forcemap.host.fuse.tvu): the log's
+    sounder (boat.toml [sounder]) and measured position noise; empty where the bottom was lost."""
+    if "depth" not in table.columns or not len(table):
+        return table
+    from forcemap.host.convert.depth_findings import local_xy
+    from forcemap.host.convert.nav_findings import log_findings
+    from forcemap.host.convert.navigation_table import log_metadata
+    from forcemap.host.fuse import tvu
+
+    def col(name: str) -> np.ndarray | None:
+        if name not in table.columns:
+            return None
+        return np.array([np.nan if v is None else v for v in table.column(name)], float)
+
+    cal = log_metadata(paths, "calibration")
+    pos = log_metadata(paths, "columns").get("lat", "").split(";")[0].strip()
+    sd, _ = tvu.position_sd(log_findings(paths, compute=False), pos)
+    offset = _number(cal.get("depth_offset_m")) or 0.0
+    depth, lost = col("depth"), col("bottom_lost")
+    xy = local_xy(col("lat"), col("lon"))  # type: ignore[arg-type]
+    u = tvu.table_tvu(
+        depth, xy, tvu.spec_of(cal), col("depth_raw"), col("roll"), col("pitch"), sd, 0.0, offset
+    ).tvu  # type: ignore[arg-type]
+    if lost is not None:
+        u[np.nan_to_num(lost) > 0] = np.nan
+    table.columns.append("depth_tvu")
+    for row, value in zip(table.rows, u.tolist(), strict=True):
+        row.append(None if not math.isfinite(value) else round(value, 4))
+    return table
 
 
 def _cell(value: float | None) -> str:

@@ -6,7 +6,8 @@ where the UTC time of day (RMC, GGA, GLL, ZDA) moves forward is an anchor, and l
 anchors are spread evenly; the date comes from the first RMC or ZDA that has one (else 1970-01-01).
 A capture with no UTC at all is paced at 1 s per line. tlogs carry the ground station's receive
 time (8-byte big-endian UNIX microseconds) before each packet, used as the arrival time. DataFlash
-logs are read by ``forcemap.host.convert.dataflash``.
+logs are read by ``forcemap.host.convert.dataflash``. A gzipped NMEA capture or tlog is read as the
+file it holds (``forcemap.host.convert.capture_file``).
 
 An import that gives no samples says why in one line (no position, no time, no measurements), and
 ``import_to_mcap`` then leaves no file behind.
@@ -22,10 +23,17 @@ from pathlib import Path
 from typing import Any
 
 from forcemap.host.convert.adcp_read import is_pd0
+from forcemap.host.convert.capture_file import (
+    ImportFailed,
+    capture_bytes,
+    capture_head,
+    capture_lines,
+    plain_file_format,
+)
 from forcemap.host.convert.dataflash import DataflashDecoder
 from forcemap.host.convert.nav_findings import Collector
 from forcemap.host.convert.nmea_prepass import finding_notes, position_seed, why_no_time
-from forcemap.host.decode.nmea import LineSplitter, NmeaParser
+from forcemap.host.decode.nmea import NmeaParser
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.fuse.pipeline import Pipeline, Sink
 from forcemap.host.log.mcap import McapLog
@@ -39,10 +47,6 @@ MAX_TLOG_US = (1 << 63) // 1000  # the latest time an MCAP log can hold (year 22
 DATAFLASH_FMT = DATAFLASH_MAGIC + b"\x80"
 DATAFLASH_FMT_LEN = 89
 IMPORT_DIAG_PERIOD_S = 10.0  # /diagnostics every 10 s of log time (the daemon: every second)
-
-
-class ImportFailed(ValueError):
-    """A file that cannot be imported: the message is one line for the user."""
 
 
 @dataclass
@@ -68,15 +72,14 @@ def detect_format(path: str | Path) -> str:
     """``nmea``, ``tlog``, ``dataflash`` or ``adcp`` from the name and the first bytes; else ImportFailed."""
     p = Path(path)
     try:
-        with open(p, "rb") as f:
-            head = f.read(4096)
+        head = capture_head(p)
     except OSError as e:
         raise ImportFailed(f"{p}: cannot read: {e.strerror or e}") from None
     if is_dataflash(head):
-        return "dataflash"
+        return plain_file_format(p, "dataflash")
     if is_pd0(head):
-        return "adcp"
-    if p.suffix.lower() == ".tlog":
+        return plain_file_format(p, "adcp")
+    if p.suffix.lower() == ".tlog" or p.name.lower().endswith(".tlog.gz"):
         return "tlog"
     if len(head) > 8 and head[8] in (0xFD, 0xFE):
         return "tlog"
@@ -97,11 +100,9 @@ def check_importable(path: str | Path, fmt: str | None = None) -> str:
     if fmt not in FORMATS:
         raise ImportFailed(f"unknown format {fmt!r}: expected one of {FORMATS}")
     try:
-        with open(path, "rb"):
-            pass
+        return fmt if fmt in ("nmea", "tlog") else plain_file_format(Path(path), fmt)
     except OSError as e:
         raise ImportFailed(f"{path}: cannot read: {e.strerror or e}") from None
-    return fmt
 
 
 def nmea_line_times(lines: list[bytes], checksum: str = "strict") -> tuple[list[float], str]:
@@ -192,9 +193,8 @@ def import_nmea(
 ) -> ImportResult:
     """An NMEA 0183 capture through the pipeline's NMEA path (``nmea_checksum``: strict or
     lenient, forcemap.host.decode.nmea_checksum)."""
-    data = Path(path).read_bytes()
-    splitter = LineSplitter()
-    lines = splitter.feed(data) + splitter.flush()
+    notes: list[str] = []
+    lines = capture_lines(path, notes)
     times, how = nmea_line_times(lines, nmea_checksum)
     if how.startswith("no UTC"):
         raise ImportFailed(why_no_time(lines, Path(path).name, nmea_checksum))
@@ -206,7 +206,7 @@ def import_nmea(
         ns = int(t * 1e9)
         pipe.feed("nmea", ns, ns, line + b"\n")
     pipe.close()
-    res = ImportResult(str(path), "nmea", len(lines), pipe.counters(), [how])
+    res = ImportResult(str(path), "nmea", len(lines), pipe.counters(), [*notes, how])
     _check_errors(pipe, res)
     return res
 
@@ -263,7 +263,8 @@ def import_tlog(
     sample_rate_hz: float | None = None,
 ) -> ImportResult:
     """A MAVLink telemetry log through the pipeline's MAVLink path, at its recorded arrival times."""
-    data = Path(path).read_bytes()
+    notes: list[str] = []
+    data = capture_bytes(path, notes)
     pipe = _pipeline(path, "tlog", "tlog receive times", sink, calibration, sync, sample_rate_hz)
     records = 0
     for us, packet in tlog_records(data):
@@ -271,7 +272,7 @@ def import_tlog(
         ns = us * 1000
         pipe.feed("mavlink", ns, ns, packet)
     pipe.close()
-    res = ImportResult(str(path), "tlog", records, pipe.counters())
+    res = ImportResult(str(path), "tlog", records, pipe.counters(), notes)
     _check_errors(pipe, res)
     return res
 

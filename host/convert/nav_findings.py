@@ -126,8 +126,10 @@ def findings(nav: Navigation) -> list[QaFinding]:
     return [finding(f) for f in nav.fits_ if f.quantity in CATEGORY]
 
 
-def log_findings(paths: Sequence[str | os.PathLike[str]]) -> list[QaFinding]:
-    """The logs' navigation findings: as the import wrote them, else computed now."""
+def log_findings(
+    paths: Sequence[str | os.PathLike[str]], compute: bool = True
+) -> list[QaFinding]:
+    """The logs' navigation findings: as the import wrote them, else computed now (``compute``)."""
     from forcemap.host.log.mcap import FileScan, iter_records
     from mcap.records import Metadata
 
@@ -138,7 +140,7 @@ def log_findings(paths: Sequence[str | os.PathLike[str]]) -> list[QaFinding]:
                 f = QaFinding.from_metadata(dict(record.metadata))
                 if f.check == "latency" and "noise" in f.extra:
                     found[record.name] = f
-    if found:
+    if found or not compute:
         return list(found.values())
     from forcemap.host.convert.navigation_table import fitted
 

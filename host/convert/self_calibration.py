@@ -2,7 +2,8 @@
 
 ``import_calibrated`` runs the live pipeline twice: a first pass (in memory) gives the samples that the
 estimators of ``forcemap.host.fuse.redundancy`` read (the speed log's gain and misalignment, the rate of
-turn's unit, a dead speed log); the second pass writes the log with the estimates applied, and every
+turn's unit, a dead speed log) and those of ``forcemap.host.convert.depth_findings`` (the bottom lost,
+sounder against sounder, the transducer's tilt); the second pass writes the log with the estimates applied, and every
 estimate as a ``qa.*`` metadata record (``forcemap.host.log.qa_records.QaFinding``) with its evidence. A
 value pinned in ``boat.toml`` is used as pinned, and the estimate is only reported. Thresholds and their
 sources are in docs/QA.md.
@@ -11,13 +12,15 @@ sources are in docs/QA.md.
 from __future__ import annotations
 
 import dataclasses
-import math
+import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from forcemap.host.convert import depth_findings
+from forcemap.host.convert.depth_findings import arrays
 from forcemap.host.convert.importers import ImportResult, import_file, import_to_mcap
 from forcemap.host.fuse import redundancy as rd
 from forcemap.host.fuse.calibration import Calibration
@@ -38,28 +41,35 @@ THRESH_DEAD = "constant (range < 0.001 m/s) over 60 s while SOG >= 1 m/s, and ze
 
 
 class SamplesSink:
-    """A pipeline sink that keeps only the ``/samples`` rows and the ``columns`` metadata."""
+    """A pipeline sink that keeps only the ``/samples`` rows, every depth source's readings, and the
+    ``columns`` and ``sources`` metadata."""
 
     def __init__(self) -> None:
         self.rows: list[dict[str, Any]] = []
         self.columns: dict[str, str] = {}
+        self.depth: dict[str, list[tuple[float, float]]] = {}
+        self.depth_chosen = ""
 
     def write(self, topic: str, log_time_ns: int, message: Record) -> None:
         if topic == "/samples":
             self.rows.append(as_json(message))
+        elif topic == "/source/reading" and getattr(message, "quantity", "") == "depth":
+            v = message.value[0] if message.value else None  # type: ignore[attr-defined]
+            if v is not None:
+                self.depth.setdefault(message.source, []).append((log_time_ns * 1e-9, v))  # type: ignore[attr-defined]
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         if name == "columns":
             self.columns = dict(data)
+        elif name == "sources" and "depth" in data:
+            try:
+                self.depth_chosen = json.loads(data["depth"]).get("chosen", "")
+            except ValueError:
+                self.depth_chosen = ""
 
-
-def arrays(rows: list[Mapping[str, Any]], names: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Columns of float arrays (NaN where empty) from row dicts."""
-
-    def num(v: Any) -> float:
-        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else math.nan
-
-    return {c: np.array([num(r.get(c)) for r in rows], float) for c in names}
+    def depth_readings(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Each depth source's readings: (UNIX s, m)."""
+        return {k: tuple(np.array(v, float).T) for k, v in self.depth.items() if len(v) > 1}  # type: ignore[misc]
 
 
 @dataclass
@@ -199,9 +209,13 @@ def rate_findings(
 
 
 def estimate(
-    rows: list[Mapping[str, Any]], columns: Mapping[str, str], pinned: Calibration
+    rows: list[Mapping[str, Any]],
+    columns: Mapping[str, str],
+    pinned: Calibration,
+    sink: SamplesSink | None = None,
 ) -> Estimates:
-    """Findings of every estimator on a log's samples, and ``pinned`` with the safe estimates applied."""
+    """Findings of every estimator on a log's samples (``sink``: the first pass, for every depth
+    source's readings), and ``pinned`` with the safe estimates applied."""
     names = ("t", "heading", "yaw_rate", "sog", "cog", "stw")
     c = arrays(rows, names)
     out = Estimates(calibration=pinned)
@@ -213,10 +227,17 @@ def estimate(
     f, u = rate_findings(c, columns, pinned)
     out.findings += f
     upd.update(u)
+    readings = sink.depth_readings() if sink is not None else {}
+    f, u = depth_findings.estimate(
+        rows, columns, readings, sink.depth_chosen if sink else "", pinned
+    )
+    out.findings += f
+    upd.update(u)
     pins = {
         "stw_gain": pinned.stw_gain,
         "stw_misalignment_deg": pinned.stw_misalignment_deg,
         "rot_unit": pinned.rot_unit,
+        "sounder_beam_deg": pinned.sounder_beam_deg,
     }
     upd = {k: v for k, v in upd.items() if pins.get(k) is None}
     out.calibration = dataclasses.replace(pinned, **upd)
@@ -226,7 +247,7 @@ def estimate(
 def unpinned_first_pass(cal: Calibration) -> Calibration:
     """The calibration of the first pass: the raw instruments (nothing estimated is applied yet)."""
     return dataclasses.replace(
-        cal, stw_gain=None, stw_misalignment_deg=None, rot_unit=None, stw_dead=()
+        cal, stw_gain=None, stw_misalignment_deg=None, rot_unit=None, stw_dead=(), depth_lost=()
     )
 
 
@@ -244,7 +265,7 @@ def import_calibrated(
     pinned = calibration or Calibration()
     first = SamplesSink()
     import_file(path, first, fmt, unpinned_first_pass(pinned), sync, sample_rate_hz, nmea_checksum)
-    est = estimate(first.rows, first.columns, pinned)
+    est = estimate(first.rows, first.columns, pinned, first)
     meta = {f.name: f.to_metadata() for f in est.findings}
     res = import_to_mcap(
         path, out, fmt, est.calibration, sync, check, sample_rate_hz, nmea_checksum, metadata=meta

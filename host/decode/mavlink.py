@@ -136,6 +136,8 @@ def to_si(m: Any) -> dict[str, Any] | None:
             "time_boot_ms": m.time_boot_ms,
             "roll": m.roll,
             "pitch": m.pitch,
+            "roll_deg": math.degrees(m.roll),
+            "pitch_deg": math.degrees(m.pitch),
             "yaw": m.yaw,
             "heading": math.degrees(m.yaw) % 360.0,
             "yaw_rate": math.degrees(m.yawspeed),

@@ -42,6 +42,8 @@ SPECS: dict[str, tuple[int, int, tuple[str, ...]]] = {
     "MWD": (8, 8, ("f", "=T", "f", "=M", "f", "=N", "f", "=M")),
     "ZDA": (6, 6, ("t", "i", "i", "i", "i", "i")),
     "GLL": (6, 7, ("lat", "=NS", "lon", "=EW", "t", "=AV", "=ADENSMFRP")),
+    # XDR: groups of (type, value, unit, name); an attitude is type A, unit D
+    "XDR": (3, 40, ("s", "s", "s", "s") * 10),
     # GSA: mode, fix type, 12 satellite numbers, PDOP, HDOP, VDOP (and NMEA 4.10's system id)
     "GSA": (17, 18, ("=AM", "i", *("s",) * 12, "f", "f", "f", "s")),
 }
@@ -212,6 +214,35 @@ def _gsa(d: list[str]) -> dict[str, Any]:
     return {"fix_type": int(d[1]) if d[1] else None, "hdop": _f(d[15])}
 
 
+# transducer names real logs use for the hull's attitude (B&G/NKE HEEL and TRIM, NMEA 4 ROLL and PTCH)
+ROLL_NAMES = ("ROLL", "HEEL")
+PITCH_NAMES = ("PTCH", "PITCH", "TRIM")
+
+
+def _num_or_none(s: str) -> float | None:
+    try:
+        x = float(s)
+    except ValueError:
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _xdr(d: list[str]) -> dict[str, Any]:
+    """The hull's roll and pitch (deg; roll positive starboard down, pitch bow up) from a
+    transducer sentence's angular groups (type A, unit D), None where it has neither."""
+    out: dict[str, Any] = {"roll": None, "pitch": None}
+    for i in range(0, len(d) - 3, 4):
+        kind, value, unit, name = d[i : i + 4]
+        if kind.upper() != "A" or unit.upper() not in ("D", ""):
+            continue
+        key = name.upper().strip()
+        if key in ROLL_NAMES and out["roll"] is None:
+            out["roll"] = _num_or_none(value)
+        elif key in PITCH_NAMES and out["pitch"] is None:
+            out["pitch"] = _num_or_none(value)
+    return out
+
+
 def _zda(d: list[str]) -> dict[str, Any]:
     tod = _tod(d[0])
     utc = None
@@ -239,6 +270,7 @@ EXTRACTORS = {
     "MWD": _mwd,
     "ZDA": _zda,
     "GSA": _gsa,
+    "XDR": _xdr,
 }
 
 

@@ -21,6 +21,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any
 
+from forcemap.host.fuse import attitude
 from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse.state import Series, StateEstimator
 from forcemap.host.log.messages import Current, Sample, SetAndDrift, TrueWind
@@ -30,7 +31,7 @@ if TYPE_CHECKING:
     from forcemap.host.fuse.live_nav import LiveNavigation
 
 # how far a reading may be from the row's time and still fill it (s)
-MAX_AGE_S = {"app": 2.0, "true": 2.0, "stw": 2.0, "depth": 5.0, "temp": 60.0}
+MAX_AGE_S = {"app": 2.0, "true": 2.0, "stw": 2.0, "depth": 5.0, "temp": 60.0, "attitude": 2.0}
 # another stream paces the rows once it has this many times the readings of the current one
 PACE_SWITCH = 1.25
 GRID_MAX_CATCHUP = 20  # grid ticks made up at most after a silence
@@ -90,6 +91,7 @@ class SampleAssembler:
         self.stw = _Reading(MAX_AGE_S["stw"])
         self.depth = _Reading(MAX_AGE_S["depth"])
         self.temp = _Reading(MAX_AGE_S["temp"])
+        self.attitude = _Reading(MAX_AGE_S["attitude"])
         self.nav: dict[str, str] = {}  # position, velocity, heading, yaw_rate, throttle -> source
         self.bridge = False
         self.stream_counts: Counter[str] = Counter()
@@ -111,9 +113,13 @@ class SampleAssembler:
 
     def reading(self, kind: str, t: float, value: tuple, label: str) -> None:
         """A measurement: ``kind`` is app (speed, angle), true (speed, dir), stw (m/s,),
-        depth (m,) or temp (deg C,); ``label`` names the source and sentence."""
+        depth (m,), temp (deg C,) or attitude (roll, pitch deg); ``label`` names the source and
+        sentence."""
+        if kind == "depth":  # its own time: the tilt correction takes the attitude of that moment
+            value = (value[0], t)
         getattr(self, kind).add(t, value, label)
-        self._pace(label, t)
+        if kind != "attitude":  # the hull's attitude describes a row, it never makes one
+            self._pace(label, t)
 
     def _pace(self, stream: str, t: float) -> None:
         if self.bridge:
@@ -226,7 +232,28 @@ class SampleAssembler:
         if w is not None and w[1] is not None:
             row.wind_speed_instrument, row.wind_dir_instrument = w
             labels["true"] = self.true.label
+        att = self.attitude.at(p.t)
+        if att is not None:
+            row.roll, row.pitch = att
+            labels["attitude"] = self.attitude.label
+        self._sounding(row, p.t)
         return labels
+
+    def _sounding(self, row: Sample, t: float) -> None:
+        """The depth corrected for the transducer's tilt where the beam angle is known, with the
+        hull's attitude at the sounding's own time (the reading kept as ``depth_raw``), and the rows
+        in a stretch where the bottom was lost marked."""
+        cal = self.cal
+        if row.depth is not None and row.roll is not None and cal.sounder_beam_deg is not None:
+            sounding = self.depth.at(t)
+            att = self.attitude.series.interpolate(sounding[1], MAX_AGE_S["attitude"])
+            roll, pitch = att if att is not None and att[0] is not None else (row.roll, row.pitch)
+            row.depth_raw = row.depth
+            row.depth = float(
+                attitude.corrected(row.depth, cal.depth_offset_m, roll, pitch, cal.sounder_beam_deg)
+            )
+        if cal.depth_lost:
+            row.bottom_lost = float(any(a <= row.t <= b for a, b in cal.depth_lost))
 
     def _true_wind(self, row: Sample, p: Pending, st: Any, labels: dict[str, str]) -> None:
         if row.app_wind_speed is not None and row.app_wind_angle is not None:
@@ -326,9 +353,16 @@ class SampleAssembler:
             ("stw", ("stw",)),
             ("app", ("app_wind_speed", "app_wind_angle")),
             ("true", ("wind_speed_instrument", "wind_dir_instrument")),
+            ("attitude", ("roll", "pitch")),
         ):
             for c in cols:
                 fed[c] = labels.get(kind, "")
+        if labels.get("depth"):
+            att = labels.get("attitude", "")
+            fed["depth_raw"] = labels["depth"]
+            if att and row.depth_raw is not None:
+                fed["depth"] = f"{labels['depth']} + {att} (tilt corrected)"
+            fed["bottom_lost"] = "import: the bottom lost (qa.depth.bottom_lost)"
         app, stw = labels.get("app"), labels.get("stw")
         wind = f"{app} + {hdg} + {vel}" if app else labels.get("wind_from_instrument", "")
         for c in ("wind_speed", "wind_dir", "wind_east", "wind_north"):

@@ -75,6 +75,12 @@ class Calibration:
     stw_misalignment_deg: float | None = None
     rot_unit: str | None = None  # "deg/min" (NMEA 0183) or "deg/s" (a vendor's)
     stw_dead: tuple[tuple[float, float], ...] = ()  # UNIX-second stretches the speed log was dead
+    # [sounder]: the beam's full angle (deg) for the tilt correction (None: not known; an import
+    # estimates it from the log, docs/SOUNDINGS.md), and its stated accuracy (1 sd: m + share of depth)
+    sounder_beam_deg: float | None = None
+    sounder_accuracy_m: float | None = None
+    sounder_accuracy_share: float | None = None
+    depth_lost: tuple[tuple[float, float], ...] = ()  # UNIX-second stretches the bottom was lost
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def as_metadata(self) -> dict[str, str]:
@@ -284,6 +290,21 @@ def _sources(t: dict) -> dict[str, Any]:
     return {"source_priorities": prio, "source_timeouts": timeouts}
 
 
+def _sounder(s: dict) -> dict[str, Any]:
+    """``[sounder] beam_angle_deg, accuracy_m, accuracy_share``: pinned, the beam never estimated then."""
+    _known(s, "sounder.", {"beam_angle_deg", "accuracy_m", "accuracy_share"})
+    kw: dict[str, Any] = {}
+    if "beam_angle_deg" in s:
+        kw["sounder_beam_deg"] = _num(s["beam_angle_deg"], "sounder.beam_angle_deg", lo=0, hi=90)
+    if "accuracy_m" in s:
+        kw["sounder_accuracy_m"] = _num(s["accuracy_m"], "sounder.accuracy_m", lo=0, hi=5)
+    if "accuracy_share" in s:
+        kw["sounder_accuracy_share"] = _num(
+            s["accuracy_share"], "sounder.accuracy_share", lo=0, hi=0.2
+        )
+    return kw
+
+
 def _speed_log_rot(s: dict, r: dict) -> dict[str, Any]:
     """``[speed_log] gain, misalignment_deg`` and ``[rate_of_turn] unit``: pinned, never estimated."""
     _known(s, "speed_log.", {"gain", "misalignment_deg"})
@@ -309,7 +330,7 @@ def from_dict(doc: dict) -> Calibration:
     if not isinstance(doc, dict):
         raise ConfigError("boat.toml: expected a table at the top level")
     top = {"boat", "anemometer", "vane", "wheels", "current", "depth", "compass", "sync", "sources"}
-    top |= {"speed_log", "rate_of_turn"}
+    top |= {"speed_log", "rate_of_turn", "sounder"}
     _known(doc, "", top)
     kw: dict[str, Any] = {}
     kw.update(_anemometer(_table(doc, "anemometer")))
@@ -322,6 +343,7 @@ def from_dict(doc: dict) -> Calibration:
     )
     kw.update(_sources(_table(doc, "sources")))
     kw.update(_speed_log_rot(_table(doc, "speed_log"), _table(doc, "rate_of_turn")))
+    kw.update(_sounder(_table(doc, "sounder")))
     kw["extra"] = {"boat": dict(_table(doc, "boat"))}
     return Calibration(**kw)
 

@@ -81,6 +81,10 @@ class MavDecoder:
         label = label or "mavlink " + ty
         if ty == "ATTITUDE":
             pipe.take_nav()
+            if d.get("roll_deg") is not None:
+                att = (d["roll_deg"], d.get("pitch_deg"))
+                if pipe.source_reading("attitude", label, t, att):
+                    asm.reading("attitude", t, att, label)
             if d["yaw_rate"] is not None:
                 pipe.source_reading("yaw_rate", label, t, (d["yaw_rate"],))
             if pipe.source_reading("heading", label, t, (d["heading"],)):

@@ -4,7 +4,7 @@ One line splitter per port, one strict parser for all. Navigation: RMC, GGA, GLL
 (ground velocity), HDT, HDG/HDM with variation, VHW's true heading (heading), ROT (yaw rate);
 ignored once an autopilot gives navigation. Readings: MWV R and VWR (apparent wind), MWV T and MWD
 (the instrument's true wind), VHW (speed through water), DPT, DBT, DBS (depth), MTW (water
-temperature). Each reading is named by its source (port, talker, sentence and, for positions, a
+temperature), XDR (the hull's roll and pitch: ROLL/PTCH, HEEL/TRIM). Each reading is named by its source (port, talker, sentence and, for positions, a
 fingerprint: forcemap.host.fuse.sources) and only the chosen source of each quantity is used.
 """
 
@@ -46,6 +46,7 @@ QUANTITY = {
     "stw": "stw",
     "depth": "depth",
     "temp": "water_temp",
+    "attitude": "attitude",
 }
 
 
@@ -82,6 +83,7 @@ class NmeaDecoder:
             "MWV": self._mwv,
             "VWR": self._vwr,
             "MWD": self._mwd,
+            "XDR": self._xdr,
         }
 
     def feed(self, source: str, t_mono_ns: int, t_wall_ns: int, data: bytes) -> None:
@@ -161,6 +163,12 @@ class NmeaDecoder:
         self._reading("depth", t, (depth,), s)
         msg = Depth(self.pipe.utc_s(t), depth, None, s.type, "nmea")
         self.pipe.write("/depth", t, msg)
+
+    def _xdr(self, s: Sentence, t: float) -> None:
+        """The hull's roll and pitch (a heel sensor alone gives roll)."""
+        roll, pitch = s.data.get("roll"), s.data.get("pitch")
+        if roll is not None or pitch is not None:
+            self._reading("attitude", t, (roll, pitch), s)
 
     def _mtw(self, s: Sentence, t: float) -> None:
         temp = s.data["water_temp"]

@@ -35,6 +35,7 @@ QUANTITIES = (
     "wind_true",
     "water_temp",
     "velocity",  # VTG, for a position source without its own (GGA, GLL)
+    "attitude",  # the hull's roll and pitch (deg)
 )
 DEFAULT_TIMEOUT_S = 5.0
 DWELL_S = 10.0  # a better fix takes over once it has been the better for this long
@@ -48,6 +49,7 @@ SENTENCE_ORDER = {
     "heading": ("HDT", "ATTITUDE", "HDG", "HDM", "VHW"),
     "yaw_rate": ("ROT", "ATTITUDE", "derivative"),
     "depth": ("DPT", "WATER_DEPTH", "RANGEFINDER", "DISTANCE_SENSOR", "DBT", "DBS"),
+    "attitude": ("ATTITUDE", "XDR"),
 }
 WHY = {
     "priority": "listed first in the boat file's [sources]",

@@ -43,6 +43,7 @@ def write_geotiff(grid: MapGrid, layer: Layer, path: str | Path) -> Path:
             model_terms=" + ".join(layer.terms),
             mask_distance_m=f"{grid.max_distance:g}",
             time_coverage="/".join(grid.time_coverage()),
+            time=grid.time_iso(),
             **({"coverage95": layer.calibration.line()} if layer.calibration is not None else {}),
             **({"notes": "; ".join(layer.notes)} if layer.notes else {}),
         )

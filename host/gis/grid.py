@@ -63,6 +63,8 @@ class MapGrid:
     max_distance: float
     time_span: tuple[float, float]  # unix seconds of the survey's first and last samples
     layers: dict[str, Layer] = field(default_factory=dict)
+    at: float | None = None  # unix seconds the maps are evaluated at (None: the survey's mid-time)
+    mid_time: float = 0.0  # unix seconds of the survey's median sample
     notes: list[str] = field(default_factory=list)
     local_xy: np.ndarray = field(
         default=None, repr=False
@@ -78,6 +80,14 @@ class MapGrid:
     @property
     def northing(self) -> np.ndarray:
         return self.y1 - self.resolution * (np.arange(self.ny) + 0.5)
+
+    @property
+    def time(self) -> float:
+        """UNIX seconds the maps are evaluated at: `at`, or the survey's mid-time (its median sample)."""
+        return float(self.at if self.at is not None else self.mid_time)
+
+    def time_iso(self) -> str:
+        return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(self.time))
 
     def time_coverage(self) -> tuple[str, str]:
         """The survey's first and last sample times, ISO 8601 UTC."""
@@ -179,10 +189,12 @@ def make_grid(
     mask = (dist <= max_distance).reshape(ny, nx)
     t = survey.columns["t"]
     span = (float(np.min(t)), float(np.max(t)))
-    return MapGrid(
+    grid = MapGrid(
         epsg, x0, y1, resolution, nx, ny, glat, glon, mask, max_distance, span, notes=notes,
         local_xy=local_xy, distance=dist.reshape(ny, nx),
     )  # fmt: skip
+    grid.mid_time = float(np.median(t))
+    return grid
 
 
 def project(grid: MapGrid, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,11 +302,24 @@ def _distance(grid: MapGrid, model, keep: np.ndarray) -> np.ndarray:
 
 
 def evaluate(grid: MapGrid, model) -> Layer:
-    """A fitted `SurveyModel` on the grid's mapped cells (NaN elsewhere, and where `untrusted`), as a `Layer`."""
+    """A fitted `SurveyModel` on the grid's mapped cells (NaN elsewhere, and where `untrusted`), as a `Layer`,
+    at the grid's time (`at`: a tide predicts there, a GP in time may have reverted to its mean, said in the
+    layer's notes)."""
     keep = grid.mask.ravel()
-    pred = model.predict_grid(grid.local_xy[keep])
+    pred = model.predict_grid(grid.local_xy[keep], grid.at)
     bands = layer_bands(model, pred)
     drop, notes = untrusted(grid, model, pred, keep)
+    if model.target == "depth":
+        from forcemap.host.gis.surface import far_from_soundings
+
+        sv = model.survey
+        far = ~drop & far_from_soundings(grid, sv.xy[np.isfinite(sv.columns["depth"])])[keep]
+        if far.any():
+            notes.append(
+                f"depth: {int(far.sum())} cells farther than {grid.max_distance:g} m from every "
+                "sounding the map was fitted on (only spikes or a lost stretch near them) left blank"
+            )
+        drop |= far
     cells = np.flatnonzero(keep)[~drop]
     out = {}
     for name, values in bands.items():
@@ -304,10 +329,16 @@ def evaluate(grid: MapGrid, model) -> Layer:
     vt = model.vector if "east" in pred else None
     layer = Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
     if model.target == "depth":
+        from forcemap.host.gis.surface import surface_bands
         from forcemap.host.workbench.water_level import map_datum
 
-        layer.datum = map_datum(model.survey, list(model.terms))
+        layer.datum = map_datum(model.survey, list(model.terms), grid.at)
+        layer.bands.update(surface_bands(grid, model.survey))
     rows = getattr(model, "rows", None)  # what the model left out for want of a reading
     notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
+    if grid.at is not None:
+        from forcemap.host.workbench.time_terms import notes_at
+
+        notes += [f"{model.target}: {n}" for n in notes_at(model.primary, model.survey, grid.at)]
     layer.notes, layer.calibration = notes, getattr(model, "calibration", None)
     return layer

@@ -29,6 +29,46 @@ VECTOR_LONG_NAMES = {
 }
 
 
+# a depth layer's surface bands (host/gis/surface.py): the CUBE-like surface and what supports it
+_DEPTH = "sea_floor_depth_below_sea_surface"
+SURFACE_ATTRS: dict[str, dict[str, str]] = {
+    "surface": {
+        "standard_name": _DEPTH, "units": "m",
+        "long_name": "depth surface: at each cell the depth hypothesis most soundings support (each "
+        "sounding's TVU propagated to the cell, several hypotheses kept where they disagree; CUBE, "
+        "Calder & Mayer 2003); empty where no kept sounding reaches the cell",
+    },
+    "surface_sd": {
+        "standard_name": f"{_DEPTH} standard_error", "units": "m",
+        "long_name": "1-sd vertical uncertainty of the depth surface: a sounding's total vertical "
+        "uncertainty at the cell (not reduced by averaging: the soundings' errors share their sources)",
+    },
+    "surface_tvu": {
+        "units": "m",
+        "long_name": "total vertical uncertainty of the depth surface at the 95 % confidence level "
+        "(IHO S-44 6th ed.: 1.96 x surface_sd)",
+    },
+    "surface_order": {
+        "long_name": "the strictest IHO S-44 (6th ed.) order whose maximum allowable TVU, "
+        "sqrt(a^2 + (b d)^2), the cell's TVU meets",
+        "flag_values": "0 1 2 3 4",
+        "flag_meanings": "no_order exclusive_order special_order order_1a_1b order_2",
+    },
+    "surface_hypotheses": {
+        "units": "1",
+        "long_name": "depth hypotheses kept at the cell (more than one: its soundings disagree)",
+    },
+    "surface_soundings": {  # CF's number_of_observations modifier is deprecated: no standard name
+        "units": "1",
+        "long_name": "soundings that reached the cell",
+    },
+    "surface_support": {
+        "units": "1",
+        "long_name": "share of the cell's soundings in the chosen hypothesis",
+    },
+}  # fmt: skip
+
+
 def _split(layer, band: str) -> tuple[str, str]:
     """(the band's quantity, its kind: "value", "sd" the predictive sd, "mean_sd" the sd of the mean)."""
     scalar = layer.vector is None
@@ -42,6 +82,8 @@ def _split(layer, band: str) -> tuple[str, str]:
 def band_attrs(layer, band: str) -> dict[str, str]:
     """CF attributes of one band of a layer: a `_sd` band is the predictive standard deviation (what a new
     measurement would differ from the mean by), a `mean_sd` band the standard deviation of the mean alone."""
+    if layer.vector is None and band in SURFACE_ATTRS:
+        return dict(SURFACE_ATTRS[band])
     base, kind = _split(layer, band)
     if layer.vector is None:
         std, units = SCALAR_STANDARD_NAMES.get(layer.target, (None, ""))

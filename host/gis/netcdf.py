@@ -24,7 +24,7 @@ def to_dataset(grid: MapGrid):
         "y": ("y", grid.northing, _attrs("projection_y_coordinate", "m", "northing")),
         "lat": (("y", "x"), grid.lat, _attrs("latitude", "degrees_north", "latitude")),
         "lon": (("y", "x"), grid.lon, _attrs("longitude", "degrees_east", "longitude")),
-        "time": ((), float(np.median(grid.time_span)), _time_attrs()),
+        "time": ((), grid.time, _time_attrs(grid.at is not None)),
     }
     data = {
         GRID_MAPPING: ((), np.int32(0), CRS.from_epsg(grid.epsg).to_cf()),
@@ -43,7 +43,14 @@ def to_dataset(grid: MapGrid):
                 attrs["forcemap_coverage95"] = layer.calibration.line()
             if layer.notes:
                 attrs["forcemap_notes"] = "; ".join(layer.notes)
-            if not (band == "sd" or band.endswith("_sd")):
+            if "flag_values" in attrs:  # CF flags: the values as the variable's own type
+                attrs["flag_values"] = np.array(attrs["flag_values"].split(), float)
+            if band == "surface":
+                sds = [variable_name(layer, b) for b in layer.bands if b.startswith("surface_")]
+                attrs["ancillary_variables"] = " ".join(sds)
+            elif band.startswith("surface_"):
+                pass
+            elif not (band == "sd" or band.endswith("_sd")):
                 sds = ["sd", "mean_sd"] if band == "mean" else [f"{band}_sd", f"{band}_mean_sd"]
                 sds = [variable_name(layer, sd) for sd in sds if sd in layer.bands]
                 if sds:
@@ -58,12 +65,14 @@ def to_dataset(grid: MapGrid):
         "source": "forcemap: Gaussian-process maps of a small surface vehicle's survey",
         "time_coverage_start": start,
         "time_coverage_end": end,
+        "forcemap_map_time": grid.time_iso(),
         "model_terms": "; ".join(terms),
         "comment": (
             f"cells farther than {grid.max_distance:g} m from every sample are missing, and so are a "
             "target's cells beyond its cross-validation's reach, with a predictive sd above the measured "
             "values' own, or a depth at or above the surface (see each variable's forcemap_notes); "
-            "covariates other than position are held at the survey's typical values (time at mid-survey); "
+            "covariates other than position are held at the survey's typical values, time at the "
+            f"variable time ({grid.time_iso()}); "
             "*_sd variables are predictive standard deviations (a new measurement), *_mean_sd those of the "
             "mean alone"
         ),
@@ -93,10 +102,11 @@ def _attrs(standard_name: str, units: str, long_name: str) -> dict[str, str]:
     return {"standard_name": standard_name, "units": units, "long_name": long_name}
 
 
-def _time_attrs() -> dict[str, str]:
+def _time_attrs(asked: bool) -> dict[str, str]:
     return {
         "standard_name": "time",
-        "long_name": "mid-survey time, at which the maps are evaluated",
+        "long_name": "the time the maps are evaluated at"
+        + (" (asked for: --at)" if asked else " (the survey's mid-time, its median sample)"),
         "units": "seconds since 1970-01-01 00:00:00Z",
         "calendar": "standard",
         "bounds": "time_bnds",

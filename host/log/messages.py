@@ -256,6 +256,10 @@ class Sample(Record):
     current_dir_stw: Opt = None
     wind_speed_instrument: Opt = None
     wind_dir_instrument: Opt = None
+    roll: Opt = None
+    pitch: Opt = None
+    depth_raw: Opt = None
+    bottom_lost: Opt = None
 
 
 SAMPLE_COLUMNS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Sample))

@@ -49,35 +49,53 @@ class Plan:
     line_wps: list[tuple[int, int]]
 
 
-def along_current(maps: Maps, a: np.ndarray, b: np.ndarray, scale: float = 1.0) -> float:
-    """Mean current component (m/s) along the segment a->b, from the map."""
+def along_current(
+    maps: Maps, a: np.ndarray, b: np.ndarray, scale: float = 1.0, t: float | None = None
+) -> float:
+    """Mean current component (m/s) along the segment a->b, from the map (at UNIX time `t`, if it changes
+    in time)."""
     d = b - a
     length = float(np.hypot(*d)) or 1e-9
     pts = a + np.linspace(0.0, 1.0, max(int(length / 5.0), 2))[:, None] * d
-    e, n, _ = maps.current.sample(pts)
+    e, n, _ = maps.current.sample(pts, t)
     return scale * float(np.mean(e * d[0] + n * d[1]) / length)
 
 
-def leg_speed(maps: Maps, boat: BoatModel, a: np.ndarray, b: np.ndarray) -> float:
+def etas(wps: np.ndarray, boat: BoatModel, t_start: float | None) -> list[float | None]:
+    """When the boat reaches each waypoint at cruise speed from UNIX time `t_start` (None: no time)."""
+    if t_start is None:
+        return [None] * len(wps)
+    legs = np.r_[0.0, np.cumsum(np.hypot(*np.diff(wps, axis=0).T))]
+    return list(t_start + legs / max(boat.cruise_speed, 0.5))
+
+
+def leg_speed(
+    maps: Maps, boat: BoatModel, a: np.ndarray, b: np.ndarray, t: float | None = None
+) -> float:
     """Ground speed for a leg: cruise through the water when the flow helps (NaN: keep the cruise)."""
-    c = along_current(maps, a, b)
+    c = along_current(maps, a, b, t=t)
     if c < 0.3:
         return float("nan")
     return round(min(boat.cruise_speed + c, 0.9 * boat.max_speed + c), 1)
 
 
-def upstream_first(lines: np.ndarray, maps: Maps) -> np.ndarray:
+def upstream_first(lines: np.ndarray, maps: Maps, t: float | None = None) -> np.ndarray:
     """The lines in an order and direction whose first line is flown most against the flow: as given,
     every line reversed, the order reversed, or both (each keeps a lawnmower's turns short); the given
     one unless another starts at least 0.2 m/s more against the current."""
     options = [lines, lines[:, ::-1], lines[::-1], lines[::-1, ::-1]]
-    along = [along_current(maps, o[0, 0], o[0, 1]) for o in options]
+    along = [along_current(maps, o[0, 0], o[0, 1], t=t) for o in options]
     best = int(np.argmin(along))
     return (options[best] if along[best] < along[0] - 0.2 else lines).copy()
 
 
 def layout(
-    lines: np.ndarray, approach: np.ndarray, shifts: list[np.ndarray], maps: Maps, boat: BoatModel
+    lines: np.ndarray,
+    approach: np.ndarray,
+    shifts: list[np.ndarray],
+    maps: Maps,
+    boat: BoatModel,
+    t_start: float | None = None,
 ) -> Plan:
     """Waypoints for the lines: run-in, the (shifted) line split into stretches, overrun; speeds per leg.
     Lines that share a waypoint with the one before (a corner, as every leg of a grid given as a line)
@@ -103,8 +121,9 @@ def layout(
             pts.append(on[-1] + OVERRUN_M * u)
     wps = np.array(pts)
     speeds = np.full(len(wps), np.nan)
+    when = etas(wps, boat, t_start)
     for k in range(1, len(wps)):
-        speeds[k] = leg_speed(maps, boat, wps[k - 1], wps[k])
+        speeds[k] = leg_speed(maps, boat, wps[k - 1], wps[k], when[k - 1])
     return Plan(wps, speeds, lines, line_wps)
 
 
@@ -152,15 +171,18 @@ def adjust(
     progress=None,  # type: ignore[no-untyped-def]
     start: np.ndarray | None = None,
     reorder: bool = True,
+    t_start: float | None = None,
 ) -> tuple[Plan, Track]:
     """The adjusted plan for ``lines`` (in the order flown) and its predicted track; ``start``: flown
-    from there (in flight), ``reorder=False``: in the order and directions given."""
+    from there (in flight), ``reorder=False``: in the order and directions given; from UNIX time
+    ``t_start`` (default the maps' start): a current that changes in time is taken when the boat is there."""
+    t_start = maps.start if t_start is None else t_start
     lines = np.asarray(lines, dtype=float)
-    lines = upstream_first(lines, maps) if reorder else lines.copy()
+    lines = upstream_first(lines, maps, t_start) if reorder else lines.copy()
     approach = np.full(len(lines), APPROACH_M)
     shifts = [np.zeros(max(int(round(np.hypot(*(b - a)) / STRETCH_M)), 1) + 1) for a, b in lines]
-    plan = from_start(layout(lines, approach, shifts, maps, boat), start)
-    track = predict_track(plan.wps, plan.speeds, maps, boat)
+    plan = from_start(layout(lines, approach, shifts, maps, boat, t_start), start)
+    track = predict_track(plan.wps, plan.speeds, maps, boat, t_start=t_start)
     for it in range(ITERATIONS):
         if progress is not None:
             progress(it + 1, ITERATIONS)
@@ -176,8 +198,8 @@ def adjust(
                 moved = np.inf
         if moved < SETTLED_M:
             break  # the last prediction already holds the lines: another pass would change nothing
-        plan = from_start(layout(lines, approach, shifts, maps, boat), start)
-        track = predict_track(plan.wps, plan.speeds, maps, boat)
+        plan = from_start(layout(lines, approach, shifts, maps, boat, t_start), start)
+        track = predict_track(plan.wps, plan.speeds, maps, boat, t_start=t_start)
     return plan, track
 
 

@@ -29,14 +29,14 @@ def map_problem(maps: Maps, area: tuple[float, float, float, float]) -> str | No
 
 
 def _in_area(f: Field, area: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    ny, nx = f.east.shape
+    ny, nx = f.east.shape[-2:]  # a field in time: every slice
     gx = f.x0 + f.step * np.arange(nx)
     gy = f.y0 + f.step * np.arange(ny)
     cx = (gx >= area[0] - f.step) & (gx <= area[1] + f.step)
     cy = (gy >= area[2] - f.step) & (gy <= area[3] + f.step)
     if not cx.any() or not cy.any():  # a coarse grid (one cell over everything): all of it
         return f.east, f.north
-    return f.east[np.ix_(cy, cx)], f.north[np.ix_(cy, cx)]
+    return f.east[..., cy, :][..., cx], f.north[..., cy, :][..., cx]
 
 
 def owners(line_wps: list[tuple[int, int]], n: int) -> np.ndarray:

@@ -264,14 +264,15 @@ class Replanner:
         if bad:
             return f"map rejected, mission kept: {bad}"
         maps, rest = snap.maps, self.lines[i + 1 :]
-        e, n, _ = maps.current.sample(self.along)
+        e, n, _ = maps.current.sample(self.along, t)
         d.current_mean = round(float(np.mean(np.hypot(e, n))), 3)
         ahead = self.seqs > d.keep_seq
         d.old_wps, d.old_speeds = self.xy[ahead], self.speeds[ahead]
         d.old = self._predict(
-            np.vstack([begin, d.old_wps]), np.r_[np.nan, d.old_speeds], rest, maps
+            np.vstack([begin, d.old_wps]), np.r_[np.nan, d.old_speeds], rest, maps, t
         )
-        plan, _ = adjust(rest, maps, self.boat, start=begin, reorder=False)
+        # from now, on the data's clock: a current that changes in time is read when the boat is there
+        plan, _ = adjust(rest, maps, self.boat, start=begin, reorder=False, t_start=t)
         wps, speeds = plan.wps[1:], plan.speeds[1:]
         d.plan_lines = [(a - 1, b - 1) for a, b in plan.line_wps]
         wps, d.clipped, d.clipped_max_m = clip(
@@ -283,7 +284,7 @@ class Replanner:
                 f"(up to {d.clipped_max_m:.1f} m)"
             )
         d.new_wps, d.new_speeds = wps, speeds
-        d.new = self._predict(np.vstack([begin, wps]), np.r_[np.nan, speeds], rest, maps)
+        d.new = self._predict(np.vstack([begin, wps]), np.r_[np.nan, speeds], rest, maps, t)
         gain_p95 = d.old["p95_worst_line"] - d.new["p95_worst_line"]
         gain_cov = d.new["coverage"] - d.old["coverage"]
         if d.new["stuck"] or not (
@@ -301,8 +302,10 @@ class Replanner:
             f"coverage {d.old['coverage']:.1%} -> {d.new['coverage']:.1%}"
         )
 
-    def _predict(self, wps: np.ndarray, speeds: np.ndarray, lines: np.ndarray, maps: Maps) -> dict:
-        tr = predict_track(wps, speeds, maps, self.boat)
+    def _predict(
+        self, wps: np.ndarray, speeds: np.ndarray, lines: np.ndarray, maps: Maps, t: float
+    ) -> dict:
+        tr = predict_track(wps, speeds, maps, self.boat, t_start=t)
         out = summary(score_lines(tr.t, tr.xy, lines))
         out = {k: round(float(v), 3) for k, v in out.items()}
         return {**out, "duration_s": round(tr.duration, 1), "stuck": tr.stuck_at is not None}

@@ -27,50 +27,113 @@ from forcemap.host.workbench.workspace import current_terms, workspace_dir
 GRID_STEP_M = 4.0
 MAX_BASIS = 800  # a current or wind field steering a boat needs no detail finer than ~30 m
 # what a future track is known by: where it is (and so the depth there, from the depth map), and when
-PLANNABLE_INPUTS = {"position", "t", "depth"}
+PLANNABLE_INPUTS = {"position", "t", "depth", "utc", "lat"}
+# a field that changes in time is gridded at times this fraction of its shortest period apart (linear
+# interpolation between them is then within 1 % of the amplitude), at least MIN_STEP_S apart ...
+SLICES_PER_PERIOD = 24
+MIN_STEP_S, GP_STEP_S = (
+    60.0,
+    600.0,
+)  # ... and every GP_STEP_S for a GP in time (it reverts to its mean)
+MAX_SLICES = 97
 
 
 @dataclass
 class Field:
     """A gridded vector field (m/s, the velocity of the medium) with the predictive standard deviation of each
     component (what a new measurement would differ by: the mean's and the noise's), and the components'
-    blocked-CV RMSE (`cv_rmse`, m/s: how far the map was from held-out measurements)."""
+    blocked-CV RMSE (`cv_rmse`, m/s: how far the map was from held-out measurements).
+
+    With `times` (UNIX s, evenly spaced) the arrays are (nt, ny, nx): the field at each of those times, and
+    between them linear in time (a tide's or a seiche's current, predicted along the mission); a time
+    before the first or after the last is held at that slice."""
 
     x0: float
     y0: float
     step: float
-    east: np.ndarray  # (ny, nx)
+    east: np.ndarray  # (ny, nx), or (nt, ny, nx) with `times`
     north: np.ndarray
     east_sd: np.ndarray
     north_sd: np.ndarray
     terms: list[str] = field(default_factory=list)
     cv_rmse: float = 0.0
+    times: np.ndarray | None = None
     _lists: tuple = field(default=(), repr=False)
 
-    def at(self, x: float, y: float, scale: float = 1.0) -> tuple[float, float]:
-        """Bilinear (east, north) at one point (the edge value outside the grid); ``scale`` x the field."""
+    def _slices(self) -> tuple:
         if not self._lists:
-            ny, nx = self.east.shape
-            self._lists = (self.east.tolist(), self.north.tolist(), nx - 1.000001, ny - 1.000001)
-        e, n, fx_max, fy_max = self._lists
+            ny, nx = self.east.shape[-2:]
+            e = self.east if self.times is not None else self.east[None]
+            n = self.north if self.times is not None else self.north[None]
+            self._lists = (
+                [a.tolist() for a in e],
+                [a.tolist() for a in n],
+                nx - 1.000001,
+                ny - 1.000001,
+            )
+        return self._lists
+
+    def _bilinear(self, k: int, x: float, y: float) -> tuple[float, float]:
+        es, ns, fx_max, fy_max = self._slices()
         fx = (x - self.x0) / self.step
         fy = (y - self.y0) / self.step
         fx = 0.0 if fx < 0.0 else (fx_max if fx > fx_max else fx)
         fy = 0.0 if fy < 0.0 else (fy_max if fy > fy_max else fy)
         i, j = int(fx), int(fy)
         a, b = fx - i, fy - j
+        e, n = es[k], ns[k]
         e0, e1, n0, n1 = e[j], e[j + 1], n[j], n[j + 1]
         ve = (1 - b) * ((1 - a) * e0[i] + a * e0[i + 1]) + b * ((1 - a) * e1[i] + a * e1[i + 1])
         vn = (1 - b) * ((1 - a) * n0[i] + a * n0[i + 1]) + b * ((1 - a) * n1[i] + a * n1[i + 1])
+        return ve, vn
+
+    def slice_at(self, t: float | None) -> tuple[int, float]:
+        """The slice before UNIX time `t` and the weight of the one after (0: none)."""
+        if self.times is None or t is None or len(self.times) < 2:
+            return 0, 0.0
+        f = (t - self.times[0]) / (self.times[1] - self.times[0])
+        last = len(self.times) - 1
+        if f <= 0.0:
+            return 0, 0.0
+        if f >= last:
+            return last, 0.0
+        k = int(f)
+        return k, f - k
+
+    def at(
+        self, x: float, y: float, scale: float = 1.0, t: float | None = None
+    ) -> tuple[float, float]:
+        """Bilinear (east, north) at one point (the edge value outside the grid), linear in time between
+        slices at UNIX time `t`; ``scale`` x the field."""
+        k, w = self.slice_at(t)
+        ve, vn = self._bilinear(k, x, y)
+        if w > 0.0:
+            ve1, vn1 = self._bilinear(k + 1, x, y)
+            ve, vn = ve + w * (ve1 - ve), vn + w * (vn1 - vn)
         return scale * ve, scale * vn
 
-    def sample(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(east, north, speed standard deviation) at many points (nearest grid node)."""
-        ny, nx = self.east.shape
+    def sample(
+        self, xy: np.ndarray, t: float | np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(east, north, speed standard deviation) at many points (nearest grid node; the nearest slice to
+        UNIX time `t`, one or per point; without `t` the mean over the slices, with their spread in it)."""
+        ny, nx = self.east.shape[-2:]
         i = np.clip(np.rint((xy[:, 0] - self.x0) / self.step).astype(int), 0, nx - 1)
         j = np.clip(np.rint((xy[:, 1] - self.y0) / self.step).astype(int), 0, ny - 1)
-        sd = np.hypot(self.east_sd[j, i], self.north_sd[j, i]) / math.sqrt(2.0)
-        return self.east[j, i], self.north[j, i], sd
+        if self.times is None:
+            sd = np.hypot(self.east_sd[j, i], self.north_sd[j, i]) / math.sqrt(2.0)
+            return self.east[j, i], self.north[j, i], sd
+        if t is None:
+            e, n = self.east[:, j, i], self.north[:, j, i]
+            sd = np.hypot(self.east_sd[:, j, i], self.north_sd[:, j, i]).mean(axis=0) / math.sqrt(
+                2.0
+            )
+            return e.mean(axis=0), n.mean(axis=0), np.hypot(sd, np.hypot(e.std(0), n.std(0)))
+        dt = self.times[1] - self.times[0] if len(self.times) > 1 else 1.0
+        k = np.clip(np.rint((np.asarray(t, float) - self.times[0]) / dt), 0, len(self.times) - 1)
+        k = np.broadcast_to(k.astype(int), i.shape)
+        sd = np.hypot(self.east_sd[k, j, i], self.north_sd[k, j, i]) / math.sqrt(2.0)
+        return self.east[k, j, i], self.north[k, j, i], sd
 
     @classmethod
     def still(cls) -> Field:
@@ -87,6 +150,7 @@ class Maps:
     lat0: float
     lon0: float
     notes: list[str] = field(default_factory=list)
+    start: float | None = None  # UNIX s when the mission starts: a field in time is read from there
 
 
 def _inputs(term: str) -> set[str] | None:
@@ -148,11 +212,13 @@ def fit_field(
     bounds: tuple[float, float, float, float],
     step: float = GRID_STEP_M,
     cv: bool = True,
+    times: np.ndarray | None = None,
 ) -> Field:
     """Fit the east and north components of ``prefix`` and predict them, with their predictive std, on a
     grid over ``bounds``, on the rows that have the vector (its spikes left out unless the survey keeps
     outliers; `target_rows`); with ``cv``, also their blocked-CV RMSE (an in-flight refit skips it: it
-    must be quick, and its sd is what it has)."""
+    must be quick, and its sd is what it has). With ``times`` (UNIX s) the grid is predicted at each of
+    them (a field in time); else at mid-survey."""
     names = _term_inputs(terms) | {"position", "t"}
     survey = target_rows(survey, f"{prefix}_speed", names).survey
     vt = survey.vector_target(f"{prefix}_speed")
@@ -160,8 +226,9 @@ def fit_field(
     X = survey_inputs(survey, names)
     gx, gy = _grid(bounds, step)
     GX, GY = np.meshgrid(gx, gy)
-    # the grid's inputs: time at mid-survey, depth from the survey's depth map at each node
-    G = grid_inputs(survey, names, np.column_stack([GX.ravel(), GY.ravel()]))
+    xy = np.column_stack([GX.ravel(), GY.ravel()])
+    # the grid's inputs: time at mid-survey (or each of `times`), depth from the survey's depth map
+    grids = [grid_inputs(survey, names, xy, at) for at in ([None] if times is None else times)]
     out, sq = [], []
     grams = DesignCache()  # the east and north components share their features
     folds = blocked_folds(X["position"])[0]
@@ -169,14 +236,44 @@ def fit_field(
         for comp in (e, n):
             m = Model(terms, max_basis=MAX_BASIS, hyper_spacing_s=HYPER_SPACING_S, memory=grams)
             m.fit(X, comp)
-            mu, sd = m.predict(G, return_std=True, include_noise=True)
-            out += [mu.reshape(GX.shape), sd.reshape(GX.shape)]
+            pred = [m.predict(G, return_std=True, include_noise=True) for G in grids]
+            shape = GX.shape if times is None else (len(grids), *GX.shape)
+            out += [
+                np.reshape([p[0] for p in pred], shape),
+                np.reshape([p[1] for p in pred], shape),
+            ]
             if cv:
                 sq.append(float(np.mean((comp - m.cv_predict(folds, return_std=False)[0]) ** 2)))
     rmse = math.sqrt(sum(sq) / len(sq)) if sq else 0.0  # per component, as the sds are
+    times = None if times is None else np.asarray(times, float)
     return Field(
-        float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms), rmse
+        float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms), rmse, times
     )
+
+
+def field_times(terms: list[str], start: float, span_s: float) -> np.ndarray | None:
+    """When a field of `terms` is gridded along a mission from UNIX time `start` over `span_s`: None if
+    nothing in it changes in time; else evenly, SLICES_PER_PERIOD to the shortest tide or seiche period
+    (every GP_STEP_S for a GP in time alone), at most MAX_SLICES."""
+    from forcemap.host.vessel import tides
+    from forcemap.host.workbench.spec import TIME_KINDS
+
+    specs = [parse_term(t, is_circular) for t in terms if _inputs(t) is not None]
+    if not any(s.inputs and ({"t", "utc"} & set(s.inputs)) for s in specs):
+        return None
+    periods = []
+    for s in specs:
+        if s.kind == "seiche" and s.options.get("period_s"):
+            periods.append(float(s.options["period_s"]) / s.options.get("harmonics", 1))
+        elif s.kind == "tide":
+            names = s.options.get("constituents") or ("M4",)  # the fastest a record may pick
+            periods.append(min(tides.constituent(n).period_h for n in names) * 3600.0)
+    kinds = {s.kind for s in specs}
+    step = (
+        max(MIN_STEP_S, min(periods) / SLICES_PER_PERIOD) if kinds & set(TIME_KINDS) else GP_STEP_S
+    )
+    step = max(step, span_s / (MAX_SLICES - 1))
+    return start + np.arange(0.0, span_s + step, step)
 
 
 def survey_maps(
@@ -184,8 +281,12 @@ def survey_maps(
     survey: Survey,
     bounds: tuple[float, float, float, float],
     progress: bool = True,
+    start: float | None = None,
+    span_s: float = 4 * 3600.0,
 ) -> Maps:
-    """Current (and wind, when the table has it) over ``bounds`` (survey frame, m) from the latest fits."""
+    """Current (and wind, when the table has it) over ``bounds`` (survey frame, m) from the latest fits.
+    With a mission ``start`` (UNIX s), a field whose terms change in time (a tide, a seiche, a GP in
+    time) is gridded at times over ``span_s`` from it: the current when the boat will be there."""
     notes: list[str] = []
     fields: dict[str, Field] = {}
     for prefix in ("current", "wind"):
@@ -205,6 +306,31 @@ def survey_maps(
         rows = target_rows(survey, f"{prefix}_speed", _term_inputs(terms))
         notes += [f"{prefix}: {line}" for line in rows.lines()]
         notes += [f"{prefix}: {line}" for line in (rows.spikes.lines() if rows.spikes else [])]
-        note(f"mapping {prefix}: {' + '.join(terms)} on east and north components ...", progress)
-        fields[prefix] = fit_field(survey, prefix, terms, bounds)
-    return Maps(fields["current"], fields["wind"], survey.lat0, survey.lon0, notes)
+        times = None if start is None else field_times(terms, start, span_s)
+        when = "" if times is None else f" at {len(times)} times over the mission"
+        note(
+            f"mapping {prefix}: {' + '.join(terms)} on east and north components{when} ...",
+            progress,
+        )
+        fields[prefix] = fit_field(survey, prefix, terms, bounds, times=times)
+        if times is not None:
+            notes += [f"{prefix}: {n}" for n in mission_time_notes(fields[prefix], survey, times)]
+    return Maps(fields["current"], fields["wind"], survey.lat0, survey.lon0, notes, start)
+
+
+def mission_time_notes(f: Field, survey: Survey, times: np.ndarray) -> list[str]:
+    """What the field in time is: read at the times the boat will be there, and how far from the survey."""
+    from forcemap.host.workbench.time_terms import iso
+
+    t1 = float(survey.columns["t"].max())
+    lines = [
+        f"{' + '.join(f.terms)} evaluated from {iso(times[0])} to {iso(times[-1])} every "
+        f"{(times[1] - times[0]) / 60 if len(times) > 1 else 0:.0f} min: each leg is predicted in the "
+        "current expected when the boat is on it"
+    ]
+    if times[0] > t1 and not any(t.startswith(("tide", "seiche")) for t in f.terms):
+        lines.append(
+            f"the mission starts {(times[0] - t1) / 3600:.1f} h after the survey: a GP in time has "
+            "reverted to its mean there (a tide term predicts: fit --effects tide)"
+        )
+    return lines

@@ -73,24 +73,40 @@ def outcome(
     return Outcome(plan, track, score_lines(track.t, track.xy, plan.lines))
 
 
-def no_headway(lines: np.ndarray, maps: Maps, boat: BoatModel) -> list[list[tuple[float, float]]]:
-    """Stretches of each line where the mapped current against it is at least the boat's top speed."""
+def line_times(track: Track, lines: np.ndarray, t_start: float | None) -> list[float | None]:
+    """When the predicted track passes each line's middle (UNIX s; None without a start time)."""
+    if t_start is None or not len(track.t):
+        return [None] * len(lines)
+    mids = lines.mean(axis=1)
+    k = [int(np.argmin(np.hypot(*(track.xy - m).T))) for m in mids]
+    return [t_start + float(track.t[i]) for i in k]
+
+
+def no_headway(
+    lines: np.ndarray, maps: Maps, boat: BoatModel, when: list[float | None] | None = None
+) -> list[list[tuple[float, float]]]:
+    """Stretches of each line where the mapped current against it (when the boat is there: `when`) is at
+    least the boat's top speed."""
     out = []
-    for a, b in lines:
+    for i, (a, b) in enumerate(lines):
         d = b - a
         length = float(np.hypot(*d))
         s = np.linspace(0.0, length, max(int(length / 2.0), 2))
-        e, n, _ = maps.current.sample(a + (s / length)[:, None] * d)
+        e, n, _ = maps.current.sample(a + (s / length)[:, None] * d, when[i] if when else None)
         against = -(e * d[0] + n * d[1]) / length
         out.append(stretches(against >= boat.max_speed, s))
     return out
 
 
-def relative_sd(lines: np.ndarray, maps: Maps) -> float:
-    """The map's current uncertainty relative to its speed along the lines: the larger of its predictive sd
-    there (what a new measurement would differ by, not the mean's sd alone) and its blocked-CV RMSE."""
+def relative_sd(lines: np.ndarray, maps: Maps, when: list[float | None] | None = None) -> float:
+    """The map's current uncertainty relative to its speed along the lines (each at its time `when`, for a
+    field in time): the larger of its predictive sd there (what a new measurement would differ by, not the
+    mean's sd alone) and its blocked-CV RMSE."""
     pts = np.concatenate([a + np.linspace(0, 1, 50)[:, None] * (b - a) for a, b in lines])
-    e, n, sd = maps.current.sample(pts)
+    t = None
+    if when is not None and all(w is not None for w in when):
+        t = np.repeat(np.asarray(when, float), 50)
+    e, n, sd = maps.current.sample(pts, t)
     speed = np.hypot(e, n)
     spread = max(float(np.mean(sd)), maps.current.cv_rmse)
     return spread / max(float(np.mean(speed)), 1e-6) if speed.mean() > 0.05 else 0.0
@@ -138,11 +154,12 @@ def plan_mission(
     else:
         plan, track = adjust(lines, maps, boat, progress)
         planned = outcome(plan, maps, boat, track)
-    rel = relative_sd(planned.plan.lines, maps)
+    when = line_times(planned.track, planned.plan.lines, maps.start)
+    rel = relative_sd(planned.plan.lines, maps, when)
     return PlanResult(
         original,
         planned,
-        no_headway(planned.plan.lines, maps, boat),
+        no_headway(planned.plan.lines, maps, boat, when),
         sensitivity(planned.plan, maps, boat, planned, rel),
         rel,
         maps.current.cv_rmse,

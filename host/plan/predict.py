@@ -47,11 +47,14 @@ def predict_track(
     boat: BoatModel,
     current_scale: float = 1.0,
     t_max: float | None = None,
+    t_start: float | None = None,
 ) -> Track:
-    """Fly the waypoints once (no loop) from the first, heading for the second, as the simulator starts."""
+    """Fly the waypoints once (no loop) from the first, heading for the second, as the simulator starts,
+    from UNIX time `t_start` (default the maps' `start`): a current that changes in time is read at each
+    step's time."""
     wps = np.asarray(wps, dtype=float)
-    path = float(np.sum(np.hypot(*np.diff(wps, axis=0).T)))
-    t_max = t_max if t_max is not None else 600.0 + 3.0 * path / max(boat.cruise_speed, 0.5)
+    t_max = t_max if t_max is not None else longest_s(wps, boat)
+    t_start = maps.start if t_start is None else t_start
     psi = math.atan2(wps[1, 0] - wps[0, 0], wps[1, 1] - wps[0, 1]) % (2 * math.pi)
     b = Boat(boat.hull, HullState(x=float(wps[0, 0]), y=float(wps[0, 1]), psi=psi, u=1.5))
     nav = Navigator(wps, boat.gains, loop=False, speeds=speeds)
@@ -69,7 +72,8 @@ def predict_track(
             break
         ctl.cruise = speed(cruise)
         throttle, steer = ctl_update(DT, s.psi, s.r, psi_d, hypot(s.ve, s.vn))
-        step(DT, throttle, steer, cur(s.x, s.y, current_scale), wind(s.x, s.y))
+        now = None if t_start is None else t_start + k * DT
+        step(DT, throttle, steer, cur(s.x, s.y, current_scale, now), wind(s.x, s.y, 1.0, now))
         ts.append((k + 1) * DT)
         xs.append(s.x)
         ys.append(s.y)
@@ -90,3 +94,10 @@ def predict_track(
     return Track(
         np.array(ts), np.array(xs), np.array(ys), np.array(legs, dtype=int), np.array(thr), stuck
     )
+
+
+def longest_s(wps: np.ndarray, boat: BoatModel) -> float:
+    """How long a prediction of `wps` may run before it is called stuck: 10 minutes plus three times the
+    path at cruise speed (a field in time is gridded at least this far ahead)."""
+    path = float(np.sum(np.hypot(*np.diff(np.asarray(wps, float), axis=0).T)))
+    return 600.0 + 3.0 * path / max(boat.cruise_speed, 0.5)

@@ -3,9 +3,11 @@
 - ``BoardMaps``: with `forcemap run --live`, the live map process's newest current and wind grids
   (host/live/mapproc.py ``MapBoard``), moved into the replanner's frame;
 - ``RefitMaps``: without it, the ``/samples`` rows the pipeline writes are kept (every
-  ``SPACING_S``), and each call fits the workbench's baseline model (BASELINE terms, the east and north
-  components of current and wind) on them and grids it over the mission's area, exactly as
-  `forcemap plan` maps a finished survey.
+  ``SPACING_S``), and each call fits the workbench's baseline model (BASELINE terms, or the terms given:
+  `run --replan-terms tide`) to the east and north components of current and wind and grids it over the
+  mission's area, exactly as `forcemap plan` maps a finished survey; a field with a term in time (a tide)
+  is gridded at times over the next REST_S from the newest sample, so that the rest of the mission is
+  planned in the current expected when the boat is on each line.
 """
 
 from __future__ import annotations
@@ -19,18 +21,26 @@ from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import Survey
 
 from .inflight import MapSnapshot
-from .maps import Field, Maps, fit_field
+from .maps import Field, Maps, field_times, fit_field
 
 SPACING_S = 0.5  # keep one sample every this many seconds (the pipeline writes 10 per second)
 MIN_SAMPLES = 60
 COLUMNS = ("t", "lat", "lon", "current_east", "current_north", "wind_east", "wind_north")
+REST_S = 3 * 3600.0  # a field in time is gridded this far ahead of the newest sample
 
 
 class RefitMaps:
     """A MapProvider: ``add`` each /samples row; calling it fits the maps on the rows so far."""
 
-    def __init__(self, lat0: float, lon0: float, bounds: tuple[float, float, float, float]) -> None:
+    def __init__(
+        self,
+        lat0: float,
+        lon0: float,
+        bounds: tuple[float, float, float, float],
+        terms: list[str] | None = None,
+    ) -> None:
         self.lat0, self.lon0, self.bounds = lat0, lon0, bounds
+        self.terms = list(terms or BASELINE)
         self.rows: list[tuple[float, ...]] = []
         self._last_t = -np.inf
         self._lock = threading.Lock()  # rows come from the daemon's thread, fits run in another
@@ -60,21 +70,26 @@ class RefitMaps:
         if sv is None:
             return None
         fields = {}
+        newest = float(sv.columns["t"][-1])
+        times = field_times(self.terms, newest, REST_S)
         for prefix in ("current", "wind"):
             e = sv.columns[f"{prefix}_east"]
             if np.isfinite(e).sum() < MIN_SAMPLES:
                 fields[prefix] = Field.still()
                 continue
-            fields[prefix] = fit_field(sv, prefix, list(BASELINE), self.bounds, cv=False)
-        maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0)
+            terms = self.terms if prefix == "current" else list(BASELINE)
+            at = times if prefix == "current" else None
+            fields[prefix] = fit_field(sv, prefix, terms, self.bounds, cv=False, times=at)
+        maps = Maps(fields["current"], fields["wind"], self.lat0, self.lon0, start=newest)
         return MapSnapshot(maps, float(sv.columns["t"][-1]), sv.n)
 
 
 def moved(f: Field, dx: float, dy: float) -> Field:
     """A field on a grid whose origin is (dx, dy) m from the frame it is wanted in."""
     return Field(
-        f.x0 + dx, f.y0 + dy, f.step, f.east, f.north, f.east_sd, f.north_sd, f.terms, f.cv_rmse
-    )
+        f.x0 + dx, f.y0 + dy, f.step, f.east, f.north, f.east_sd, f.north_sd, f.terms, f.cv_rmse,
+        f.times,
+    )  # fmt: skip
 
 
 class BoardMaps:

@@ -163,8 +163,10 @@ class ReplanService(threading.Thread):
         bound_m: float = 30.0,
         stop: threading.Event | None = None,
         board=None,  # type: ignore[no-untyped-def]  # the live map's MapBoard (--live), if any
+        terms: list[str] | None = None,  # the refit's terms (--replan-terms; default the baseline)
     ) -> None:
         super().__init__(name="replan", daemon=True)
+        self.terms = terms
         self.mission, self.boat, self.record, self.log = mission, boat, record, log
         self.bound_m, self.board = bound_m, board
         self.stop_event = stop or threading.Event()
@@ -232,7 +234,9 @@ class ReplanService(threading.Thread):
         if self.board is not None:
             provider = BoardMaps(self.board, frame.lat0, frame.lon0)
         else:
-            self.maps = provider = RefitMaps(frame.lat0, frame.lon0, (lo[0], hi[0], lo[1], hi[1]))
+            self.maps = provider = RefitMaps(
+                frame.lat0, frame.lon0, (lo[0], hi[0], lo[1], hi[1]), self.terms
+            )
             for row in self._early:
                 self.maps.add(row)
         self._early = []

@@ -18,7 +18,7 @@ from forcemap.host.qa import checks
 MCAP_MAGIC = b"\x89MCAP"
 COLUMNS = (
     "t", "lat", "lon", "heading", "yaw_rate", "sog", "cog", "depth", "stw", "app_wind_speed",
-    "wind_speed", "current_east", "current_north",
+    "wind_speed", "current_east", "current_north", "roll", "pitch", "depth_raw", "bottom_lost",
 )  # fmt: skip
 
 
@@ -108,24 +108,57 @@ def _first(columns: Mapping[str, str], col: str) -> str:
     return columns.get(col, "").split(";")[0].strip()
 
 
-def computed_findings(c: Mapping[str, np.ndarray], columns: Mapping[str, str]) -> list[QaFinding]:
-    """The checks computed on the samples themselves."""
+def computed_findings(
+    c: Mapping[str, np.ndarray],
+    columns: Mapping[str, str],
+    recorded: list[QaFinding] | None = None,
+    calibration: Mapping[str, str] | None = None,
+) -> list[QaFinding]:
+    """The checks computed on the samples themselves (``recorded``: the log's own findings, whose
+    bottom lost is not estimated again; ``calibration``: its boat file, for the sounder)."""
+    from forcemap.host.convert.depth_findings import local_xy, lost_finding
+    from forcemap.host.qa.soundings import s44_finding
+
+    recorded = recorded or []
+    depth_src = _first(columns, "depth")
     out: list[QaFinding | None] = [checks.time_finding(c)]
+    if not any(f.check == "bottom_lost" for f in recorded) and np.isfinite(c["depth"]).any():
+        lost, _ = lost_finding(c, depth_src)
+        marked = np.nan_to_num(c["bottom_lost"]) > 0
+        if lost is not None and lost.applied and marked.any():  # a table an import marked
+            fix = f"the table marks {int(marked.sum())} rows bottom_lost = 1: depth maps leave them out"
+            lost = QaFinding(**{**asdict(lost), "fix": fix, "applied": False})
+        elif lost is not None and lost.applied:  # estimated now: the rows are not marked in the file
+            lost = _not_applied(lost)
+            c = {**c, "bottom_lost": _marks(c, lost)}
+        out.append(lost)
+    if np.isfinite(c["depth"]).any() and np.isfinite(c["lat"]).any():
+        out.append(s44_finding(c, local_xy(c["lat"], c["lon"]), depth_src, recorded, calibration))
     out.append(checks.position_finding(c, _first(columns, "lat")))
     out += checks.heading_findings(c, _first(columns, "heading"))
     out.append(checks.wind_finding(c, _first(columns, "app_wind_speed")))
-    out.append(checks.depth_finding(c, _first(columns, "depth")))
+    out.append(checks.depth_finding(c, depth_src))
     out.append(checks.current_finding(c, _first(columns, "stw")))
     return [f for f in out if f is not None]
+
+
+def _marks(c: Mapping[str, np.ndarray], f: QaFinding) -> np.ndarray:
+    """The rows inside a bottom-lost finding's stretches (UNIX s)."""
+    out = np.zeros(len(c["t"]))
+    for span in f.extra.get("stretches", "").split(";"):
+        if span:
+            a, b = (float(x) for x in span.split("-", 1))
+            out[(c["t"] >= a) & (c["t"] <= b)] = 1.0
+    return out
 
 
 def _not_applied(f: QaFinding) -> QaFinding:
     """An estimate made on a table: it says how to apply it, never that it was."""
     if not f.applied:
         return f
-    fix = "to apply (import the raw log again, or pin in boat.toml):" + f.fix.removeprefix(
+    fix = "to apply (import the raw log again, or pin in boat.toml): " + f.fix.removeprefix(
         "applied:"
-    )
+    ).removeprefix("marked:").strip()
     return QaFinding(**{**asdict(f), "fix": fix, "applied": False})
 
 
@@ -148,7 +181,8 @@ def check_table(path: str | Path) -> CheckReport:
         est = sc.estimate(rows, cols, sc.Calibration())
         rep.findings += [_not_applied(f) for f in est.findings]
         rep.notes.append("no estimates recorded in this file: estimated now, not applied")
-    rep.findings += computed_findings(c, columns)
+    cal = _metadata(p, lambda n: n == "calibration").get("calibration") if is_mcap else None
+    rep.findings += computed_findings(c, columns, recorded, cal)
     if is_mcap:
         rep.findings += checks.compass_offsets(sources_report(p))
     return rep

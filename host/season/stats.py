@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.workbench import fourier
 from forcemap.host.workbench.evidence import LOG_2PI, small_blas
 from forcemap.host.workbench.model import FTOL, NOISE_BOUNDS
 from scipy import linalg
@@ -42,9 +43,30 @@ class Stats:
         return self.G.nbytes + self.B.nbytes + self.R.nbytes
 
 
+class ConstAndGP:
+    """The features [1, gp(Z)] of a season's map: a constant and a reduced-rank GP (`workbench.terms`)."""
+
+    def __init__(self, gp) -> None:
+        self.gp = gp
+
+    def __call__(self, Z: np.ndarray) -> np.ndarray:
+        return np.hstack([np.ones((len(Z), 1)), self.gp.features(Z)])
+
+
 def chunk_stats(features, Z: np.ndarray, Y: np.ndarray, rows: int = CHUNK_ROWS) -> Stats:
     """The statistics of targets Y (n x k) against `features(Z)`, streamed over row chunks (never n x m at
-    once beyond `rows` rows)."""
+    once beyond `rows` rows); for `ConstAndGP` features with a basis large enough, from the GP's cosine and
+    sine tables instead (`workbench.fourier`: non-uniform FFTs with finufft, O(n) not O(n m^2), the same
+    numbers to rounding)."""
+    gp = getattr(features, "gp", None)
+    if gp is not None and fourier.is_fast(gp) and len(Z):
+        Y = np.asarray(Y, float).reshape(len(Z), -1)
+        G = np.empty((gp.J.shape[0] + 1,) * 2)
+        cross = fourier.transpose_products(gp, Z, np.hstack([np.ones((len(Z), 1)), Y]))
+        G[0, 0], G[0, 1:], G[1:, 0] = len(Z), cross[:, 0], cross[:, 0]
+        G[1:, 1:] = fourier.gram(gp, Z)
+        B = np.vstack([Y.sum(axis=0), cross[:, 1:]])
+        return Stats(G, B, Y.T @ Y, len(Z))
     out = None
     for a in range(0, len(Z), rows):
         Phi = features(Z[a : a + rows])

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from forcemap.host.season.stats import (
+    ConstAndGP,
     Prior,
     Stats,
     chunk_stats,
@@ -70,11 +71,15 @@ class Frame:
     def xy(self, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
         return np.column_stack(LocalFrame(self.lat0, self.lon0).to_local(lat, lon))
 
-    def space_features(self, Z: np.ndarray) -> np.ndarray:
-        return np.hstack([np.ones((len(Z), 1)), self.space.features(Z)])
+    @property
+    def space_features(self) -> ConstAndGP:
+        """The depth and current maps' features: `space_features(Z)` (n x m)."""
+        return ConstAndGP(self.space)
 
-    def wind_features(self, Z: np.ndarray) -> np.ndarray:
-        return np.hstack([np.ones((len(Z), 1)), self.wind.features(Z)])
+    @property
+    def wind_features(self) -> ConstAndGP:
+        """The wind maps' features (the coarse basis)."""
+        return ConstAndGP(self.wind)
 
 
 class Bundle(dict):

@@ -78,8 +78,9 @@ def _number(cell: object) -> float | None:
     return None
 
 
-def to_numeric(cells: list) -> NumericColumn | None:
-    """Numbers with NaN for empty, non-numeric and infinite cells; None for a column of words."""
+def to_numeric(cells: list, words: bool = False) -> NumericColumn | None:
+    """Numbers with NaN for empty, non-numeric and infinite cells; None for a column of words (unless `words`:
+    a chunk of a column, judged whole by its reader)."""
     if isinstance(cells, np.ndarray) and cells.dtype.kind == "f":
         values = cells.astype(float)
         inf = np.isinf(values)
@@ -98,7 +99,7 @@ def to_numeric(cells: list) -> NumericColumn | None:
             x = math.nan
         values[i] = x
     numbers = int(np.count_nonzero(np.isfinite(values))) + len(infinite)
-    if not_numbers and len(not_numbers) >= numbers:
+    if not_numbers and len(not_numbers) >= numbers and not words:
         return None
     return NumericColumn(values, not_numbers, infinite)
 

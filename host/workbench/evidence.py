@@ -4,49 +4,27 @@ gradient by the log prior variances and the log noise variance. The numerical co
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import functools
 import hashlib
 import math
-import pickle
 from collections.abc import Iterator
 
 import numpy as np
 from forcemap.host.workbench import fourier
+from forcemap.host.workbench.design_cache import DesignCache, design_key  # noqa: F401 - part of this API
+from forcemap.host.workbench.threads import blas_threads, small_blas  # noqa: F401 - part of this API
 from scipy import linalg
 
 LOG_2PI = math.log(2 * math.pi)
-
-
-@functools.lru_cache(maxsize=1)
-def _blas_controller():
-    """threadpoolctl's BLAS libraries, found once (`threadpool_limits` reads /proc/self/maps every call)."""
-    try:
-        from threadpoolctl import ThreadpoolController
-    except ImportError:
-        return None
-    return ThreadpoolController()
-
-
-@contextlib.contextmanager
-def blas_threads(n: int | None) -> Iterator[None]:
-    """Limit BLAS threads (None: no limit). Without threadpoolctl this is a no-op."""
-    ctl = _blas_controller() if n is not None else None
-    with ctl.limit(limits=n, user_api="blas") if ctl else contextlib.nullcontext():
-        yield
-
-
-def small_blas():
-    """One BLAS thread for the many small (M x M) factorizations: threads only add overhead there, and a lot
-    of it on a busy 2-core machine."""
-    return blas_threads(1)
 
 
 # rows per chunk when features are computed on demand: 4096 x 2048 features are 64 MB
 CHUNK_ROWS = 4096
 # a fast GP block's products with up to this many other columns come from sine tables (beyond: features)
 SINE_COLS = 8
+# with finufft (`nufft`): up to this many
+NUFFT_COLS = 160
 # a design with features below this size holds them; a larger one computes them chunk by chunk when needed
 DENSE_BYTES = 160 * 2**20
 
@@ -140,8 +118,10 @@ class Design:
         return G, b
 
     def _sines_pay(self, extra: int) -> bool:
-        """The fast block's products with the other columns (and `extra` more) from sine tables."""
-        return self.fast is not None and self.M - self.sizes[self.fast[0]] + extra <= SINE_COLS
+        """The fast block's products with the other columns (and `extra` more) from sine tables: a few columns,
+        or any covariate's with finufft (O(n w^D) a column, where the features cost O(n M))."""
+        limit = NUFFT_COLS if fourier.nufft.available() else SINE_COLS
+        return self.fast is not None and self.M - self.sizes[self.fast[0]] + extra <= limit
 
     def _fast_pass(self, rows, r: np.ndarray | None, want_gram: bool):
         """`_pass` without the fast block's features: its Gram matrix from cosine tables, its products with
@@ -244,16 +224,22 @@ class Design:
         return np.concatenate([F @ w for _, F in self.row_chunks()])
 
     def subset(self, rows) -> Design:
-        """The design of some rows, holding its features."""
+        """The design of some rows: holding its features when they are small, else computing them from the
+        rows' inputs when needed (a million-row survey's 200,000 hyperparameter rows at 1,600 functions would
+        be 2.5 GB)."""
         fast = None if self.fast is None else (*self.fast[:2], self.fast[2][rows])
-        return Design([np.asarray(b[rows]) for b in self.blocks], fast=fast)
+        blocks = [
+            TermBlock(b.term, b.Z[rows]) if isinstance(b, TermBlock) else np.asarray(b[rows])
+            for b in self.blocks
+        ]
+        if fast is not None and isinstance(blocks[fast[0]], TermBlock):
+            fast = (fast[0], blocks[fast[0]].term, blocks[fast[0]].Z)
+        return Design(blocks, fast=fast)
 
     def augment(self, new: np.ndarray) -> Design:
         """The design with one more feature block; reuses this Gram matrix and its fold Grams."""
         d = Design(self.blocks + [new], fast=self.fast)
-        cross = np.zeros((self.M, new.shape[1]))
-        for idx, F in self.row_chunks():
-            cross += F.T @ new[idx]
+        cross = self.cross(slice(None), new)
         d.G = np.block([[self.G, cross], [cross.T, new.T @ new]])
         d._fold_ids = dict(self._fold_ids)
         if not self._folds:
@@ -279,10 +265,27 @@ class Design:
         for c in range(len(cells)):
             rows = np.flatnonzero(cell_of_row == c)
             nc = new[rows]
-            for idx, F in self.row_chunks(rows):
-                cross[c] += F.T @ new[idx]
+            cross[c] = self.cross(rows, new)
             gram[c] = nc.T @ nc
         return cells, cross, gram
+
+    def cross(self, rows, new: np.ndarray) -> np.ndarray:
+        """Phi[rows]' new[rows] (M x k): the fast block's part from sine tables when they pay (with finufft,
+        O(n w^D) a column: a diagnosis's candidate costs no n x M features), the rest from the features."""
+        idx = as_rows(rows, self.n)
+        if not self._sines_pay(new.shape[1]):
+            out = np.zeros((self.M, new.shape[1]))
+            for c, F in self.row_chunks(idx):
+                out += F.T @ new[c]
+            return out
+        i, term, Zall = self.fast
+        fcols, slow = self.fast_cols
+        out = np.empty((self.M, new.shape[1]))
+        out[fcols] = fourier.transpose_products(term, Zall[idx], new[idx])
+        others = [b[idx] for k, b in enumerate(self.blocks) if k != i]
+        if others:
+            out[slow] = np.hstack(others).T @ new[idx]
+        return out
 
     def fold_grams(self, folds: np.ndarray) -> list[np.ndarray]:
         key = folds_key(folds)
@@ -294,48 +297,6 @@ class Design:
 
 def folds_key(folds: np.ndarray) -> str:
     return hashlib.sha1(np.ascontiguousarray(folds).tobytes()).hexdigest()
-
-
-class DesignCache:
-    """Designs by content, so that models with the same features on the same inputs (the east and north
-    components of a vector, its along- and across-flow components) compute one Gram matrix, and the
-    cross-validation folds `plan` share its pass. Keys are hashes of the terms' set-up state and inputs
-    (`design_key`); the `size` latest designs are kept. A model's `memory`: copies of a model share it."""
-
-    def __init__(self, size: int = 4) -> None:
-        self.size = size
-        self.plan: np.ndarray | None = None
-        self._designs: dict[str, Design] = {}
-
-    def __deepcopy__(self, memo) -> DesignCache:
-        return self
-
-    def __getstate__(self) -> dict:
-        # a pickled cache (a pickled model's `memory`) starts empty: its contents are derived data
-        return {"size": self.size}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__init__(state["size"])
-
-    def design(self, key: str, build) -> Design:
-        if key in self._designs:
-            self._designs[key] = self._designs.pop(key)
-        else:
-            self._designs[key] = build(self.plan)
-            while len(self._designs) > self.size:
-                self._designs.pop(next(iter(self._designs)))
-        return self._designs[key]
-
-
-def design_key(blocks: list[tuple[object, np.ndarray]]) -> str:
-    """A hash of feature terms (their class and set-up state: the basis) and their inputs."""
-    h = hashlib.sha1()
-    for term, Z in blocks:
-        state = {k: v for k, v in sorted(vars(term).items()) if k != "max_basis"}
-        h.update(pickle.dumps((type(term).__name__, state)))
-        h.update(repr(Z.shape).encode())
-        h.update(np.ascontiguousarray(Z).tobytes())
-    return h.hexdigest()
 
 
 @dataclasses.dataclass

@@ -7,8 +7,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.extras import install_hint
 from forcemap.host.progress import note
-from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench import clock_offset, nufft, time_terms
 from forcemap.host.workbench.cv import (
     DEFAULT_FOLDS,
     Calibration,
@@ -24,6 +25,9 @@ from forcemap.host.workbench.table import Survey, unit_of
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
 from forcemap.host.workbench.water_level import crossline_rmse
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
+
+# from this many rows on, the Gram tables' direct sums cost more than the rest of a fit (host/workbench/nufft.py)
+BIG_TABLE = 100_000
 
 
 def resolve_terms(
@@ -64,6 +68,8 @@ class FitResult:
             "spikes": self.model.spikes.to_json() if self.model.spikes else None,
             "gaps": self.model.rows.to_json(),
         }
+        if self.model.time_terms:
+            out["time_terms"] = time_terms.tide_summary(self.model)
         return out | (self.crossline or {})
 
     def summary(self) -> str:
@@ -93,6 +99,7 @@ class FitResult:
         lines.append("fitted parameters:")
         for term, params in m.primary.params_.items():
             lines.append(f"  {term}: " + ", ".join(with_units(term, params, m.target)))
+        lines += time_terms.describe(m)
         lines.append("where the model fails most (held-out residuals):")
         lines += [f"  {s}" for s in self.failures]
         return "\n".join(lines)
@@ -115,8 +122,16 @@ def with_units(term: str, params: dict[str, float], target: str) -> list[str]:
     iu.discard("")
     out = []
     for k, v in params.items():
-        if k in ("std", "value", "amplitude"):
+        if (
+            k in ("std", "value", "amplitude")
+            or k.startswith("amplitude_")
+            or k.endswith("_amplitude")
+        ):
             u = tu
+        elif k.endswith("_deg") or k.startswith("phase_deg"):
+            u = "deg"
+        elif k == "period_s":
+            u = "s"
         elif k == "lengthscale":
             u = next(iter(iu)) if len(iu) == 1 else ""
         elif k.startswith("slope_"):
@@ -142,6 +157,8 @@ def fit_target(
         every = float(np.ptp(survey.trel)) / len(rows)
         hyper = f" (hyperparameters from {len(rows)} of them, one per {every:.1f} s)"
     note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples{hyper} ...", progress)
+    if survey.n >= BIG_TABLE and not nufft.available():
+        note(f"(a table this long fits several times faster with finufft: {install_hint('nufft')})", progress)
     sm = SurveyModel(survey, target, terms, max_basis=max_basis)
     fold_ids = make_folds(sm.rows.survey, folds)  # on the rows the model is fitted on
     # the Gram matrices are accumulated fold by fold: the CV then costs no second pass over the data
@@ -173,7 +190,9 @@ def record(table: Path, result: FitResult) -> dict:
         "calibration": m.calibration.to_json() if m.calibration else None,
     }
     entry = {
-        k: v for k, v in result.to_json().items() if k not in ("spikes", "calibration", "gaps")
+        k: v
+        for k, v in result.to_json().items()
+        if k not in ("spikes", "calibration", "gaps", "time_terms")
     }
     entry.update(folds=result.folds, n=m.survey.n)
     if m.spikes is not None:

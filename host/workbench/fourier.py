@@ -22,6 +22,7 @@ import itertools
 import math
 
 import numpy as np
+from forcemap.host.workbench import nufft
 from scipy import linalg
 
 # a GP term gets the fast path from this many basis functions on (below it the direct products are cheap)
@@ -46,9 +47,20 @@ def _phases(u: np.ndarray, top: int) -> np.ndarray:
     return (high[:, :, None] * low[:, None, :]).reshape(len(u), -1)[:, : top + 1]
 
 
-def waves(term, Z: np.ndarray, cosines: bool = True) -> tuple[list[np.ndarray], list[np.ndarray]]:
+class Points:
+    """What `waves` gives with finufft: the points' angles, at which `linear_form` and `quadratic_form` evaluate
+    their tables by type-2 non-uniform FFTs (O(n w^D) a column) instead of the n x P_d sines and cosines."""
+
+    def __init__(self, angles: list[np.ndarray]) -> None:
+        self.angles = angles
+
+
+def waves(term, Z: np.ndarray, cosines: bool = True):
     """Per input axis, cos(p u_d) for p = 0 .. 2 max J_d (with `cosines`) and sin(p u_d) / sqrt(L_d) for
-    p = 1 .. max J_d, (n, P_d) each: the tables of `quadratic_form` and of `linear_form`, from one set of phases."""
+    p = 1 .. max J_d, (n, P_d) each: the tables of `quadratic_form` and of `linear_form`, from one set of phases.
+    With finufft, `Points` instead (the forms are then non-uniform FFTs)."""
+    if nufft.available():
+        return Points(term.angles(Z))
     cos, sin = [], []
     for d, u in enumerate(term.angles(Z)):
         top = int(term.J[:, d].max())
@@ -95,13 +107,48 @@ def _scale(term) -> float:
 
 
 def gram(term, Z: np.ndarray) -> np.ndarray:
-    """The term's Gram matrix Phi'Phi over the rows of `Z`."""
+    """The term's Gram matrix Phi'Phi over the rows of `Z`: its cosine table by a non-uniform FFT of ones
+    (`nufft`, O(n w^D + K log K)) when finufft is at hand, else summed directly (O(n K_1 K_2))."""
+    if nufft.available():
+        tops = [2 * int(term.J[:, d].max()) for d in range(term.J.shape[1])]
+        F = nufft.exponential_sums(term.angles(Z), np.ones((len(Z), 1)), tops)
+        return gram_of_table(term, _cosine_table(F[0], tops))
     cos = _cosines(term, Z)
     T = cos[0].T @ cos[1] if len(cos) == 2 else cos[0].sum(axis=0)
-    T = T.ravel()
+    return gram_of_table(term, T)
+
+
+def _cosine_table(F: np.ndarray, tops: list[int]) -> np.ndarray:
+    """T[p, q] = sum_i w_i cos(p u_i) cos(q v_i), p, q >= 0, from the exponential sums of the weights."""
+    K1 = tops[0]
+    if len(tops) == 1:
+        return F[K1:].real
+    K2 = tops[1]
+    return 0.5 * (F[K1:, K2:] + F[K1:, K2::-1]).real
+
+
+def _sine_products(term, F: np.ndarray, tops: list[int]) -> np.ndarray:
+    """Phi'w for the weight columns whose exponential sums are F (k, ...): sum_i w_i sin(a u_i) sin(b v_i) is
+    Im F[a] in one dimension and (Re F[a, -b] - Re F[a, b]) / 2 in two, gathered at the features' (a, b)."""
+    J = term.J
+    a = tops[0] + J[:, 0]
+    if len(tops) == 1:
+        out = F[:, a].imag
+    else:
+        b = J[:, 1]
+        out = 0.5 * (F[:, a, tops[1] - b] - F[:, a, tops[1] + b]).real
+    return out.T / math.sqrt(float(np.prod(term.L)))
+
+
+def gram_of_table(term, T: np.ndarray) -> np.ndarray:
+    """The Gram matrix from its cosine table (the sums over some rows): the signed gather of every product."""
+    T = np.ascontiguousarray(T).ravel()
     G = np.zeros((len(term.J), len(term.J)))
     for sign, flat in _combos(term):
-        G += sign * T[flat]
+        if sign > 0:
+            G += T[flat]
+        else:
+            G -= T[flat]
     return G * _scale(term)
 
 
@@ -111,11 +158,15 @@ def transpose_products(term, Z: np.ndarray, W: np.ndarray, rows: int = 4096) -> 
     Column c is the gather of the table sum_i w_ic sin(p u_1i) sin(q u_2i) at (J_j1, J_j2): one n x K_1 x K_2
     matrix product (K_d about the largest frequency index, a few thousand products per row in all) instead of
     the n x M features and their product. Worth it for a few columns (a Gram matrix's cross products with a
-    constant, Phi'r); for many, the features are cheaper."""
+    constant, Phi'r); for many, the features are cheaper. With finufft, the tables are non-uniform FFTs of the
+    columns (`nufft`): O(n w^D) per column, cheaper than the features for any number of them."""
     W = np.asarray(W, float).reshape(len(Z), -1)
     J = term.J - 1
     if W.shape[1] == 0:  # a model of this one term: nothing to cross it with
         return np.zeros((len(J), 0))
+    if nufft.available():
+        tops = [int(term.J[:, d].max()) for d in range(term.J.shape[1])]
+        return _sine_products(term, nufft.exponential_sums(term.angles(Z), W, tops), tops)
     tables = None
     for a in range(0, len(Z), rows):
         S = waves(term, Z[a : a + rows], cosines=False)[1]
@@ -146,6 +197,10 @@ def variance_table(term, C: np.ndarray) -> np.ndarray:
 
 def quadratic_form(term, Z: np.ndarray, D: np.ndarray, tables: tuple | None = None) -> np.ndarray:
     """phi_i' C phi_i at the rows of `Z`, from `variance_table(term, C)` (and `waves(term, Z)` if at hand)."""
+    if tables is None and nufft.available():
+        tables = Points(term.angles(Z))
+    if isinstance(tables, Points):
+        return _quadratic_by_nufft(D, tables.angles)
     cos = _cosines(term, Z) if tables is None else tables[0]
     if len(cos) == 1:
         return cos[0] @ D
@@ -169,12 +224,44 @@ def linear_table(term, W: np.ndarray) -> np.ndarray:
 def linear_form(term, Z: np.ndarray, A: np.ndarray, tables: tuple | None = None) -> np.ndarray:
     """Phi W (n, k) at the rows of `Z` from `linear_table(term, W)` (and `waves(term, Z)` if at hand), without
     forming the n x M features: O(n P_1 P_2 k) in one matrix product, with P_1 P_2 about M."""
-    s = (waves(term, Z, cosines=False) if tables is None else tables)[1]
+    tables = waves(term, Z, cosines=False) if tables is None else tables
+    if isinstance(tables, Points):
+        return _linear_by_nufft(term, A, tables.angles)
+    s = tables[1]
     if len(s) == 1:
         return s[0] @ A.T
     k, p1, p2 = A.shape
     left = s[0] @ A.transpose(1, 0, 2).reshape(p1, k * p2)
     return np.einsum("ikq,iq->ik", left.reshape(len(Z), k, p2), s[1])
+
+
+def _quadratic_by_nufft(D: np.ndarray, angles: list[np.ndarray]) -> np.ndarray:
+    """sum_pq D[p, q] cos(p u) cos(q v) at the points: cos(p u) cos(q v) is the mean of the four exp(i (+-p u
+    +- q v)), so the table mirrored into every quadrant (p = 0 counted twice, as cos(0) = (1 + 1) / 2) over 4."""
+    tops = [s - 1 for s in D.shape]
+    full = np.zeros([2 * t + 1 for t in tops])
+    quadrant = tuple(slice(t, None) for t in tops)
+    full[quadrant] = D
+    out = full.copy()
+    for axes in ([0], [1], [0, 1])[: 2 ** len(tops) - 1]:
+        out += np.flip(full, axis=axes)
+    return nufft.exponential_values(angles, out / 2 ** len(tops), tops)[:, 0].real
+
+
+def _linear_by_nufft(term, A: np.ndarray, angles: list[np.ndarray]) -> np.ndarray:
+    """Phi W (n, k) from `linear_table`'s A (k, P_1[, P_2]): sin(a u) = (exp(i a u) - exp(-i a u)) / 2i, so A
+    laid at +-a (+-b) with the signs and the 1 / (2i)^D of that product, one type-2 FFT per column."""
+    k, sizes = A.shape[0], A.shape[1:]
+    full = np.zeros((k, *[2 * p + 1 for p in sizes]), complex)
+    D = len(sizes)
+    for signs in itertools.product((1, -1), repeat=D):
+        idx = tuple(
+            slice(p + 1, None) if s > 0 else slice(p - 1, None, -1)
+            for p, s in zip(sizes, signs, strict=True)
+        )
+        full[(slice(None), *idx)] += math.prod(signs) * A
+    full /= (2j) ** D * math.sqrt(float(np.prod(term.L)))
+    return nufft.exponential_values(angles, full, list(sizes)).real
 
 
 def posterior_tables(term, cols: tuple[slice, np.ndarray], post: dict) -> None:

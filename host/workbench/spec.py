@@ -8,6 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.seiche import SeicheTerm, parse_seiche
 from forcemap.host.workbench.terms import (
     KERNEL_ALIASES,
     KERNELS,
@@ -21,10 +22,13 @@ from forcemap.host.workbench.terms import (
     TermSpec,
     WaterLevelTerm,
 )
+from forcemap.host.workbench.tide_term import TideTerm, parse_tide
 from forcemap.host.workbench.user_terms import UserTerm, load_function
 
 BASELINE = ["const", "gp(position, matern32)"]
-KINDS = ("gp", "linear", "power", "cos", "user", "const")
+KINDS = ("gp", "linear", "power", "cos", "user", "const", "tide", "seiche")
+# terms in time that predict beyond the survey (host/workbench/tide_term.py, seiche.py)
+TIME_KINDS = ("tide", "seiche")
 _CALL = re.compile(r"^\s*(\w+)\s*\((.*)\)\s*$")
 _NAME = re.compile(r"[A-Za-z_]\w*")
 # a last gp argument that reads like a kernel name is one, even when it is misspelt
@@ -41,6 +45,8 @@ def parse_term(text: str, is_circular: Callable[[str], bool]) -> TermSpec:
         return TermSpec("const", ())
     if text == "water_level":
         return TermSpec("water_level", ("t",))
+    if text in TIME_KINDS:
+        return parse_tide([], text) if text == "tide" else parse_seiche([], text)
     m = _CALL.match(text)
     if not m:
         if not re.fullmatch(r"[A-Za-z_][\w]*", text):
@@ -53,6 +59,10 @@ def parse_term(text: str, is_circular: Callable[[str], bool]) -> TermSpec:
         raise WorkbenchError(
             f"unknown term kind '{kind}' in '{text}'; kinds are {', '.join(KINDS)}"
         )
+    if kind == "tide":
+        return parse_tide(args, text)
+    if kind == "seiche":
+        return parse_seiche(args, text)
     if kind == "gp":
         if len(args) < 1:
             raise WorkbenchError(f"'{text}': a gp term needs inputs, e.g. gp(position, matern32)")
@@ -87,6 +97,10 @@ def build_term(spec: TermSpec, is_circular: Callable[[str], bool]) -> Term:
         return ConstTerm()
     if spec.kind == "water_level":
         return WaterLevelTerm()
+    if spec.kind == "tide":
+        return TideTerm(spec.options.get("constituents", ()), spatial="position" in spec.inputs)
+    if spec.kind == "seiche":
+        return SeicheTerm(spec.options.get("period_s"), spec.options.get("harmonics", 1))
     if spec.kind == "linear":
         return LinearTerm(spec.inputs)
     if spec.kind == "cos":

@@ -21,20 +21,22 @@ alternative, a heavy-tailed (Student-t) likelihood, was measured against removal
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from forcemap.host.workbench.bottom_lost import LostStretch, lost_mask, lost_stretches
-from forcemap.host.workbench.seabed import reference_on, seabed_path
+from forcemap.host.fuse.bottom_lost import (
+    LostStretch,
+    depth_lost,
+    readings_of,
+    running,
+    runs_of,
+)
+from forcemap.host.fuse.seabed import reference_on
 from forcemap.host.workbench.table import FLAG_PREFIX, NOT_COVARIATES, Survey, family, unit_of
 
 WINDOW = 9  # along-track neighbours of the running median (odd: the reading in the middle)
 SCALE_WINDOW = 61  # neighbours of the running spread
 MAX_PASSES = 5
-# rows are grouped into readings when at least this share repeats the row before (the simulator's
-# 4 rows per 1-Hz sounding: 75 %)
-HELD_SHARE = 0.7
 Z = 6.0
 MAD_TO_STD = 1.4826
 # least departure (SI) that is physically a spike, by family; depth also scales with the depth
@@ -149,16 +151,6 @@ class Spikes:
         )
 
 
-def _running(values: np.ndarray, window: int, fn) -> np.ndarray:
-    """`fn` (nan-aware) over a centred window of `window` rows, the window shrunk at the ends."""
-    half = window // 2
-    padded = np.concatenate([np.full(half, np.nan), values, np.full(half, np.nan)])
-    view = np.lib.stride_tricks.sliding_window_view(padded, window)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window gives NaN, as it should
-        return fn(view, axis=1)
-
-
 def resolution(values: np.ndarray) -> float:
     """The column's step: the smallest change between successive readings that is not zero (0 if none)."""
     d = np.abs(np.diff(values[np.isfinite(values)]))
@@ -172,11 +164,11 @@ def _departure(
     """Each reading's departure from the running median of its neighbours (`masked`: the spikes found so
     far are NaN), and that median (a vector's departure is the length of the vector of departures, and
     its reference its speed). Depth's neighbours are those left in `masked` (on the seabed's path:
-    forcemap.host.workbench.seabed), and where none is, the reference is interpolated between them."""
+    forcemap.host.fuse.seabed), and where none is, the reference is interpolated between them."""
     if fam == "depth" and len(parts) == 1:
-        ref = reference_on(masked[0], WINDOW, _running)
+        ref = reference_on(masked[0], WINDOW, running)
         return parts[0] - ref, ref
-    meds = [_running(m, WINDOW, np.nanmedian) for m in masked]
+    meds = [running(m, WINDOW, np.nanmedian) for m in masked]
     if len(parts) == 1:
         return parts[0] - meds[0], meds[0]
     dev = np.hypot(parts[0] - meds[0], parts[1] - meds[1])
@@ -189,18 +181,21 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
     The test is repeated with the spikes found so far left out of the neighbours' median, until the flags
     stop changing: a cluster of false echoes drags the median of the first pass towards it, so that some
     of them are missed and good soundings beside them look deep."""
-    group = _readings(parts)
+    group = readings_of(parts)
     first = np.flatnonzero(np.diff(group, prepend=-1))
     readings = [p[first] for p in parts]
     flagged = np.zeros(len(first), bool)
     off = lost = np.zeros(len(first), bool)
     stretches: list[LostStretch] = []
     if fam == "depth" and len(parts) == 1:  # the reference from the seabed's continuous path only
-        d = readings[0]
-        off = ~seabed_path(d, FLOORS["depth"] + DEPTH_FLOOR_SHARE * np.abs(d))
-        stretches = lost_stretches(d, ~off, survey.trel[first], _running)
-        lost = lost_mask(len(d), stretches)
-        off = off | lost  # the reference bridges a stretch from the bottom on either side
+        found_lost = depth_lost(parts[0], survey.trel, _xy(survey))
+        stretches = found_lost.stretches
+        lost = found_lost.lost | _marked_lost(survey, first)
+        if lost.any() and not stretches:  # marked by the import, on soundings since changed
+            stretches = runs_of(lost, survey.trel[first])
+        off = (
+            ~found_lost.on_path | lost
+        )  # the reference bridges a stretch from the bottom on either side
     for _ in range(MAX_PASSES):
         masked = [np.where(flagged | off, np.nan, p) for p in readings]
         found = _one_pass(name, readings, masked, fam)
@@ -220,18 +215,18 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
     )
 
 
-def _readings(parts: list[np.ndarray]) -> np.ndarray:
-    """Each row's reading: rows that repeat the row before (a table sampled faster than the sensor
-    holds its last reading) are one reading, so that the window counts readings, not rows (at 4 rows
-    a sounding, a run of two false echoes filled 8 of 9 rows and beat the median)."""
-    same = np.ones(len(parts[0]) - 1, bool) if len(parts[0]) else np.zeros(0, bool)
-    for p in parts:
-        same &= (p[1:] == p[:-1]) | (np.isnan(p[1:]) & np.isnan(p[:-1]))
-    if not len(same) or same.mean() < HELD_SHARE:
-        # a coarse column repeats too (PacCupStart's DBT: 57 % of rows), but not as a rule: counted
-        # by readings, its window spanned a minute of a steep channel and flagged 71 real soundings
-        return np.arange(len(parts[0]))
-    return np.concatenate([[0], np.cumsum(~same)])
+def _xy(survey: Survey) -> np.ndarray | None:
+    """The rows' positions (m), for the bottom-lost test's steepness; None where a track has none."""
+    cols = getattr(survey, "columns", {})
+    return survey.xy if "x" in cols and "y" in cols else None
+
+
+def _marked_lost(survey: Survey, first: np.ndarray) -> np.ndarray:
+    """The readings an import marked as the bottom lost (its ``bottom_lost`` column), if any."""
+    marked = getattr(survey, "columns", {}).get("bottom_lost")
+    if marked is None:
+        return np.zeros(len(first), bool)
+    return np.nan_to_num(marked[first]) > 0
 
 
 def _one_pass(
@@ -245,7 +240,7 @@ def _one_pass(
     # would make it the echoes')
     spread_of = good if fam == "depth" and np.isfinite(good).any() else absdev
     overall = float(np.nanmedian(spread_of)) * scale_of if np.isfinite(spread_of).any() else 0.0
-    local = _running(good, SCALE_WINDOW, np.nanmedian) * scale_of
+    local = running(good, SCALE_WINDOW, np.nanmedian) * scale_of
     spread = np.fmax(np.nan_to_num(local, nan=overall), 0.5 * overall)
     floor = FLOORS.get(fam or "", 0.0)
     if fam == "depth":

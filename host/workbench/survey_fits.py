@@ -8,6 +8,7 @@ import functools
 import numpy as np
 from forcemap.host.vessel.geodesy import wrap_from_minus180
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.flow_axis import axis_frame, time_part
 from forcemap.host.workbench.gaps import DERIVED_INPUTS, bridged, prepare_column, too_few
 from forcemap.host.workbench.model import (
     HYPER_SPACING_S,
@@ -88,10 +89,12 @@ class SurveyFits:
         prepare_column(s.subset(ok), "depth", "covariate")  # not constant
         return self.model(BASELINE).fit({"position": s.xy[ok], "t": s.trel[ok]}, depth[ok])
 
-    def frame(self, vt: VectorTarget) -> tuple[Model, Model]:
-        """Smooth models of a vector's east and north components (see `flow_frame`)."""
+    def frame(self, vt: VectorTarget, time_terms: tuple[str, ...] = ()) -> tuple[Model, Model]:
+        """Smooth models of a vector's east and north components (see `flow_frame`); with `time_terms`
+        (a tide, a seiche) over position and those terms, for the oscillating flow's axis (`flow_axis`)."""
         kind = "dir" if vt.aspect == "dir" else "speed"
-        key = f"frame/{vt.prefix}/{kind}"
+        terms = FRAME_TERMS[kind] if not time_terms else [*BASELINE, *time_terms]
+        key = f"frame/{vt.prefix}/{kind}" + "".join(f"/{t}" for t in time_terms)
         if key + "/east" not in self._shared:
             survey = self.survey
             e, n = survey.components(vt)
@@ -101,16 +104,20 @@ class SurveyFits:
             ok = np.isfinite(e) & np.isfinite(n)
             if ok.sum() < MIN_ROWS:
                 raise too_few(int(ok.sum()), vt.prefix)
-            X = {"position": survey.xy[ok], "t": survey.trel[ok]}
+            X = {k: v[ok] for k, v in survey_inputs(survey, set()).items()}
             for c, y in (("east", e[ok]), ("north", n[ok])):
-                self._fit(f"{key}/{c}", FRAME_TERMS[kind], X, y, max_basis=FRAME_MAX_BASIS)
+                self._fit(f"{key}/{c}", terms, X, y, max_basis=FRAME_MAX_BASIS)
         return self._shared[key + "/east"], self._shared[key + "/north"]
 
-    def secondary(self, vt: VectorTarget, primary_is_along: bool, y: np.ndarray) -> Model:
-        """The baseline model of the flow-frame component a target's terms do not act on (`y`)."""
+    def secondary(
+        self, vt: VectorTarget, primary_is_along: bool, y: np.ndarray, time_terms: tuple = ()
+    ) -> Model:
+        """The baseline model (with the target's time terms: a tide moves both components) of the
+        flow-frame component a target's other terms do not act on (`y`)."""
         key = f"secondary/{vt.prefix}/{'across' if primary_is_along else 'along'}"
+        key += "".join(f"/{t}" for t in time_terms)
         if key not in self._shared:
-            self._fit(key, BASELINE, {"position": self.survey.xy, "t": self.survey.trel}, y)
+            self._fit(key, [*BASELINE, *time_terms], survey_inputs(self.survey, set()), y)
         return self._shared[key]
 
     def _fit(self, key: str, terms, X: dict, y: np.ndarray, **kw) -> Model:
@@ -132,13 +139,20 @@ class SurveyFits:
             for k, m in self._shared.items()
         }
 
-    def frame_cv(self, vt: VectorTarget, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def frame_cv(
+        self, vt: VectorTarget, folds: np.ndarray, time_terms: tuple = ()
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The flow frame's unit vector at each sample from the frame models refitted without its fold."""
-        key = (vt.prefix, vt.aspect, np.ascontiguousarray(folds).tobytes())
+        key = (vt.prefix, vt.aspect, np.ascontiguousarray(folds).tobytes(), time_terms)
         if key not in self._frame_cv:
-            me, mn = self.frame(vt)
+            me, mn = self.frame(vt, time_terms)
             e = me.cv_predict(folds, return_std=False)[0]
             n = mn.cv_predict(folds, return_std=False)[0]
+            if time_terms:
+                X = survey_inputs(self.survey, set())
+                mean = (e - time_part(me, X), n - time_part(mn, X))
+                self._frame_cv[key] = axis_frame(me, mn, self.survey, X, mean)
+                return self._frame_cv[key]
             sp = np.hypot(e, n)
             sp = np.where(sp > 1e-9, sp, 1.0)
             self._frame_cv[key] = (e / sp, n / sp)
@@ -171,13 +185,20 @@ def flow_frame(survey: Survey, vt: VectorTarget) -> tuple[Model, Model]:
 
 
 def frame_direction(
-    survey: Survey, vt: VectorTarget, xy: np.ndarray, t: np.ndarray | None = None
+    survey: Survey,
+    vt: VectorTarget,
+    xy: np.ndarray,
+    t: np.ndarray | None = None,
+    time_terms: tuple[str, ...] = (),
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vector of the smooth flow at positions `xy` and times `t` (default: mid-survey)."""
-    me, mn = flow_frame(survey, vt)
+    """Unit vector of the smooth flow at positions `xy` and survey times `t` (default: mid-survey); with
+    `time_terms` (a tide, a seiche), the oscillating flow's axis there, which does not change in time."""
+    me, mn = survey_fits(survey).frame(vt, time_terms)
     if t is None:
         t = np.full(len(xy), float(np.median(survey.trel)))
-    X = {"position": xy, "t": t}
+    X = {"position": xy, "t": t, "utc": survey.t0 + t, "lat": np.full(len(xy), survey.lat0)}
+    if time_terms:
+        return axis_frame(me, mn, survey, X)
     e, n = me.predict(X), mn.predict(X)
     s = np.hypot(e, n)
     s = np.where(s > 1e-9, s, 1.0)
@@ -231,20 +252,41 @@ def covariate(survey: Survey, name: str) -> np.ndarray:
     return values
 
 
+# inputs every model can have without a column of their own: where and when (`utc`: UNIX seconds, the
+# tide's clock; `t`: seconds since the survey's first sample; `lat`: degrees, the tide's latitude factors)
+PLACE_AND_TIME = ("position", "t", "utc", "lat")
+
+
 def survey_inputs(survey: Survey, names: set[str]) -> dict[str, np.ndarray]:
-    X: dict[str, np.ndarray] = {"position": survey.xy, "t": survey.trel}
-    for name in names - {"position", "t"}:
+    X: dict[str, np.ndarray] = {
+        "position": survey.xy,
+        "t": survey.trel,
+        "utc": survey.columns["t"],
+        "lat": survey.columns["lat"],
+    }
+    for name in names - set(PLACE_AND_TIME):
         X[name] = covariate(survey, name)
     return X
 
 
-def grid_inputs(survey: Survey, names: set[str], xy: np.ndarray) -> dict[str, np.ndarray]:
-    """Inputs for maps: depth from a depth map, time at mid-survey, every other covariate at its typical value."""
+def mid_time(survey: Survey) -> float:
+    """UNIX time of the survey's median sample: when a map without a time is evaluated."""
+    return survey.t0 + float(np.median(survey.trel))
+
+
+def grid_inputs(
+    survey: Survey, names: set[str], xy: np.ndarray, at: float | np.ndarray | None = None
+) -> dict[str, np.ndarray]:
+    """Inputs for maps: depth from a depth map, time `at` (UNIX s, one or per point; default mid-survey),
+    every other covariate at its typical value."""
+    utc = np.broadcast_to(np.asarray(mid_time(survey) if at is None else at, float), (len(xy),))
     X: dict[str, np.ndarray] = {
         "position": xy,
-        "t": np.full(len(xy), float(np.median(survey.trel))),
+        "t": utc - survey.t0,
+        "utc": utc,
+        "lat": np.full(len(xy), survey.lat0),
     }
-    for name in names - {"position", "t"}:
+    for name in names - set(PLACE_AND_TIME):
         values = survey_inputs(survey, {name})[name]
         if name == "depth":
             X[name] = survey_fits(survey).depth_map.predict({"position": xy})

@@ -8,11 +8,12 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame, wrap_from_minus180
-from forcemap.host.workbench.cleaning import check_positions, to_numeric
+from forcemap.host.workbench.cleaning import check_positions
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.table_files import (  # noqa: F401 - part of this API
     mcap_latencies,
     mcap_provenance,
+    read_numeric,
     read_raw,
 )
 
@@ -22,7 +23,10 @@ MIN_ROWS = 30
 MAX_UNPLACED_FRACTION = 0.5
 REQUIRED = ("t", "lat", "lon")
 # columns that are bookkeeping, never covariates
-NOT_COVARIATES = {"t", "lat", "lon", "x", "y", "position_dr", "boat_vel_filled"}  # an ADCP's flags
+# an ADCP's flags, the rows an import found the bottom lost in, and each sounding's uncertainty
+NOT_COVARIATES = {
+    "t", "lat", "lon", "x", "y", "position_dr", "boat_vel_filled", "bottom_lost", "depth_tvu",
+}  # fmt: skip
 # flag columns (spike_depth, spike_current, ...): bookkeeping too
 FLAG_PREFIX = "spike_"
 # boat kinematics that respond to the current and wind pushing the boat (yaw_rate is not here: in a survey the
@@ -65,7 +69,8 @@ def family(name: str) -> str | None:
     # the speed through water is the boat's velocity minus the measured current: it carries the current's noise
     if name.startswith("current_") or re.fullmatch(r"wheel\d+_speed", name) or name == "stw":
         return "current"
-    if name == "depth":
+    # the sounding as read before its tilt correction is the target's own raw reading
+    if name in ("depth", "depth_raw"):
         return "depth"
     return None
 
@@ -210,16 +215,12 @@ class Survey:
         return sign * s * np.sin(rad), sign * s * np.cos(rad)
 
 
-def _numeric_columns(path: Path, raw: dict[str, list]) -> tuple[dict, set[str], list[str]]:
-    """Numeric columns (cells that are not numbers, and inf, made missing with a note) and the rest."""
+def _numeric_columns(path: Path) -> tuple[dict, set[str], list[str]]:
+    """Numeric columns (cells that are not numbers, and inf, made missing with a note), the other columns'
+    names, and notes on the reading (a truncated log's first)."""
+    numeric, non_numeric, notes = read_numeric(path)
     columns: dict[str, np.ndarray] = {}
-    non_numeric: set[str] = set()
-    notes: list[str] = []
-    for name, cells in raw.items():
-        col = to_numeric(cells)
-        if col is None:
-            non_numeric.add(name)
-            continue
+    for name, col in numeric.items():
         columns[name] = col.values
         notes += col.notes(name)
     for c in REQUIRED:
@@ -264,14 +265,12 @@ def load_survey(path: str | Path, keep_outliers: bool = False) -> Survey:
     """Read and validate a samples table; positions become metres east/north of the survey centre.
     With `keep_outliers`, spikes are flagged but stay in the fits (host/workbench/spikes.py)."""
     path = Path(path)
-    raw = read_raw(path)
-    missing = [c for c in REQUIRED if c not in raw]
+    columns, non_numeric, notes = _numeric_columns(path)
+    missing = [c for c in REQUIRED if c not in columns and c not in non_numeric]
     if missing:
         raise WorkbenchError(
             f"{path}: required column(s) missing: {', '.join(missing)} (need t, lat, lon)"
         )
-    columns, non_numeric, notes = _numeric_columns(path, raw)
-    notes = list(getattr(raw, "notes", [])) + notes  # a truncated log's first
     survey = survey_from_columns(path, columns, non_numeric, notes)
     survey.keep_outliers = keep_outliers
     if path.suffix.lower() == ".mcap":

@@ -4,12 +4,20 @@ who fed each column of an MCAP log."""
 from __future__ import annotations
 
 import csv
+import itertools
+from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
+from forcemap.host.workbench.cleaning import NumericColumn, to_numeric
 from forcemap.host.workbench.errors import WorkbenchError
 
+# rows read at a time: a million-row table is never held as Python strings (25 columns of them: ~2 GB, estimated)
+CHUNK_ROWS = 65_536
 
-def _read_csv(path: Path) -> dict[str, list[str]]:
+
+def _csv_chunks(path: Path, rows: int = CHUNK_ROWS) -> Iterator[tuple[list[str], list[list[str]]]]:
+    """(header, the next `rows` data rows' cells by column) through the file, blank rows skipped."""
     try:
         # utf-8-sig: a byte-order mark (spreadsheets write one) is read, not taken for part of `t`
         with path.open(newline="", encoding="utf-8-sig") as f:
@@ -18,28 +26,43 @@ def _read_csv(path: Path) -> dict[str, list[str]]:
             if header is None:
                 raise WorkbenchError(f"{path}: the file is empty")
             header = [h.strip() for h in header]
-            rows = list(reader)
+            dup = sorted({h for h in header if header.count(h) > 1})
+            if dup:
+                raise WorkbenchError(
+                    f"{path}: column name(s) {', '.join(repr(d) for d in dup)} appear more than once in the header"
+                )
+            line = 1
+            while True:
+                block = list(itertools.islice(reader, rows))
+                good = []
+                for row in block:
+                    line += 1
+                    if len(row) != len(header):
+                        if not any(cell.strip() for cell in row):
+                            continue
+                        raise WorkbenchError(
+                            f"{path}: row {line} has {len(row)} cells, the header has {len(header)}"
+                        )
+                    good.append(row)
+                yield (
+                    header,
+                    [list(c) for c in zip(*good, strict=True)] if good else [[] for _ in header],
+                )
+                if len(block) < rows:
+                    return
     except UnicodeDecodeError:
         raise WorkbenchError(
             f"{path}: not UTF-8 text; is it a CSV? (save it from the spreadsheet as CSV UTF-8)"
         ) from None
     except csv.Error as exc:
         raise WorkbenchError(f"{path}: not a readable CSV ({exc})") from None
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise WorkbenchError(
-            f"{path}: column name(s) {', '.join(repr(d) for d in dup)} appear more than once in the header"
-        )
-    cols: dict[str, list[str]] = {h: [] for h in header}
-    for i, row in enumerate(rows):
-        if len(row) != len(header):
-            if not any(cell.strip() for cell in row):
-                continue
-            raise WorkbenchError(
-                f"{path}: row {i + 2} has {len(row)} cells, the header has {len(header)}"
-            )
-        for h, cell in zip(header, row, strict=True):
-            cols[h].append(cell)
+
+
+def _read_csv(path: Path) -> dict[str, list[str]]:
+    cols: dict[str, list[str]] = {}
+    for header, chunk in _csv_chunks(path):
+        for h, cells in zip(header, chunk, strict=True):
+            cols.setdefault(h, []).extend(cells)
     return cols
 
 
@@ -133,3 +156,91 @@ def read_raw(path: str | Path) -> dict[str, list]:
     if suffix == ".mcap":
         return _read_mcap(path)
     return _read_csv(path)
+
+
+class _Numbers:
+    """One column's numbers gathered chunk by chunk, with the cells made missing (by data row)."""
+
+    def __init__(self) -> None:
+        self.parts: list[np.ndarray] = []
+        self.not_numbers: list[tuple[int, str]] = []
+        self.infinite: list[int] = []
+        self.rows = 0
+
+    def add(self, cells) -> None:
+        """The next chunk's cells: parsed as a whole where every cell is a number (numpy reads them as Python's
+        float does), else cell by cell (`to_numeric`, which names what it made missing)."""
+        if isinstance(cells, np.ndarray) and cells.dtype.kind == "f":
+            col = to_numeric(cells)
+        else:
+            try:
+                values = np.asarray(cells, dtype=str).astype(float)
+                col = to_numeric(values)
+            except (
+                ValueError
+            ):  # words in this chunk: numbers elsewhere may still make the column numeric
+                col = to_numeric(cells, words=True)
+        self.parts.append(col.values)
+        self.not_numbers += [(i + self.rows, t) for i, t in col.not_numbers]
+        self.infinite += [i + self.rows for i in col.infinite]
+        self.rows += len(cells)
+
+    def column(self) -> NumericColumn | None:
+        """The whole column, or None for a column of words (as `to_numeric` judges one)."""
+        values = np.concatenate(self.parts) if self.parts else np.zeros(0)
+        numbers = int(np.count_nonzero(np.isfinite(values))) + len(self.infinite)
+        if self.not_numbers and len(self.not_numbers) >= numbers:
+            return None
+        return NumericColumn(values, self.not_numbers, self.infinite)
+
+
+def _parquet_chunks(path: Path) -> Iterator[tuple[list[str], list]]:
+    """(names, cells by column) of each row group: numeric columns as float arrays (nulls NaN)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        f = pq.ParquetFile(path)
+        names = f.schema_arrow.names
+        groups = range(f.num_row_groups)
+    except Exception as exc:  # pyarrow raises many types for a bad file
+        raise WorkbenchError(f"{path}: not a readable Parquet file ({exc})") from None
+    for g in groups:
+        try:
+            table = f.read_row_group(g)
+        except Exception as exc:
+            raise WorkbenchError(f"{path}: not a readable Parquet file ({exc})") from None
+        cols = []
+        for name in names:
+            col = table.column(name)
+            if pa.types.is_floating(col.type) or pa.types.is_integer(col.type):
+                cols.append(col.to_numpy(zero_copy_only=False).astype(float))
+            else:
+                cols.append(col.to_pylist())
+        yield names, cols
+
+
+def read_numeric(path: str | Path) -> tuple[dict[str, NumericColumn], set[str], list[str]]:
+    """A table's numeric columns (what `to_numeric` makes of each column of `read_raw`), the names of its
+    columns of words, and notes on how it was read. A CSV or Parquet file is read a chunk of rows (a Parquet
+    row group) at a time, so that only the numbers are ever held whole (8 MB per column per million rows);
+    an MCAP log through `read_raw`."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet", ".pq") or not path.is_file():
+        raw = read_raw(path)
+        cols = {name: to_numeric(cells) for name, cells in raw.items()}
+        words = {name for name, c in cols.items() if c is None}
+        return (
+            {k: c for k, c in cols.items() if c is not None},
+            words,
+            list(getattr(raw, "notes", [])),
+        )
+    chunks = _parquet_chunks(path) if suffix in (".parquet", ".pq") else _csv_chunks(path)
+    acc: dict[str, _Numbers] = {}
+    for names, cells in chunks:
+        for name, c in zip(names, cells, strict=True):
+            acc.setdefault(name, _Numbers()).add(c)
+    cols = {name: a.column() for name, a in acc.items()}
+    words = {name for name, c in cols.items() if c is None}
+    return {k: c for k, c in cols.items() if c is not None}, words, []

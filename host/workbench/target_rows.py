@@ -20,7 +20,7 @@ from forcemap.host.workbench.spikes import Spikes, target_spikes
 from forcemap.host.workbench.table import MIN_ROWS, Survey
 
 # inputs of a term that are no covariate column
-NOT_COLUMNS = {"position", "t"}
+NOT_COLUMNS = {"position", "t", "utc", "lat"}  # survey_fits.PLACE_AND_TIME
 
 
 @dataclass

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 
 import numpy as np
 from forcemap.host.vessel.geodesy import wrap_from_minus180
-from forcemap.host.workbench import clock_offset
+from forcemap.host.workbench import clock_offset, time_terms
 from forcemap.host.workbench.cv import Calibration, CVResult
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
@@ -65,6 +65,9 @@ class SurveyModel:
                 survey, self.vector, self.clock_offset
             )
         self.survey = survey
+        self.seiche_estimate = (
+            None  # a seiche's period estimated at `fit` (host/workbench/seiche.py)
+        )
         # the predictive band's held-out coverage and the factor on the maps' sd (`calibrate`)
         self.calibration: Calibration | None = None
         self.cv_: CVResult | None = None  # the blocked CV `calibrate` ran, if it ran one
@@ -108,6 +111,16 @@ class SurveyModel:
         )
 
     @property
+    def time_terms(self) -> tuple[str, ...]:
+        """The target's tide and seiche terms: they move both components of a vector."""
+        return time_terms.all_terms(self.term_specs)
+
+    @property
+    def frame_terms(self) -> tuple[str, ...]:
+        """The time terms of the vector's frame models (its oscillation's axis)."""
+        return time_terms.frame_terms(self.term_specs)
+
+    @property
     def circular(self) -> bool:
         return bool(self.vector and self.vector.aspect == "dir")
 
@@ -139,7 +152,7 @@ class SurveyModel:
             self.measured = speed
         else:
             self.measured = vt.direction(e, n)
-        self.ue, self.un = frame_direction(s, vt, s.xy, s.trel)
+        self.ue, self.un = frame_direction(s, vt, s.xy, s.trel, self.frame_terms)
         along = e * self.ue + n * self.un
         across = -e * self.un + n * self.ue
         self.y_primary, self.y_secondary = (
@@ -161,6 +174,7 @@ class SurveyModel:
 
         With `theta` and `n_basis` from an earlier fit of these terms on this survey (`Model.theta_`,
         `Model.n_basis_`), the primary model is rebuilt from them without the optimiser: the same map."""
+        time_terms.resolve_seiche(self)
         names = {i for s in self.term_specs for i in s.inputs}
         self.X = survey_inputs(self.survey, names)
         self._prepare_y()
@@ -172,7 +186,9 @@ class SurveyModel:
             self.primary = primary.fit(self.X, self.y_primary)
         if self.vector and self.vector.aspect in ("speed", "dir"):
             fits = survey_fits(self.survey)
-            self.secondary = fits.secondary(self.vector, self.primary_is_along, self.y_secondary)
+            self.secondary = fits.secondary(
+                self.vector, self.primary_is_along, self.y_secondary, self.time_terms
+            )
         else:
             self.secondary = None
         return self
@@ -315,22 +331,25 @@ class SurveyModel:
     def _frame_cv(self, folds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The flow frame at each held-out sample from the frame models refitted without its fold: the
         full-data frame has seen the held-out vectors, and a direction target would be predicted by them."""
-        return survey_fits(self.survey).frame_cv(self.vector, folds)
+        return survey_fits(self.survey).frame_cv(self.vector, folds, self.frame_terms)
 
-    def predict_grid(self, xy: np.ndarray) -> dict[str, np.ndarray]:
+    def predict_grid(
+        self, xy: np.ndarray, at: float | np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """Mean and predictive std of the target on map positions (what a new measurement there would differ
         from the mean by: latent plus noise variance, times the calibration's `sd_scale`), and `mean_std`, the
-        sd of the mean alone; for vectors also the east/north components and their predictive stds."""
+        sd of the mean alone; for vectors also the east/north components and their predictive stds. At UNIX
+        time `at` (one, or one per position; default mid-survey)."""
         names = {i for s in self.term_specs for i in s.inputs}
-        X = grid_inputs(self.survey, names, xy)
+        X = grid_inputs(self.survey, names, xy, at)
         k = self.sd_scale
         mu_p, sd_p = self.primary.predict(X, return_std=True)
         noise_p = self.primary.noise_std_
         if self.secondary is None:
             return {"mean": mu_p, "std": k * np.hypot(sd_p, noise_p), "mean_std": sd_p}
-        mu_s, sd_s = self.secondary.predict({"position": xy}, return_std=True)
+        mu_s, sd_s = self.secondary.predict(X, return_std=True)
         noise_s = self.secondary.noise_std_
-        ue, un = frame_direction(self.survey, self.vector, xy)
+        ue, un = frame_direction(self.survey, self.vector, xy, X["t"], self.frame_terms)
         mean, lo, hi, mean_std = self.combine(
             mu_p, sd_p, noise_p, mu_s, sd_s, noise_s, ue=ue, un=un, spread=True
         )

@@ -338,6 +338,8 @@ class TermSpec:
     options: dict = field(default_factory=dict)
 
     def __str__(self) -> str:
+        if "text" in self.options:  # a term whose string is not its inputs (tide, seiche)
+            return self.options["text"]
         args = ", ".join(self.inputs)
         if self.kind == "gp":
             return f"gp({args}, {self.kernel})"

@@ -18,6 +18,7 @@ from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.fuse.crossings import crossing_pairs
 from forcemap.host.workbench.errors import WorkbenchError
 
 FEET = 0.3048
@@ -222,10 +223,7 @@ def reduce_to_gauge(survey, gauge: Gauge):
 def revisits(xy: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Pairs (i, j) of samples within REVISIT_RADIUS_M of each other and at least REVISIT_MIN_DT_S apart:
     the places where the track crosses or revisits itself."""
-    from scipy.spatial import cKDTree
-
-    pairs = cKDTree(xy).query_pairs(REVISIT_RADIUS_M, output_type="ndarray")
-    return pairs[np.abs(t[pairs[:, 0]] - t[pairs[:, 1]]) >= REVISIT_MIN_DT_S]
+    return crossing_pairs(xy, t, REVISIT_RADIUS_M, REVISIT_MIN_DT_S)
 
 
 def revisit_folds(
@@ -239,12 +237,52 @@ def revisit_folds(
         (REVISIT_STRETCHES * (t - t.min()) / span).astype(int), REVISIT_STRETCHES - 1
     )
     folds = stretch % max(2, min(k, REVISIT_STRETCHES // 2))
-    pairs = revisits(xy, t)
-    pairs = pairs[folds[pairs[:, 0]] != folds[pairs[:, 1]]]
-    rows = np.unique(pairs.ravel())
+    rows = revisited_rows(xy, t, folds)
     if len(rows) < min_rows:
         return None
     return folds, rows, stretch[rows]
+
+
+def revisited_rows(xy: np.ndarray, t: np.ndarray, folds: np.ndarray) -> np.ndarray:
+    """The samples with a sample of another fold within REVISIT_RADIUS_M and at least REVISIT_MIN_DT_S
+    apart (the rows of `revisits`' pairs that join two folds), without listing the pairs: a week at 1 Hz
+    over one reach has ~10^8 of them. Each fold's samples ask a tree of the others' for the nearest; only
+    those within REVISIT_MIN_DT_S of another fold's sample in time (where one stretch meets the next) look
+    at every neighbour's time."""
+    from scipy.spatial import cKDTree
+
+    hit = np.zeros(len(t), bool)
+    order = np.argsort(t, kind="stable")
+    ts, fs = t[order], folds[order]
+    for f in np.unique(folds):
+        mine, others = np.flatnonzero(folds == f), np.flatnonzero(folds != f)
+        if not len(others):
+            continue
+        # unbalanced, uncompacted: the same answers, the fastest to ask on a survey that revisits its ground
+        tree = cKDTree(xy[others], balanced_tree=False, compact_nodes=False)
+        d, _ = tree.query(xy[mine], distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf))
+        near = d <= REVISIT_RADIUS_M
+        # another fold's sample closer in time than REVISIT_MIN_DT_S: the nearest may not count, look at all
+        other_t = ts[fs != f]
+        lo = np.searchsorted(other_t, t[mine] - REVISIT_MIN_DT_S, side="right")
+        hi = np.searchsorted(other_t, t[mine] + REVISIT_MIN_DT_S, side="left")
+        close = near & (hi > lo)
+        hit[mine[near & ~close]] = True
+        rows = mine[close]
+        # the 16 nearest first (the pass itself is a handful of them), every neighbour where those do not say
+        dk, jk = tree.query(
+            xy[rows], k=16, distance_upper_bound=np.nextafter(REVISIT_RADIUS_M, np.inf)
+        )
+        found = dk <= REVISIT_RADIUS_M
+        far = (
+            np.abs(t[others[np.minimum(jk, len(others) - 1)]] - t[rows][:, None])
+            >= REVISIT_MIN_DT_S
+        )
+        hit[rows[(found & far).any(axis=1)]] = True
+        todo = rows[~(found & far).any(axis=1) & found.all(axis=1)]
+        for i, nb in zip(todo, tree.query_ball_point(xy[todo], REVISIT_RADIUS_M), strict=True):
+            hit[i] = bool(np.any(np.abs(t[others[nb]] - t[i]) >= REVISIT_MIN_DT_S))
+    return np.flatnonzero(hit)
 
 
 def crossline_rmse(sm) -> dict | None:
@@ -270,24 +308,34 @@ def crossings(xy: np.ndarray, t: np.ndarray) -> int:
 
 
 def level_term(model):
-    """The index of a fitted model's `water_level` feature term, or None."""
+    """The index of a fitted model's level term, `water_level` or a uniform `tide`, or None."""
     from forcemap.host.workbench.terms import WaterLevelTerm
+    from forcemap.host.workbench.tide_term import TideTerm
 
-    return next((i for i, t in enumerate(model.feat_terms_) if isinstance(t, WaterLevelTerm)), None)
+    kinds = (WaterLevelTerm, TideTerm)
+    return next((i for i, t in enumerate(model.feat_terms_) if isinstance(t, kinds)), None)
 
 
-def level_estimate(model, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The fitted water level at survey times `t` (s since the survey's start), centred on its mean over
-    `t`, and its posterior sd (m)."""
+def level_estimate(model, t: np.ndarray, t0: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The fitted water level at survey times `t` (s since the survey's start, UNIX time `t0`: for a tide,
+    its first sample's by default), centred on its mean over `t`, and its posterior sd (m). The level is the
+    `water_level` term's, or the tidal term's (its uniform part: the tide at the gauge the survey is)."""
+    from forcemap.host.vessel import tides
+    from forcemap.host.workbench.tide_term import TideTerm
     from scipy import linalg
 
     k = level_term(model)
     if k is None:
-        raise WorkbenchError("the model has no water_level term")
+        raise WorkbenchError("the model has no water_level or tide term")
     term = model.feat_terms_[k]
     start = int(sum(model.design_.sizes[:k]))
-    m = model.design_.sizes[k]
-    phi = term.features(np.asarray(t, float)[:, None])
+    t = np.asarray(t, float)
+    if isinstance(term, TideTerm):
+        utc = (term.t_first if t0 is None else t0) + t
+        phi = tides.basis(utc, term.names, term.lat)
+    else:
+        phi = term.features(t[:, None])
+    m = phi.shape[1]
     phi = phi - phi.mean(axis=0)
     post = model.posterior_
     mu = phi @ post["mu"][start : start + m] * model.y_scale_
@@ -305,11 +353,25 @@ def surface_datum(n_crossings: int) -> str:
     )
 
 
-def map_datum(survey, terms: list[str] | None = None) -> str:
+def map_datum(survey, terms: list[str] | None = None, at: float | None = None) -> str:
     """What a depth map of `survey` is measured from: the gauge's datum, the survey's mean level when the
-    model estimates the level, else the surface as it was at each sounding."""
+    model estimates the level (`water_level`), the level the tidal fit predicts at the map's time (`tide`:
+    mid-survey, or `at`), else the surface as it was at each sounding."""
     if getattr(survey, "datum", None):
         return survey.datum
-    if terms and any(str(t).strip() == "water_level" for t in terms):
+    names = [str(t).strip() for t in terms or []]
+    if any(t.startswith("tide") for t in names):
+        import time
+
+        when = (
+            "the survey's mid-time"
+            if at is None
+            else time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime(at))
+        )
+        return (
+            f"depth below the water surface as the tidal fit ({next(t for t in names if t.startswith('tide'))}) "
+            f"predicts it at {when}, from {crossings(survey.xy, survey.trel)} crossings"
+        )
+    if "water_level" in names:
         return surface_datum(crossings(survey.xy, survey.trel))
     return "depth below the water surface at the time of each sounding (not reduced to a datum)"

@@ -1,5 +1,8 @@
 """The effect catalogue: for a covariate that explains what the model misses, its likely physical cause and a term.
 
+Depth is its own case: a sounding that depends on the heading, the wind's angle on the bow or the hull's
+attitude is a tilted sounder (heel), never a misaligned sensor (docs/SOUNDINGS.md).
+
 Causes name instruments: only those the survey has (host/workbench/instruments.py), by the name its log
 gives them ("the speed log (VW VHW)"); a clause about an instrument the survey does not show is left out.
 """
@@ -79,6 +82,33 @@ def _time(i: Instruments, family: str) -> str:
     )
 
 
+def _heel(i: Instruments, family: str) -> str:
+    """Depth that follows the heading, the wind's angle or the hull's attitude: the sounder tilts."""
+    physics = (
+        "the sounder tilts with the hull: a single-beam sounder's first return is the nearest point "
+        "of the bed inside its cone, so once the hull heels (or trims) beyond half the beam angle it "
+        "reads long by 1/cos(tilt - half the beam), on the legs that take the wind on the beam and not "
+        "on those up or down wind: depth follows the heading relative to the wind (docs/SOUNDINGS.md)"
+    )
+    if "roll" in i.columns:
+        return (
+            physics + "; the log has the hull's roll and pitch: give the beam angle in boat.toml "
+            "([sounder] beam_angle_deg), or import the raw log again to estimate it from the "
+            "crossings, and each sounding is corrected"
+        )
+    return (
+        "heel: " + physics + "; the log has no attitude: log the hull's roll and pitch (a heel or "
+        "attitude sensor's NMEA XDR, ROLL/PTCH or HEEL/TRIM) and give [sounder] beam_angle_deg. A "
+        "misaligned sensor does not make a depth depend on the heading"
+    )
+
+
+# covariates through which a tilted sounder shows in depth (the legs' heading, the wind's angle
+# and strength on them, the hull's attitude itself)
+TILT = r"^(heading|heading_rel_\w+|app_wind_\w+|wind_\w+|roll|pitch|cog|crab)$"
+TILT_TERM = "log roll and pitch and give [sounder] beam_angle_deg; meanwhile gp(COV, periodic)"
+
+
 def _bare(name: str | None) -> str:
     """'the speed log (VHW)' -> 'speed log (VHW)', for 'a misaligned ...'."""
     return (name or "").removeprefix("the ")
@@ -145,11 +175,19 @@ CATALOGUE: list[tuple[str, str | Cause, str]] = [
 ]
 
 
+def is_linear(covariate: str) -> bool:
+    """A covariate that is not an angle (a wind speed, roll and pitch are signed magnitudes)."""
+    return covariate in ("roll", "pitch") or covariate.endswith(("_speed", "_east", "_north"))
+
+
 def explain(
     covariate: str, instruments: Instruments | None = None, family: str = "current"
 ) -> tuple[str, str]:
     """(likely cause, suggested term) for a covariate, naming only the survey's own instruments."""
     inst = instruments or Instruments(set())
+    if family == "depth" and re.search(TILT, covariate):
+        term = TILT_TERM if not is_linear(covariate) else TILT_TERM.replace("periodic", "matern32")
+        return _heel(inst, family), term.replace("COV", covariate)
     for pattern, cause, term in CATALOGUE:
         if re.search(pattern, covariate):
             text = cause(inst, family) if callable(cause) else cause

@@ -31,6 +31,7 @@ OFF_DEEP = 1.5  # one left off below it or at its depth: the path would run abov
 JUMP_COST = 1.2  # a bar of 5 soundings is followed: 2 x JUMP_COST < 5 x OFF_SHALLOW
 SLOPE_SHARE = 0.25
 MAX_SKIP = 60  # soundings a step may jump over (at 60 % echoes, a run of 60 has odds 5e-14)
+BLOCK = 256  # soundings whose step costs are formed at once (256 x 60 x 59 comparisons)
 
 
 def seabed_path(depth: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
@@ -46,32 +47,44 @@ def seabed_path(depth: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
     best = np.empty(m)
     back = np.full(m, -1)
     lead = _ends(d, tol, np.arange(m) <= MAX_SKIP, before=True)
-    for k in range(m):
-        lo = max(0, k - MAX_SKIP)
-        best[k], back[k] = lead[k], -1
-        if k == lo:
-            continue
-        j = np.arange(lo, k)
-        skipped = k - j - 1
-        width = np.maximum(tol[j], tol[k]) * (1.0 + SLOPE_SHARE * skipped)
-        step = np.minimum(((d[k] - d[j]) / width) ** 2, JUMP_COST)
-        # the soundings between j and k: above the path (shallower than both ends by more than
-        # the width) or not
-        between = d[lo:k][None, :]
-        inside = np.arange(lo, k)[None, :] > j[:, None]
-        above = between < (np.minimum(d[j], d[k]) - width)[:, None]
-        n_above = (inside & above).sum(axis=1)
-        off = n_above * OFF_SHALLOW + (skipped - n_above) * OFF_DEEP
-        cost = best[lo:k] + off + step
-        i = int(np.argmin(cost))
-        if cost[i] < best[k]:
-            best[k], back[k] = cost[i], lo + i
+    for k0 in range(0, m, BLOCK):
+        steps = _step_costs(d, tol, k0, min(m, k0 + BLOCK))
+        for k in range(k0, min(m, k0 + BLOCK)):
+            lo = k - MAX_SKIP if k > MAX_SKIP else 0
+            best[k], back[k] = lead[k], -1
+            if k == lo:
+                continue
+            cost = best[lo:k] + steps[k - k0, MAX_SKIP - (k - lo) :]
+            i = cost.argmin()
+            if cost[i] < best[k]:
+                best[k], back[k] = cost[i], lo + i
     end = best + _ends(d, tol, np.arange(m) >= m - 1 - MAX_SKIP, before=False)
     k = int(np.argmin(end))
     while k >= 0:
         on[idx[k]] = True
         k = int(back[k])
     return on
+
+
+def _step_costs(d: np.ndarray, tol: np.ndarray, k0: int, k1: int) -> np.ndarray:
+    """For the soundings k0 .. k1 - 1 (rows) and the MAX_SKIP before each (columns, the nearest last), the cost of
+    the step from that one to it plus the cost of the soundings skipped between them (inf before the first
+    sounding): everything of the path's cost but the path so far, for a block of soundings at once."""
+    k = np.arange(k0, k1)[:, None]
+    j = k - MAX_SKIP + np.arange(MAX_SKIP)[None, :]
+    valid = j >= 0
+    j = np.maximum(j, 0)
+    skipped = k - j - 1
+    width = np.maximum(tol[j], tol[k]) * (1.0 + SLOPE_SHARE * skipped)
+    step = np.minimum(((d[k] - d[j]) / width) ** 2, JUMP_COST)
+    # the soundings between j and k (i = k - MAX_SKIP + 1 .. k - 1 by offset), above the path or not
+    i = k - MAX_SKIP + 1 + np.arange(MAX_SKIP - 1)[None, :]
+    between = d[np.maximum(i, 0)][:, None, :]
+    inside = (i[:, None, :] > j[:, :, None]) & (i[:, None, :] >= 0)
+    above = between < (np.minimum(d[j], d[k]) - width)[:, :, None]
+    n_above = (inside & above).sum(axis=2)
+    off = n_above * OFF_SHALLOW + (skipped - n_above) * OFF_DEEP
+    return np.where(valid, off + step, np.inf)
 
 
 def _ends(d: np.ndarray, tol: np.ndarray, may: np.ndarray, before: bool) -> np.ndarray:

@@ -1,0 +1,67 @@
+"""The real logs with a known effect that tests and benches share (tests/real_cases.py builds them).
+
+Each injected case is a real log of tests/data/real with one effect put in by
+``bench/inject_nmea.py``, and names the clean log it is compared with. The parameters are physically
+plausible for the place (and are issue 36's):
+
+- ``geneva_seiche``: Lake Geneva off Geneva (Irene, 2014-06-27, 2.4 h, the longer Geneva race), the
+  lake's first longitudinal seiche (Merian: about 74 min) as a current of +-0.15 m/s along the Petit
+  Lac's axis (030/210 deg);
+- ``lake_drift``: Lake Geneva off Lausanne (Irene, 2008-08-20, 1.7 h), a wind drift that builds
+  steadily to 0.2 m/s over the race, along the Grand Lac's axis toward 250 deg (a bise);
+- ``fjord_tide``: the Flensburg Fjord race (Irene, 2013-08-03, 3.9 h), an M2 tidal stream of +-0.26
+  m/s along the fjord's axis there (050/230 deg), phase 30 deg so that it turns mid-race;
+- ``fjord_level``: the same race, the water rising 0.6 m (a smooth step, 45 min wide, mid-race: a
+  Baltic wind set-up).
+
+A current is uniform in space (bench/inject_effects.py). The ``clean`` cases are the repository's
+real NMEA logs as they are (the null cases); ``sfbay`` is a real flood tide, not injected.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from bench.inject_effects import Current, Effect, Shape
+
+GENEVA = "nmea/irene/irene_2014-06-27_geneva.nmea"
+GENEVA_2008 = "nmea/irene/irene_2008-08-20_geneva.nmea"
+FJORD = "nmea/irene/irene_2013-08-03_flensburg.nmea"
+SFBAY = "nmea/sfbay/swift-day1.nmea.gz"
+# the one log whose bus computes its checksums over the address only (its PROVENANCE.md)
+LENIENT = ("nmea/irene/irene_2013-07-31_flensburg_checksums.nmea",)
+
+
+@dataclass(frozen=True)
+class Case:
+    """A real log (a path under tests/data/real), the effect put into it (None: as recorded) and
+    the clean log it is compared with."""
+
+    source: str
+    effect: Effect | None = None
+    checksum: str = "strict"
+
+    @property
+    def clean(self) -> str:
+        return self.source
+
+    @property
+    def toward_deg(self) -> float | None:
+        if self.effect is None or self.effect.current is None:
+            return None
+        return self.effect.current.toward_deg
+
+
+INJECTED = {
+    "geneva_seiche": Case(GENEVA, Effect(Current(Shape("periodic", 0.15, period_s=4440.0), 30.0))),
+    "lake_drift": Case(GENEVA_2008, Effect(Current(Shape("ramp", 0.2), 250.0))),
+    "fjord_tide": Case(FJORD, Effect(Current(Shape("tidal", 0.26, phase_deg=30.0), 50.0))),
+    "fjord_level": Case(FJORD, Effect(level=Shape("step", 0.6, width_s=2700.0))),
+}
+
+
+def case(name: str) -> Case:
+    """An injected case by name, or a real log as recorded by its path under tests/data/real."""
+    if name in INJECTED:
+        return INJECTED[name]
+    return Case(name, None, "lenient" if name in LENIENT else "strict")
