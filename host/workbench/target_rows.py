@@ -43,7 +43,13 @@ class TargetRows:
         """What was left out for want of a reading, and where (the spikes say their own)."""
         out = []
         if self.gaps.count:
-            out.append(self.gaps.line())
+            used = self.gaps.n - self.gaps.count
+            fate = (
+                "the map uses the other {used:,}"
+                if self.n == used
+                else f"the other {{used:,}} have it; the map uses {self.n:,} of them (the rest said below)"
+            )
+            out.append(self.gaps.line(fate))
         for name, g in self.left.items():
             out.append(
                 f"{g.count:,} rows with {self.gaps.what} have no {name} for longer than its "
