@@ -42,6 +42,7 @@ class Candidate:
     time_proxies: list[str] = field(default_factory=list)  # counters and clocks folded into t
     one_pass: bool = False  # confounded because the survey is one pass (identify.is_single_pass)
     revisit: bool = False  # judged where the track revisits itself (evaluate.Evaluator.revisit)
+    rows: int | None = None  # judged on this many rows, those that have it (None: the model's own)
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
@@ -55,6 +56,7 @@ class Candidate:
             "identifiable": self.identifiable,
             "confounded_with": self.confounded_with,
             "null_gains": self.null_gains,
+            "rows": self.rows,
         }
 
 
@@ -118,6 +120,8 @@ class Round:
                 notes.append("consequence: credited with its random-fold gain")
             if c.identifiable is False:
                 notes.append(f"confounded with {', '.join(c.confounded_with)}")
+            if c.rows is not None:
+                notes.append(f"judged on the {c.rows:,} rows that have it")
             null = f"{max(c.null_gains):>+8.1%}" if c.null_gains else f"{'':>8}"
             mark = "*" if c.significant else " "
             out.append(
