@@ -192,6 +192,18 @@ class Fit:
         return float(self._cv().coverage95)
 
     @property
+    def n_rows(self) -> int:
+        """The rows the model is fitted on: those that have the target (a vector: both components), less
+        its spikes and the rows a covariate of its terms lacks for longer than its correlation time."""
+        return self._fitted().survey.n
+
+    @property
+    def left_out(self) -> list[str]:
+        """What the fit left out, and where, in words: rows without the target or a covariate, spikes."""
+        model = self._fitted()
+        return model.rows.lines() + (model.spikes.lines() if model.spikes else [])
+
+    @property
     def calibration(self):
         """The predictive band's `Calibration`: its held-out coverage once scaled (`coverage`), the factor on
         the maps' sd (`sd_scale`), the model's own coverage, and how far from the track the CV reached."""

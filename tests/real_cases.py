@@ -10,18 +10,16 @@ The sfbay log takes about 100 s of CPU to import, a 4-hour race 35 s: each is bu
 also under ``pytest -n 2``, where each worker is its own session. The cases then live in a folder
 both workers share (the parent of the workers' temporary folders), and a case is built by the first
 worker that asks, under an exclusive ``flock`` on its lock file, into a temporary folder renamed
-into place when whole; the other worker waits for it and reads it. A folder belongs to one test run
-(each run has its own base temporary folder), so a changed pipeline never reads an old build.
+into place when whole (tests/cache.py's ``build_once``); the other worker waits for it and reads it.
+A folder belongs to one test run (each run has its own base temporary folder), so a changed pipeline
+never reads an old build.
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import io
 import json
-import os
-import shutil
 from collections import Counter
 from dataclasses import dataclass
 from functools import cached_property
@@ -30,6 +28,8 @@ from pathlib import Path
 from forcemap.host.cli import main
 
 from bench.inject_cases import Case, case
+from tests.cache import build_once as _once
+from tests.cache import run_dir
 from tests.tools import real_data
 
 FOLDER = "forcemap-real-cases"
@@ -37,32 +37,9 @@ FOLDER = "forcemap-real-cases"
 
 def shared_root(tmp_path_factory) -> Path:  # type: ignore[no-untyped-def]
     """Where this run's cases live: beside the xdist workers' folders, else in the run's own."""
-    base = tmp_path_factory.getbasetemp()
-    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / FOLDER
-    root.mkdir(parents=True, exist_ok=True)
+    root = run_dir(tmp_path_factory) / FOLDER
+    root.mkdir(exist_ok=True)
     return root
-
-
-@contextlib.contextmanager
-def _locked(path: Path):  # type: ignore[no-untyped-def]
-    with open(path, "a") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
-
-
-def _once(folder: Path, build) -> Path:  # type: ignore[no-untyped-def]
-    """``folder``, built by ``build(tmp)`` the first time any worker asks for it."""
-    with _locked(folder.with_name(folder.name + ".lock")):
-        if not folder.is_dir():
-            tmp = folder.with_name(f"{folder.name}.building-{os.getpid()}")
-            shutil.rmtree(tmp, ignore_errors=True)
-            tmp.mkdir()
-            build(tmp)
-            os.rename(tmp, folder)
-    return folder
 
 
 def topic_counts(mcap: Path) -> Counter[str]:

@@ -48,15 +48,13 @@ PACCUP_SHARE |= {"bottom_lost": 1.0, "depth_tvu": (PACCUP_ROWS - PACCUP_LOST) / 
 
 
 @pytest.fixture(scope="module")
-def paccup(tmp_path_factory):
-    out = tmp_path_factory.mktemp("paccup")
-    assert main(["import", str(PACCUP), "-o", str(out)]) == 0
-    (mcap,) = out.glob("*.mcap")
-    csv_path = out / "samples.csv"
-    assert main(["export", str(mcap), "-o", str(csv_path)]) == 0
-    with open(csv_path) as f:
+def paccup(real_case):
+    """`forcemap import` and `forcemap export` of the capture: the run's one (tests/real_cases.py)."""
+    built = real_case("nmea/PacCupStartNMEA.txt")
+    assert built.import_rc == 0, built.import_text
+    with open(built.csv) as f:
         rows = list(csv.DictReader(f))
-    return mcap, rows
+    return built.mcap, rows
 
 
 def test_paccup_import_then_export_gives_samples(paccup):

@@ -9,6 +9,7 @@ import contextlib
 import io
 import json
 import re
+import shutil
 
 import forcemap
 import numpy as np
@@ -21,7 +22,6 @@ from forcemap.host.workbench.diagnose.rounds import consistent
 from forcemap.host.workbench.plots import history_figure
 
 from bench.synth_survey import make_survey
-from tests.tools import real_data
 
 SHOWN = ("current_speed", "wind_speed", "depth")  # the report's maps
 
@@ -34,12 +34,14 @@ def _run(argv: list[str]) -> tuple[int, str]:
 
 
 @pytest.fixture(scope="module")
-def paccup(tmp_path_factory):
-    """The README's real capture, imported and exported, its maps' targets fitted and gridded."""
+def paccup(tmp_path_factory, real_case):
+    """The README's real capture, imported and exported, its maps' targets fitted and gridded. The
+    import and export are the run's one (tests/real_cases.py); the table is copied here, where the
+    fits record themselves beside it."""
     d = tmp_path_factory.mktemp("paccup")
-    src = real_data() / "nmea" / "PacCupStartNMEA.txt"
-    assert _run(["import", str(src), "-o", str(d / "paccup.mcap")])[0] == 0
-    assert _run(["export", str(d / "paccup.mcap"), "-o", str(d / "paccup.csv")])[0] == 0
+    built = real_case("nmea/PacCupStartNMEA.txt")
+    assert built.import_rc == 0, built.import_text
+    shutil.copyfile(built.csv, d / "paccup.csv")
     survey = forcemap.read_survey(d / "paccup.csv")
     assert (
         float(np.ptp(survey.table.columns["water_temp"])) == 0.0

@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.fuse import redundancy as rd
 
+from tests.cache import shared_dir
 from tests.real_cases import topic_counts
 from tests.tools import real_data
 
@@ -59,31 +61,48 @@ LAKES = ("nmea/irene/irene_2008-08-20_geneva.nmea", "nmea/irene/irene_2014-06-27
 _DONE: dict[str, dict] = {}
 
 
+def _checked(factory, path, key: str) -> dict:
+    """`forcemap check PATH --json`'s report, once per test run (both xdist workers read it)."""
+
+    def build(folder) -> None:
+        assert main(["check", str(path), "--json", str(folder / "report.json")]) == 0
+
+    return json.loads((shared_dir(factory, f"check-{key}", build) / "report.json").read_text())
+
+
+def _imported(factory, log: str) -> tuple[int, Path, Path]:
+    """A MAVLink log's import and export, once per test run: exit code, MCAP, CSV."""
+    src = real_data() / log
+
+    def build(folder) -> None:
+        rc = main(["import", str(src), "-o", str(folder / "log.mcap")])
+        if rc == 0:
+            assert main(["export", str(folder / "log.mcap"), "-o", str(folder / "log.csv")]) == 0
+        (folder / "rc.txt").write_text(str(rc))
+
+    folder = shared_dir(factory, f"import-{log}", build)
+    return int((folder / "rc.txt").read_text()), folder / "log.mcap", folder / "log.csv"
+
+
 def _run(log: str, tmp_path_factory, real_case) -> dict:
-    """import -> export -> check (on the MCAP and on the CSV), once per log; an NMEA log's import
-    and export are the run's shared ones (tests/real_cases.py)."""
+    """import -> export -> check (on the MCAP and on the CSV), once per test run; an NMEA log's
+    import, export and MCAP check are the run's shared ones (tests/real_cases.py)."""
     if log in _DONE:
         return _DONE[log]
-    d = tmp_path_factory.mktemp(log.replace("/", "_").replace(".", "_"))
-    src = real_data() / log
-    if log.startswith("nmea/"):
-        built = real_case(log)
+    built = real_case(log) if log.startswith("nmea/") else None
+    if built is not None:
         out: dict = {"import": built.import_rc}
         mcap, csv_path = built.mcap, built.csv
     else:
-        out = {"import": main(["import", str(src), "-o", str(d / "log.mcap")])}
-        mcap, csv_path = d / "log.mcap", d / "log.csv"
-        if out["import"] == 0:
-            assert main(["export", str(mcap), "-o", str(csv_path)]) == 0
+        rc, mcap, csv_path = _imported(tmp_path_factory, log)
+        out = {"import": rc}
     if out["import"] == 0:
-        for kind, path in (("mcap", mcap), ("csv", csv_path)):
-            assert main(["check", str(path), "--json", str(d / f"{kind}.json")]) == 0
-            out[kind] = json.loads((d / f"{kind}.json").read_text())
+        out["mcap"] = built.check() if built is not None else _checked(tmp_path_factory, mcap, f"{log}-mcap")  # fmt: skip
+        out["csv"] = _checked(tmp_path_factory, csv_path, f"{log}-csv")
         out["csv_path"] = csv_path
-        out["built"] = built if log.startswith("nmea/") else None
+        out["built"] = built
     else:  # check grades a raw capture that gives no samples, never refuses it
-        assert main(["check", str(src), "--json", str(d / "raw.json")]) == 0
-        out["raw"] = json.loads((d / "raw.json").read_text())
+        out["raw"] = _checked(tmp_path_factory, real_data() / log, f"{log}-raw")
     _DONE[log] = out
     return out
 
@@ -223,11 +242,14 @@ def test_a_checksum_variant_is_named_when_it_is_not_accepted(tmp_path):
     assert rep["rows"] == 0 and "address only" in why and "--nmea-checksum lenient" in why, why
 
 
-def test_a_table_is_checked_without_being_changed(tmp_path_factory, real_case):
+def test_a_table_is_checked_without_being_changed(tmp_path_factory, real_case, tmp_path):
     log = "nmea/irene/irene_2014-06-27_geneva.nmea"
     out = _run(log, tmp_path_factory, real_case)
-    before = out["csv_path"].read_bytes()
     gain = _finding(out["csv"], "speed_through_water", "gain")
     # the CSV holds the calibrated STW: its own estimate is near 1, and never marked applied
     assert not gain["applied"] and abs(gain["value"] - 1) < 0.01, gain["message"]
-    assert out["csv_path"].read_bytes() == before
+    table = tmp_path / "samples.csv"  # a copy: the shared table was checked before this test began
+    table.write_bytes(out["csv_path"].read_bytes())
+    before = table.read_bytes()
+    assert main(["check", str(table), "--json", str(tmp_path / "r.json")]) == 0
+    assert table.read_bytes() == before

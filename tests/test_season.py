@@ -50,7 +50,7 @@ def test_dask_local2_equals_one_process(twenty):
             assert _rel(getattr(b, m), getattr(a, m)) <= 1e-10
     for r1, r2 in zip(one.surveys, two.surveys, strict=True):
         assert r1.path == r2.path
-        assert _rel(r2.stats["space"].G, r1.stats["space"].G) <= 1e-10
+        assert _rel(r2.stats["current"].G, r1.stats["current"].G) <= 1e-10
     assert _rel(two.depth.theta, one.depth.theta) <= 1e-6
     assert _rel(two.current.theta, one.current.theta) <= 1e-6
     assert _rel(two.current.scales, one.current.scales) <= 1e-6

@@ -32,7 +32,10 @@ from forcemap.host.workbench.spikes import target_spikes
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.water_level import crossline_rmse
 from forcemap.sim_devices.engine import Simulation
-from forcemap.sim_devices.offline import make_survey, run_to_mcap
+from forcemap.sim_devices.offline import run_to_mcap
+
+from tests.cache import shared_dir
+from tests.sim_surveys import simulated
 
 STRAIT_S = 720.0
 RANGE_M = 103.0
@@ -56,12 +59,12 @@ def _fit(table: Path):
 
 @pytest.fixture(scope="module")
 def strait(tmp_path_factory):
-    d = tmp_path_factory.mktemp("strait")
-    lost = make_survey(
-        "strait", [], 1, STRAIT_S, d / "lost", faults=f"beyond_range:range={RANGE_M}"
+    """Made once per run (tests/sim_surveys.py), whichever worker runs a test of it first."""
+    lost = simulated(
+        tmp_path_factory, "strait", [], 1, STRAIT_S, faults=f"beyond_range:range={RANGE_M}"
     )
-    held = make_survey("strait", [], 1, STRAIT_S, d / "held")
-    truth = json.loads((d / "lost" / "truth" / "effects.json").read_text())
+    held = simulated(tmp_path_factory, "strait", [], 1, STRAIT_S)
+    truth = json.loads((lost.parent / "truth" / "effects.json").read_text())
     return lost, held, truth
 
 
@@ -95,11 +98,9 @@ def _heel_survey(
     return d / "samples.csv"
 
 
-@pytest.fixture(scope="module")
-def heel(tmp_path_factory):
+def _heel_surveys(d: Path) -> None:
     from forcemap.host.vessel import scenario as sc
 
-    d = tmp_path_factory.mktemp("heel")
     lake = Path(sc.load("lake").path).read_text()
     assert "\nspeed = 2.5" in lake
     scenario = d / "windy_lake.toml"  # the lake's breeze, at 6 m/s: a beam reach heels the hull
@@ -110,14 +111,20 @@ def heel(tmp_path_factory):
     )
     mission = d / "crosslines.toml"
     mission.write_text(CROSSLINES)
-    return {
-        name: _heel_survey(d / name, scenario, mission, effects, beam)
-        for name, effects, beam in (
-            ("upright", [], None),
-            ("heeled", ["heel"], None),
-            ("corrected", ["heel"], BEAM),
-        )
-    }
+    for name, effects, beam in (
+        ("upright", [], None),
+        ("heeled", ["heel"], None),
+        ("corrected", ["heel"], BEAM),
+    ):
+        _heel_survey(d / name, scenario, mission, effects, beam)
+
+
+@pytest.fixture(scope="module")
+def heel(tmp_path_factory):
+    """The three heel surveys, made once per run (tests/cache.py) and only read by the tests."""
+    key = f"soundings-heel-windy_lake-crosslines-{HEEL_S:g}-beam{BEAM:g}"
+    d = shared_dir(tmp_path_factory, key, _heel_surveys)
+    return {name: d / name / "samples.csv" for name in ("upright", "heeled", "corrected")}
 
 
 def _crossline(table: Path) -> float:

@@ -28,6 +28,8 @@ from forcemap.host.workbench.water_level import (
 )
 from forcemap.sim_devices.offline import make_survey
 
+from tests.sim_surveys import simulated
+
 T0 = datetime(2024, 5, 1, 12, 0, tzinfo=UTC).timestamp()
 
 
@@ -194,14 +196,10 @@ SHORT_S = 1500.0
 
 @pytest.fixture(scope="module")
 def surveys(tmp_path_factory):
-    made = {}
+    """``surveys(effects, seed)``: the run's one such survey (tests/sim_surveys.py), read-only."""
 
     def get(effects: str, seed: int):
-        key = (effects, seed)
-        if key not in made:
-            out = tmp_path_factory.mktemp(f"s{seed}")
-            made[key] = make_survey("river", [effects] if effects else [], seed, SHORT_S, out)
-        return made[key]
+        return simulated(tmp_path_factory, "river", [effects] if effects else [], seed, SHORT_S)
 
     return get
 

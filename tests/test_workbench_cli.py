@@ -107,14 +107,23 @@ def test_non_numeric_target(survey_csv, tmp_path, capsys):
     _one_line_error(code, err, "not numeric")
 
 
-def test_missing_values_in_target(survey_csv, tmp_path, capsys):
+def test_a_target_missing_on_every_third_row_is_fitted_on_the_rest(survey_csv, tmp_path, capsys):
+    # once refused ("33% missing values"): the rows that have depth are mapped, none is filled in
     header, rows = csv_rows(survey_csv)
     i = header.index("depth")
     for r in rows[::3]:
         r[i] = ""
     p = write_csv_rows(tmp_path / "m.csv", header, rows)
-    code, _, err = _run(capsys, ["fit", str(p), "--target", "depth", "--quiet"])
-    _one_line_error(code, err, "missing values")
+    argv = ["fit", str(p), "--target", "depth", "--no-plots", "--json", "-"]
+    code, out, err = _run(capsys, argv)
+    assert code == 0, err
+    fit = json.loads(out)
+    blank = len(rows[::3])
+    assert fit["gaps"]["missing"]["missing"] == blank and fit["gaps"]["rows"] == len(rows)
+    spikes = fit["spikes"]["flagged"] if fit["spikes"] else 0
+    assert fit["gaps"]["used"] == len(rows) - blank - spikes
+    assert f"{blank} of {len(rows):,} rows have no depth" in err
+    assert "filled" not in err  # a target is never filled from its neighbours
 
 
 def test_too_fewcsv_rows(survey_csv, tmp_path, capsys):
@@ -144,7 +153,7 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
     assert code == 0
     base = json.loads(out_json.read_text())
     assert set(base) == {
-        "target", "terms", "cv_rmse", "cv_mae", "coverage95", "calibration", "spikes",
+        "target", "terms", "cv_rmse", "cv_mae", "coverage95", "calibration", "spikes", "gaps",
     }  # fmt: skip
     assert set(base["calibration"]) == {"sd_scale", "model_coverage", "coverage", "reach_m"}
     assert base["target"] == "current_speed" and base["terms"] == [
@@ -217,7 +226,7 @@ def test_diagnose_json_contract(survey_csv, tmp_path, capsys):
     }
     assert set(d["baseline"]) == {"terms", "cv_rmse"}
     keys = {"covariate", "cv_rmse", "improvement", "explanation"}
-    keys |= {"identifiable", "confounded_with", "null_gains"}
+    keys |= {"identifiable", "confounded_with", "null_gains", "rows"}
     assert d["candidates"] and all(set(c) == keys for c in d["candidates"])
     assert d["rounds"][0]["candidates"] == d["candidates"]
     assert d["rounds"][0]["added"] == ("gp(depth, matern32)" if d["missing_effect_found"] else None)

@@ -210,11 +210,44 @@ def test_gaps_in_the_heading_are_filled(late, tmp_path):
     assert any("heading" in n for n in s.notes)
 
 
-def test_a_heading_mostly_missing_is_a_one_line_error(late, tmp_path, capsys):
+def test_a_heading_read_at_half_the_rate_is_bridged(late, tmp_path, capsys):
+    # once refused ("50% missing values"): one row in two without a heading is a heading read at half
+    # the rate, every gap far shorter than its correlation time; no row is lost
     table = _with_gaps(late, tmp_path / "holes.csv", "heading", 2)
-    args = ["fit", str(table), "--target", "wind_dir", "--effects", "clock_offset", "--quiet"]
-    assert main(args) == 2
+    n = sum(1 for _ in table.open()) - 1
+    args = ["fit", str(table), "--target", "wind_dir", "--effects", "clock_offset", "--json", "-"]
+    assert main([*args, "--no-plots"]) == 0
+    out, err = capsys.readouterr()
+    assert f"covariate 'heading': {n // 2} missing value(s) in {n // 2} gap(s)" in err
+    assert json.loads(out)["gaps"]["used"] == n
+    assert re.search(r"clock_offset\(\+1\.[4-6]\d s\)", " ".join(json.loads(out)["terms"]))
+
+
+def test_a_heading_lost_for_minutes_leaves_those_rows_out(late, tmp_path, capsys):
+    with late.open() as f:
+        rows = list(csv.reader(f))
+    i, t0 = rows[0].index("heading"), float(rows[1][0])
+    lost = [r for r in rows[1:] if 120.0 <= float(r[0]) - t0 < 360.0]
+    for r in lost:
+        r[i] = ""
+    table = tmp_path / "lost.csv"
+    with table.open("w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    args = ["fit", str(table), "--target", "wind_dir", "--effects", "clock_offset", "--json", "-"]
+    assert main([*args, "--no-plots"]) == 0
+    out, err = capsys.readouterr()
+    gaps = json.loads(out)["gaps"]
+    # the four minutes without a heading, and only they, are left out of the model that needs it
+    assert gaps["covariates"]["heading"]["missing"] == len(lost)
+    assert gaps["used"] == len(rows) - 1 - len(lost)
+    assert re.search(r"have no heading for longer than its correlation time \(2-6 min", err), err
+    # with a heading on a few seconds only, too little is left, said in one line with the count
+    for r in rows[12:]:
+        r[i] = ""
+    with table.open("w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    assert main([*args[:-2], "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err
     lines = [ln for ln in err.strip().splitlines() if ln.startswith("forcemap")]
-    assert len(lines) == 1 and "heading/ground-velocity column 'heading'" in lines[0], err
+    assert len(lines) == 1 and re.search(r"only \d+ rows have wind and heading", lines[0]), err

@@ -21,6 +21,8 @@ from forcemap.host.workbench.spec import BASELINE
 from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices.offline import make_survey
 
+from tests.sim_surveys import simulated
+
 DURATION_S = 1200.0
 HEADING = {"heading", "heading_rel_current", "heading_rel_wind"}
 
@@ -66,8 +68,8 @@ def test_hidden_effect_is_found_and_fixes_the_error(tmp_path, effect, target, ex
     ("target", "seed"),
     [("current_speed", 1), ("wind_speed", 1), ("current_speed", 2), ("wind_speed", 2)],
 )
-def test_no_effect_reports_no_missing_effect(tmp_path, target, seed):
-    table = make_survey("river", [], seed=seed, duration_s=DURATION_S, out_dir=tmp_path)
+def test_no_effect_reports_no_missing_effect(tmp_path_factory, target, seed):
+    table = simulated(tmp_path_factory, "river", [], seed, DURATION_S)  # one per seed and run
     d = diagnose(load_survey(table), target, progress=False)
     assert not d.missing_effect_found, d.summary()
     # consequences of the flow (sog, cog, crab) must not be credited with their blocked-CV "gain"

@@ -263,7 +263,7 @@ def untrusted(grid: MapGrid, model, pred: dict[str, np.ndarray], keep: np.ndarra
     drop = np.zeros(int(keep.sum()), bool)
     notes = []
     if cal is not None and grid.distance is not None:
-        far = grid.distance.ravel()[keep] > cal.reach_m
+        far = _distance(grid, model, keep) > cal.reach_m
         if far.any():
             notes.append(
                 f"{target}: {int(far.sum())} cells farther than {cal.reach_m:.0f} m from every sample left "
@@ -289,6 +289,16 @@ def untrusted(grid: MapGrid, model, pred: dict[str, np.ndarray], keep: np.ndarra
             )
         drop |= low
     return drop, notes
+
+
+def _distance(grid: MapGrid, model, keep: np.ndarray) -> np.ndarray:
+    """Each mapped cell's distance (m) to the nearest sample the model was fitted on (the grid's own
+    distance, to every sample, where the model has them all)."""
+    dist = grid.distance.ravel()[keep]  # type: ignore[union-attr]
+    root, index = model.survey.origin
+    if len(index) == root.n or grid.local_xy is None:
+        return dist
+    return np.fmax(dist, cKDTree(model.survey.xy).query(grid.local_xy[keep])[0])
 
 
 def evaluate(grid: MapGrid, model) -> Layer:
@@ -324,6 +334,8 @@ def evaluate(grid: MapGrid, model) -> Layer:
 
         layer.datum = map_datum(model.survey, list(model.terms), grid.at)
         layer.bands.update(surface_bands(grid, model.survey))
+    rows = getattr(model, "rows", None)  # what the model left out for want of a reading
+    notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
     if grid.at is not None:
         from forcemap.host.workbench.time_terms import notes_at
 

@@ -24,8 +24,8 @@ from forcemap.host.live.growing import Component, MapGrid, grid_over, live_surve
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.table import MIN_ROWS
+from forcemap.host.workbench.target_rows import target_rows
 
 TARGETS: dict[str, tuple[str, ...]] = {
     "current": ("current_east", "current_north"),
@@ -163,8 +163,8 @@ class LiveMaps:
             self.notes[target] = f"{int(known.sum())} samples with {target} so far"
             return None
         st = self.state.get(target)
-        # the rows `forcemap fit` keeps: a position jump and the target's spikes are left out
-        survey = without_spikes(live_survey(cols, list(columns)), columns[0])[0]
+        # the rows `forcemap fit` keeps: those with the target, less a position jump and its spikes
+        survey = target_rows(live_survey(cols, []), columns[0]).survey
         if refit or self._needs_refit(st, cols):
             comps = [Component.refit(survey, c, self.terms) for c in columns]
             st = TargetState(comps, survey.lat0, survey.lon0, float(cols["t"][-1]), self.n,

@@ -19,9 +19,9 @@ from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import HYPER_SPACING_S, DesignCache, Model, small_blas
 from forcemap.host.workbench.spec import BASELINE, parse_term
-from forcemap.host.workbench.spikes import target_spikes, without_spikes
-from forcemap.host.workbench.survey_fits import grid_inputs, survey_inputs
+from forcemap.host.workbench.survey_fits import grid_inputs, survey_fits, survey_inputs
 from forcemap.host.workbench.table import Survey, is_circular
+from forcemap.host.workbench.target_rows import target_rows
 from forcemap.host.workbench.workspace import current_terms, workspace_dir
 
 GRID_STEP_M = 4.0
@@ -178,7 +178,7 @@ def with_depth_known(survey: Survey, terms: list[str]) -> tuple[list[str], list[
     if "depth" not in _term_inputs(terms):
         return terms, []
     try:
-        survey_inputs(survey, {"depth"})
+        survey_fits(survey).depth_map  # noqa: B018 - fitted on the rows that have depth, or refused
     except WorkbenchError as exc:
         keep = [t for t in terms if "depth" not in (_inputs(t) or set())]
         return (keep or list(BASELINE)), [f"depth terms left out: no depth map ({exc})"]
@@ -215,15 +215,15 @@ def fit_field(
     times: np.ndarray | None = None,
 ) -> Field:
     """Fit the east and north components of ``prefix`` and predict them, with their predictive std, on a
-    grid over ``bounds`` (the vector's spikes left out unless the survey keeps outliers); with ``cv``, also
-    their blocked-CV RMSE (an in-flight refit skips it: it must be quick, and its sd is what it has). With
-    ``times`` (UNIX s) the grid is predicted at each of them (a field in time); else at mid-survey."""
-    survey = without_spikes(survey, f"{prefix}_speed")[0]
+    grid over ``bounds``, on the rows that have the vector (its spikes left out unless the survey keeps
+    outliers; `target_rows`); with ``cv``, also their blocked-CV RMSE (an in-flight refit skips it: it
+    must be quick, and its sd is what it has). With ``times`` (UNIX s) the grid is predicted at each of
+    them (a field in time); else at mid-survey."""
+    names = _term_inputs(terms) | {"position", "t"}
+    survey = target_rows(survey, f"{prefix}_speed", names).survey
     vt = survey.vector_target(f"{prefix}_speed")
     e, n = survey.components(vt)  # type: ignore[arg-type]
-    ok = np.isfinite(e) & np.isfinite(n)
-    names = _term_inputs(terms) | {"position", "t"}
-    X = {k: v[ok] for k, v in survey_inputs(survey, names).items()}
+    X = survey_inputs(survey, names)
     gx, gy = _grid(bounds, step)
     GX, GY = np.meshgrid(gx, gy)
     xy = np.column_stack([GX.ravel(), GY.ravel()])
@@ -233,7 +233,7 @@ def fit_field(
     grams = DesignCache()  # the east and north components share their features
     folds = blocked_folds(X["position"])[0]
     with small_blas():
-        for comp in (e[ok], n[ok]):
+        for comp in (e, n):
             m = Model(terms, max_basis=MAX_BASIS, hyper_spacing_s=HYPER_SPACING_S, memory=grams)
             m.fit(X, comp)
             pred = [m.predict(G, return_std=True, include_noise=True) for G in grids]
@@ -303,8 +303,9 @@ def survey_maps(
         notes += [f"{prefix}: {line}" for line in no_depth]
         if "depth" in _term_inputs(terms):
             notes.append(f"{prefix}: depth terms evaluated on the survey's depth map")
-        spikes = target_spikes(survey, f"{prefix}_speed")
-        notes += [f"{prefix}: {line}" for line in (spikes.lines() if spikes else [])]
+        rows = target_rows(survey, f"{prefix}_speed", _term_inputs(terms))
+        notes += [f"{prefix}: {line}" for line in rows.lines()]
+        notes += [f"{prefix}: {line}" for line in (rows.spikes.lines() if rows.spikes else [])]
         times = None if start is None else field_times(terms, start, span_s)
         when = "" if times is None else f" at {len(times)} times over the mission"
         note(

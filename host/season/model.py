@@ -36,10 +36,6 @@ HYPER_ROUNDS = 3
 SCALE_TOL = 1e-8
 
 
-def columns(st: Stats, idx: list[int]) -> Stats:
-    return Stats(st.G, st.B[:, idx], st.R[np.ix_(idx, idx)], st.n)
-
-
 @dataclass
 class StaticFit:
     """The depth map: hyperparameters, the summed statistics and the posterior; with `levels`, the depth of
@@ -87,19 +83,19 @@ def fit_depth(
     if not use:
         return None
     prior = Prior(frame.space)
-    full, hyper = columns(total["space"], [0]), columns(total["space_hyper"], [0])
+    full, hyper = total["depth"], total["depth_hyper"]
     if len(use) < len(results):
-        full = tree_sum([columns(r.stats["space"], [0]) for r in use])
-        hyper = tree_sum([columns(r.stats["space_hyper"], [0]) for r in use])
+        full = tree_sum([r.stats["depth"] for r in use])
+        hyper = tree_sum([r.stats["depth_hyper"] for r in use])
     y_scale = float(target_scale(full)[0])
     theta, logp = fit_hypers(prior, hyper, y_scale)
     fit = StaticFit(prior, theta, full, y_scale, posterior(prior, theta, full, y_scale), logp)
     fit.paths = [r.path for r in use]
     if len(use) < 2 or levels is False:
         return fit
-    each = [columns(r.stats["space"], [0]) for r in use]
+    each = [r.stats["depth"] for r in use]
     lfull = tree_sum([without_offset(st) for st in each])
-    lhyper = tree_sum([without_offset(columns(r.stats["space_hyper"], [0])) for r in use])
+    lhyper = tree_sum([without_offset(r.stats["depth_hyper"]) for r in use])
     ltheta, llogp = fit_hypers(prior, lhyper, y_scale, theta)
     gain = llogp - logp
     fit.levels_evidence_gain = float(gain)
@@ -169,8 +165,8 @@ def fit_current(
     use = [r for r in results if r.has["current_east"] and r.has["current_north"]]
     if not use:
         return None
-    full = [columns(r.stats["space"], [1, 2]) for r in use]
-    hyper = [columns(r.stats["space_hyper"], [1, 2]) for r in use]
+    full = [r.stats["current"] for r in use]
+    hyper = [r.stats["current_hyper"] for r in use]
     # the targets' scale needs only the const row of B, R and n: summed without the m x m Gram matrices
     light = [Stats(st.G[:1, :1], st.B[:1], st.R, st.n) for st in full]
     y_scale = float(np.mean(target_scale(tree_sum(light))))

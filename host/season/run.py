@@ -13,7 +13,6 @@ from forcemap.host.season.frame import choose_frame
 from forcemap.host.season.model import (
     CurrentFit,
     StaticFit,
-    columns,
     fit_current,
     fit_depth,
 )
@@ -101,7 +100,7 @@ def run_season(
             np.array([s.t_mid for s in cur]),
             current.scales,
             current.own,
-            [columns(s.stats["space"], [1, 2]) for s in cur],
+            [s.stats["current"] for s in cur],
         )
     tm["models_s"] = time.perf_counter() - t
     tm["staleness_s"] = tm["models_s"] - tm["depth_s"] - tm["current_s"]

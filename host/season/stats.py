@@ -80,6 +80,32 @@ def chunk_stats(features, Z: np.ndarray, Y: np.ndarray, rows: int = CHUNK_ROWS) 
     return out
 
 
+def masked_stats(
+    features, Z: np.ndarray, targets: dict[str, tuple[np.ndarray, np.ndarray]], rows: int = CHUNK_ROWS
+) -> dict[str, Stats]:
+    """The statistics of each named target (Y, n x k, and the rows that have it) on its own rows, in one
+    pass: the features once per chunk, one Gram matrix per chunk, each target's from it less the few
+    rows it lacks (or from its own rows, when it lacks most)."""
+    out: dict[str, Stats] = {}
+    for a in range(0, len(Z), rows):
+        Phi, G = features(Z[a : a + rows]), None
+        for name, (Y, ok) in targets.items():
+            m, y = ok[a : a + rows], Y[a : a + rows]
+            if m.all() or (~m).sum() < m.sum():
+                G = Phi.T @ Phi if G is None else G
+                lack = Phi[~m]
+                Gm = G - lack.T @ lack if len(lack) else G
+            else:
+                Gm = Phi[m].T @ Phi[m]
+            ym = y if m.all() else np.where(m[:, None], y, 0.0)  # a row it lacks adds nothing
+            part = Stats(Gm, Phi.T @ ym, ym.T @ ym, int(m.sum()))
+            out[name] = part if name not in out else out[name] + part
+    for name, (Y, _) in targets.items():
+        if name not in out:  # no rows at all
+            out[name] = chunk_stats(features, Z[:0], Y[:0])
+    return out
+
+
 def tree_sum(items: list):
     """Pairwise sum, level by level (the same order as the Dask tree reduction)."""
     level = list(items)

@@ -16,6 +16,7 @@ from forcemap.host.season.stats import (
     Stats,
     chunk_stats,
     fit_hypers,
+    masked_stats,
     posterior,
     target_scale,
     without_offset,
@@ -23,13 +24,15 @@ from forcemap.host.season.stats import (
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.gaps import target_gaps
 from forcemap.host.workbench.survey_fits import HYPER_SPACING_S, MIN_HYPER_ROWS
-from forcemap.host.workbench.table import Survey, VectorTarget, load_survey
+from forcemap.host.workbench.table import Survey, load_survey
 from forcemap.host.workbench.water_level import reduce_to_gauge
 
-# the statistics' target columns: depth and the current's components share the spatial basis
-SPACE_TARGETS = ("depth", "current_east", "current_north")
-WIND_TARGETS = ("wind_east", "wind_north")
+# the statistics' targets and their columns: depth and the current share the spatial basis, each on the
+# rows that have it
+TARGETS = {"depth": ("depth",), "current": ("current_east", "current_north"),
+           "wind": ("wind_east", "wind_north")}  # fmt: skip
 # glibc's mallopt parameters
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8
 
@@ -88,9 +91,10 @@ class Bundle(dict):
 
 @dataclass
 class SurveyResult:
-    """One log's statistics. `space`: depth, current east, current north against the spatial basis (all rows,
-    and the hyperparameter rows); `wind`: its components against the wind basis. `has` names the targets the
-    log measured (a missing one has zero columns)."""
+    """One log's statistics, each target's on the rows that have it (`workbench.gaps.target_gaps`):
+    `depth` and `current` (east, north) against the spatial basis, `wind` (east, north) against the wind
+    basis; each also over the hyperparameter rows (`depth_hyper`, ...). `has` names the target columns the
+    log measured (a missing one has no rows)."""
 
     path: str
     t0: float
@@ -171,17 +175,25 @@ def hyper_mask(t: np.ndarray) -> np.ndarray:
     return mask
 
 
-def _targets(s: Survey, names: tuple[str, ...], vector: str) -> tuple[np.ndarray, dict[str, bool]]:
-    """The target columns (zeros where a log lacks one), and which it has."""
-    e, n = s.components(VectorTarget(vector, "east"))
-    cols = {f"{vector}_east": e, f"{vector}_north": n}
-    if "depth" in names:
-        cols["depth"] = s.columns.get("depth")
-    has = {k: cols[k] is not None and bool(np.isfinite(cols[k]).any()) for k in names}
-    Y = np.column_stack(
-        [cols[k] if has[k] else np.zeros(s.n) for k in names]
-    )  # fmt: skip
-    return Y, has
+def _targets(s: Survey) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, bool], list]:
+    """Each target's columns and the rows that have it (none where the log lacks it), which target
+    columns it has, and what was left out, in words."""
+    out, has, notes = {}, {}, []
+    for name, cols in TARGETS.items():
+        vt = s.vector_target(cols[0])
+        try:
+            gaps = target_gaps(s, cols[0]) if vt or len(cols) == 1 else None
+        except WorkbenchError:  # the log does not measure it
+            gaps = None
+        ok = np.zeros(s.n, bool) if gaps is None else ~gaps.missing
+        has.update({c: bool(ok.any()) for c in cols})
+        if gaps is not None and ok.any() and gaps.count:
+            notes.append(gaps.line(f"the season's {name} uses the other {{used:,}}"))
+        Y = np.zeros((s.n, len(cols)))
+        if ok.any():
+            Y[ok] = np.column_stack(s.components(vt) if vt else [s.columns[cols[0]]])[ok]
+        out[name] = (Y, ok)
+    return out, has, notes
 
 
 def read_placed(path: str, frame: Frame) -> tuple[Survey, np.ndarray]:
@@ -227,19 +239,12 @@ def _survey_stats(path: str, frame: Frame) -> SurveyResult | Rejected:
         return Rejected(path, str(e))
     t = s.columns["t"]
     hyper = hyper_mask(t)
-    stats, has, notes = Bundle(), {}, list(s.notes)
-    for key, names, vector, feats in (
-        ("space", SPACE_TARGETS, "current", frame.space_features),
-        ("wind", WIND_TARGETS, "wind", frame.wind_features),
-    ):
-        Y, h = _targets(s, names, vector)
-        has.update(h)
-        ok = np.isfinite(Y).all(axis=1)
-        if (~ok).any():
-            notes.append(f"{(~ok).sum()} row(s) with a missing {key} target left out")
-        Y = np.where(np.isfinite(Y), Y, 0.0)
-        stats[key] = chunk_stats(feats, Z[ok], Y[ok])
-        stats[key + "_hyper"] = chunk_stats(feats, Z[ok & hyper], Y[ok & hyper])
+    targets, has, left = _targets(s)
+    stats, notes = Bundle(), list(s.notes) + left
+    for group, feats in ((("depth", "current"), frame.space_features), (("wind",), frame.wind_features)):
+        stats.update(masked_stats(feats, Z, {k: targets[k] for k in group}))
+        hyp = {k + "_hyper": (targets[k][0][hyper], targets[k][1][hyper]) for k in group}
+        stats.update(masked_stats(feats, Z[hyper], hyp))
     if not has["depth"] and not has["current_east"]:
         return Rejected(path, f"{path}: neither depth nor current measured; nothing to map")
     result = SurveyResult(path, float(t.min()), float(t.max()), s.n, has, stats, notes)
@@ -266,8 +271,10 @@ def depth_cv(path: str, frame: Frame, season, k: int = 5) -> dict | Rejected:
     except WorkbenchError as e:
         return Rejected(path, str(e))
     y = s.columns.get("depth")
-    if y is None or not np.isfinite(y).all():
-        return Rejected(path, f"{path}: no complete depth column for the blocked CV")
+    if y is None or not np.isfinite(y).any():
+        return Rejected(path, f"{path}: no depth for the blocked CV")
+    ok = np.isfinite(y)  # the rows that have depth (`workbench.gaps.target_gaps`)
+    s, Z, y = s.subset(ok), Z[ok], y[ok]
     folds, _ = blocked_folds(s.xy, k)
     feats = frame.space_features
     with_level = season.levels is not None and path in season.paths

@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import Survey, VectorTarget, prepare_column
+from forcemap.host.workbench.gaps import prepare_column
+from forcemap.host.workbench.table import Survey, VectorTarget
 
 NAME = "clock_offset"
 AUTOPILOT_COLUMNS = ("heading", "sog", "cog")

@@ -1,11 +1,13 @@
 """Data problems before physics: findings about the log itself, each with what the user can do about it.
 
 `diagnose` and the report list these ahead of the physical candidates: a map fitted to interleaved
-sources, false echoes or late time stamps explains the log, not the water. Four kinds:
+sources, false echoes or late time stamps explains the log, not the water. Five kinds:
 
 - source conflict: a speed from successive positions far from SOG, or a heading that turns faster than a
   boat can: two sources feeding one column in turn (named from the log's ``columns`` metadata);
 - spikes: the target's readings flagged along the track (host/workbench/spikes.py);
+- gaps: rows with no reading of the target, and where (host/workbench/gaps.py): the maps use the rows that
+  have it, never a filled value;
 - latency: a source measured late against the position and the other sources whose latency stayed in
   the rows, and a wind or current vector steadiest in turns with the heading and ground velocity
   shifted (host/workbench/clock_offset.py), blamed on the source the measured latencies name, or said
@@ -22,9 +24,11 @@ import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.gaps import target_gaps
 from forcemap.host.workbench.instruments import Instruments, source_name
-from forcemap.host.workbench.spikes import target_spikes, without_spikes
+from forcemap.host.workbench.spikes import target_spikes
 from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.target_rows import target_rows
 
 # speed from positions over this span is compared with SOG
 SPAN_S = 1.0
@@ -44,7 +48,7 @@ MIN_QUANTUM_M = 0.5
 
 @dataclass
 class DataFinding:
-    kind: str  # "source conflict", "spikes", "latency", "quantisation"
+    kind: str  # "source conflict", "spikes", "gaps", "latency", "quantisation"
     text: str
     advice: str
 
@@ -137,6 +141,28 @@ def spikes(survey: Survey, targets: list[str]) -> list[DataFinding]:
     return out
 
 
+def gaps(survey: Survey, targets: list[str]) -> list[DataFinding]:
+    """The rows each target (a vector once) has no reading on, with their times."""
+    out, seen = [], set()
+    for target in targets:
+        try:
+            found = target_gaps(survey, target)
+        except WorkbenchError:  # not a column of this table: nothing to say about its rows
+            continue
+        if not found.count or found.what in seen:
+            continue
+        seen.add(found.what)
+        out.append(
+            DataFinding(
+                "gaps",
+                found.line("its maps and diagnosis use the other {used:,}, never a filled value"),
+                f"nothing to undo: if the gaps were not expected, check what measures the {found.what} "
+                "and its cable at the times given",
+            )
+        )
+    return out
+
+
 CLOCK_HINT = "meanwhile the model term clock_offset undoes it"
 
 
@@ -147,8 +173,9 @@ def latency(survey: Survey, targets: list[str], inst: Instruments) -> list[DataF
         if vt is None or vt.prefix in seen or not clock_offset.applicable(survey, vt):
             continue
         seen.add(vt.prefix)
-        clean = without_spikes(survey, target)[0]  # the survey the model's own scan runs on
         try:
+            # the rows the model's own scan runs on
+            clean = target_rows(survey, target, clock_offset.AUTOPILOT_COLUMNS).survey
             scan = clock_offset.scan_offset(clean, vt)
         except WorkbenchError:
             continue
@@ -270,6 +297,7 @@ def findings(survey: Survey, targets: list[str]) -> list[DataFinding]:
     inst = Instruments.of(survey)
     return (
         conflicts(survey, inst)
+        + gaps(survey, targets)
         + spikes(survey, targets)
         + measured_latency(survey)
         + latency(survey, targets, inst)

@@ -21,7 +21,6 @@ from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
 from forcemap.host.workbench.revisits import target_radius
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
-from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import Survey, unit_of
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
@@ -68,6 +67,7 @@ class FitResult:
             "coverage95": self.cv.coverage95,
             "calibration": cal.to_json() if (cal := self.model.calibration) else None,
             "spikes": self.model.spikes.to_json() if self.model.spikes else None,
+            "gaps": self.model.rows.to_json(),
         }
         if self.model.time_terms:
             out["time_terms"] = time_terms.tide_summary(self.model)
@@ -88,6 +88,7 @@ class FitResult:
             )
         if m.calibration is not None:
             lines.append(m.calibration.line())
+        lines += [f"gaps: {t}" for t in m.rows.lines()]
         if self.model.spikes is not None:
             lines += [f"spikes: {t}" for t in self.model.spikes.lines()] or [
                 "spikes: none flagged along the track"
@@ -159,11 +160,11 @@ def fit_target(
     note(f"fitting {target}: {' + '.join(terms)} on {survey.n} samples{hyper} ...", progress)
     if survey.n >= BIG_TABLE and not nufft.available():
         note(f"(a table this long fits several times faster with finufft: {install_hint('nufft')})", progress)
-    clean = without_spikes(survey, target)[0]  # the rows the model is fitted on
-    fold_ids = make_folds(clean, folds)
+    sm = SurveyModel(survey, target, terms, max_basis=max_basis)
+    fold_ids = make_folds(sm.rows.survey, folds)  # on the rows the model is fitted on
     # the Gram matrices are accumulated fold by fold: the CV then costs no second pass over the data
-    survey_fits(clean).grams.plan = fold_ids
-    sm = SurveyModel(survey, target, terms, max_basis=max_basis).fit()
+    survey_fits(sm.rows.survey).grams.plan = fold_ids
+    sm.fit()
     note(f"cross-validating ({folds} folds) ...", progress)
     cv = sm.cv(fold_ids)
     if folds == "blocked":  # the maps' band is calibrated on blocked folds only
@@ -192,7 +193,7 @@ def record(table: Path, result: FitResult) -> dict:
     entry = {
         k: v
         for k, v in result.to_json().items()
-        if k not in ("spikes", "calibration", "time_terms")
+        if k not in ("spikes", "calibration", "gaps", "time_terms")
     }
     entry.update(folds=result.folds, n=m.survey.n)
     if m.spikes is not None:
@@ -201,8 +202,9 @@ def record(table: Path, result: FitResult) -> dict:
 
 
 def saved_model(ws: Path, entry: dict, survey: Survey) -> dict | None:
-    """The saved model of a history entry (what `record` wrote), if it can rebuild the fit on `survey`:
-    the file is there and readable, it has the basis sizes, and the survey has as many samples."""
+    """The saved model of a history entry (what `record` wrote), if it can rebuild the fit on `survey`
+    (the rows the model is fitted on): the file is there and readable, it has the basis sizes, and it
+    was fitted on as many rows."""
     try:
         model = json.loads((ws / entry["model_file"]).read_text())
     except (KeyError, OSError, json.JSONDecodeError):
@@ -221,12 +223,12 @@ def refit_or_restore(
     for entry in reversed(history):
         if entry.get("target") != target or list(entry.get("terms", ())) != list(terms):
             continue
-        model = saved_model(ws, entry, without_spikes(survey, target)[0])
-        if model is None:
-            break
-        note(f"  from fit {entry['fit']}'s saved hyperparameters", progress)
         try:
-            sm = SurveyModel(survey, target, model["terms"])
+            sm = SurveyModel(survey, target, entry["terms"])
+            model = saved_model(ws, entry, sm.survey)  # fitted on the rows the model uses now
+            if model is None:
+                break
+            note(f"  from fit {entry['fit']}'s saved hyperparameters", progress)
             survey_fits(sm.survey).saved.update(_shared_entries(model.get("shared")))
             sm.fit(theta=np.asarray(model["theta"], float), n_basis=model["n_basis"])
             sm.calibration = Calibration.from_json(model.get("calibration"))

@@ -67,6 +67,11 @@ class Spikes:
     def column(self) -> str:
         return FLAG_PREFIX + self.name
 
+    @property
+    def readings(self) -> int:
+        """The rows with a reading (the others are gaps, host/workbench/gaps.py)."""
+        return int(np.isfinite(self.departure).sum())
+
     def kinds(self) -> list[tuple[int, str, np.ndarray]]:
         """(count, why, mask) for each kind of spike, most frequent first."""
         f = self.flagged
@@ -112,7 +117,7 @@ class Spikes:
                 if self.kept
                 else "left out of the fit (--keep-outliers keeps them)"
             )
-            out.append(f"{n} of {len(self.flagged)} {unit} flagged as {why}, {where}{what}; {fate}")
+            out.append(f"{n} of {self.readings} {unit} flagged as {why}, {where}{what}; {fate}")
         return out
 
     def _lost_line(self, n: int, why: str) -> str:
@@ -121,7 +126,7 @@ class Spikes:
             "kept in the fit (--keep-outliers)" if self.kept else "left out of the fit and the maps"
         )
         return (
-            f"{n} of {len(self.flagged)} soundings flagged as {why}, in {len(self.stretches)} "
+            f"{n} of {self.readings} soundings flagged as {why}, in {len(self.stretches)} "
             f"stretch(es): {where} into the survey; {fate}"
         )
 
@@ -190,7 +195,8 @@ def find_spikes(survey: Survey, name: str, parts: list[np.ndarray], fam: str | N
     if fam == "depth" and len(parts) == 1:  # the reference from the seabed's continuous path only
         found_lost = depth_lost(parts[0], survey.trel, _xy(survey))
         stretches = found_lost.stretches
-        lost = found_lost.lost | _marked_lost(survey, first)
+        # a row with no sounding is a gap (host/workbench/gaps.py), not a sounding of the bottom lost
+        lost = (found_lost.lost | _marked_lost(survey, first)) & np.isfinite(readings[0])
         if lost.any() and not stretches:  # marked by the import, on soundings since changed
             stretches = runs_of(lost, survey.trel[first])
         off = (

@@ -9,6 +9,7 @@ import numpy as np
 from forcemap.host.vessel.geodesy import wrap_from_minus180
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.flow_axis import axis_frame, time_part
+from forcemap.host.workbench.gaps import DERIVED_INPUTS, bridged, prepare_column, too_few
 from forcemap.host.workbench.model import (
     HYPER_SPACING_S,
     MIN_HYPER_ROWS,
@@ -17,7 +18,7 @@ from forcemap.host.workbench.model import (
     spaced_rows,
 )
 from forcemap.host.workbench.spec import BASELINE, build_term, parse_terms
-from forcemap.host.workbench.table import Survey, VectorTarget, is_circular, prepare_column
+from forcemap.host.workbench.table import MIN_ROWS, Survey, VectorTarget, is_circular
 from forcemap.host.workbench.terms import HilbertGPTerm
 
 # the names callers have always found here (hyperparameters come from samples HYPER_SPACING_S apart)
@@ -33,7 +34,7 @@ def circular_median(deg: np.ndarray) -> float:
 # direction, and the along-flow component stays close to the speed); a direction target's must not
 FRAME_TERMS = {"speed": [*BASELINE, "gp(t, matern32)"], "dir": list(BASELINE)}
 FRAME_MAX_BASIS = 800  # the frame is a smooth direction field; it needs no fine spatial detail
-DERIVED = ("stw", "heading_rel_current", "heading_rel_wind")
+DERIVED = tuple(DERIVED_INPUTS)
 
 
 def terms_with_basis(terms, n_basis=None) -> list:
@@ -78,9 +79,15 @@ class SurveyFits:
 
     @functools.cached_property
     def depth_map(self) -> Model:
-        """The baseline model of depth over position: maps evaluate depth terms on it."""
-        depth = survey_inputs(self.survey, {"depth"})["depth"]
-        return self.model(BASELINE).fit({"position": self.survey.xy, "t": self.survey.trel}, depth)
+        """The baseline model of depth over position, fitted on the rows that have depth: maps evaluate
+        depth terms on it."""
+        s = self.survey
+        depth = s.column("depth")
+        ok = np.isfinite(depth)
+        if ok.sum() < MIN_ROWS:
+            raise too_few(int(ok.sum()), "depth")
+        prepare_column(s.subset(ok), "depth", "covariate")  # not constant
+        return self.model(BASELINE).fit({"position": s.xy[ok], "t": s.trel[ok]}, depth[ok])
 
     def frame(self, vt: VectorTarget, time_terms: tuple[str, ...] = ()) -> tuple[Model, Model]:
         """Smooth models of a vector's east and north components (see `flow_frame`); with `time_terms`
@@ -93,10 +100,12 @@ class SurveyFits:
             e, n = survey.components(vt)
             if e is None:
                 raise WorkbenchError(f"the table has no {vt.prefix} components, speed or direction")
-            X = survey_inputs(survey, set())
-            e = finite_target(survey, e, f"{vt.prefix} east component")
-            n = finite_target(survey, n, f"{vt.prefix} north component")
-            for c, y in (("east", e), ("north", n)):
+            # fitted on the rows that have the vector; it predicts the direction on every row
+            ok = np.isfinite(e) & np.isfinite(n)
+            if ok.sum() < MIN_ROWS:
+                raise too_few(int(ok.sum()), vt.prefix)
+            X = {k: v[ok] for k, v in survey_inputs(survey, set()).items()}
+            for c, y in (("east", e[ok]), ("north", n[ok])):
                 self._fit(f"{key}/{c}", terms, X, y, max_basis=FRAME_MAX_BASIS)
         return self._shared[key + "/east"], self._shared[key + "/north"]
 
@@ -196,20 +205,6 @@ def frame_direction(
     return e / s, n / s
 
 
-def finite_target(survey: Survey, values: np.ndarray, what: str) -> np.ndarray:
-    bad = ~np.isfinite(values)
-    if bad.mean() > 0.05:
-        raise WorkbenchError(f"{what} has {bad.mean():.0%} missing values")
-    if bad.any():
-        from forcemap.host.workbench.table import _fill_nearest_in_time
-
-        values = _fill_nearest_in_time(values)
-        note = f"filled {bad.sum()} missing value(s) of the {what} with the nearest sample in time"
-        if note not in survey.notes:
-            survey.notes.append(note)
-    return values
-
-
 def derived_column(survey: Survey, name: str) -> np.ndarray:
     """A covariate by name: a table column, or a derived one (computed once per survey, never added to its
     columns): `heading_rel_current` / `heading_rel_wind`, the bow's angle to the baseline flow, and `stw`,
@@ -225,10 +220,9 @@ def _derive(survey: Survey, name: str) -> np.ndarray:
         missing = [c for c in need if c not in survey.columns]
         if missing:
             raise WorkbenchError(f"'stw' needs the columns {', '.join(missing)} in the table")
-        sog = prepare_column(survey, "sog", "covariate")
-        cog = np.radians(prepare_column(survey, "cog", "covariate"))
-        ce = prepare_column(survey, "current_east", "covariate")
-        cn = prepare_column(survey, "current_north", "covariate")
+        # each reading bridged within its own correlation time; NaN where one has a longer gap
+        sog, cog, ce, cn = (bridged(survey, c) for c in need)
+        cog = np.radians(cog)
         return np.hypot(sog * np.sin(cog) - ce, sog * np.cos(cog) - cn)
     if "heading" not in survey.columns:
         raise WorkbenchError(f"'{name}' needs the column heading in the table")
@@ -239,7 +233,7 @@ def _derive(survey: Survey, name: str) -> np.ndarray:
     flow = np.degrees(np.arctan2(ue, un))
     if vt.is_from:
         flow = flow + 180.0
-    return wrap_from_minus180(prepare_column(survey, "heading", "covariate") - flow)
+    return wrap_from_minus180(bridged(survey, "heading") - flow)
 
 
 def covariate(survey: Survey, name: str) -> np.ndarray:
@@ -247,6 +241,12 @@ def covariate(survey: Survey, name: str) -> np.ndarray:
     if name in survey.columns or name not in DERIVED:
         return prepare_column(survey, name, "covariate")
     values = derived_column(survey, name)
+    if not np.isfinite(values).all():
+        missing = int((~np.isfinite(values)).sum())
+        raise WorkbenchError(
+            f"covariate '{name}' has no value on {missing} of {len(values)} rows (one of "
+            f"{', '.join(DERIVED_INPUTS[name])} is missing there for longer than its correlation time)"
+        )
     if np.ptp(values) <= 1e-12 * max(1.0, float(np.abs(values).max())):
         raise WorkbenchError(f"covariate '{name}' is constant; there is nothing to model")
     return values

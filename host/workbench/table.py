@@ -18,7 +18,6 @@ from forcemap.host.workbench.table_files import (  # noqa: F401 - part of this A
 )
 
 MIN_ROWS = 30
-MAX_MISSING_FRACTION = 0.05
 # rows with no time or position (a GPS outage, the autopilot stream lost) cannot be placed on the map
 # and are dropped; a table where most rows are like that is more likely a broken export
 MAX_UNPLACED_FRACTION = 0.5
@@ -130,6 +129,10 @@ class Survey:
     datum: str | None = None
     # each navigation source's measured latency (host/convert/navigation_table.latencies; MCAP only)
     latencies: dict[str, dict] = field(default_factory=dict)
+    # a subset's survey of origin (None: this is one) and its rows there: a covariate's gaps are measured,
+    # and bridged, on every reading the origin has (host/workbench/gaps.py)
+    root: Survey | None = field(default=None, repr=False)
+    index: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def n(self) -> int:
@@ -148,8 +151,16 @@ class Survey:
             c for c in self.columns if c not in NOT_COVARIATES and not c.startswith(FLAG_PREFIX)
         ]
 
+    @property
+    def origin(self) -> tuple[Survey, np.ndarray]:
+        """The survey this one's rows were taken from, and their rows there."""
+        if self.root is None:
+            return self, np.arange(self.n)
+        return self.root, self.index  # type: ignore[return-value]
+
     def subset(self, mask: np.ndarray) -> Survey:
         cols = {k: v[mask] for k, v in self.columns.items()}
+        root, index = self.origin
         return Survey(
             cols,
             self.lat0,
@@ -163,6 +174,8 @@ class Survey:
             provenance=dict(self.provenance),
             datum=self.datum,
             latencies=dict(self.latencies),
+            root=root,
+            index=index[mask],
         )
 
     def column(self, name: str) -> np.ndarray:
@@ -200,21 +213,6 @@ class Survey:
         sign = -1.0 if vt.is_from else 1.0
         rad = np.radians(d)
         return sign * s * np.sin(rad), sign * s * np.cos(rad)
-
-
-def _fill_nearest_in_time(values: np.ndarray) -> np.ndarray:
-    good = np.flatnonzero(np.isfinite(values))
-    idx = np.arange(len(values))
-    pos = (
-        np.clip(np.searchsorted(good, idx), 1, len(good) - 1)
-        if len(good) > 1
-        else np.zeros_like(idx)
-    )
-    if len(good) == 1:
-        return np.full_like(values, values[good[0]])
-    left, right = good[pos - 1], good[pos]
-    nearest = np.where(np.abs(idx - left) <= np.abs(right - idx), left, right)
-    return np.where(np.isfinite(values), values, values[nearest])
 
 
 def _numeric_columns(path: Path) -> tuple[dict, set[str], list[str]]:
@@ -304,32 +302,3 @@ def survey_from_columns(
     if "heading" in columns and "cog" in columns:
         columns["crab"] = wrap_from_minus180(columns["heading"] - columns["cog"])
     return Survey(columns, lat0, lon0, float(columns["t"][0]), path, notes, non_numeric)
-
-
-def prepare_column(
-    survey: Survey, name: str, role: str, allow_constant: bool = False
-) -> np.ndarray:
-    """A column ready for modelling: numeric, not constant, few enough gaps (filled nearest in time, with a note)."""
-    values = survey.column(name)
-    bad = ~np.isfinite(values)
-    if bad.all():
-        raise WorkbenchError(
-            f"{role} '{name}' has no values (every cell is empty, not a number or inf)"
-        )
-    if bad.mean() > MAX_MISSING_FRACTION:
-        raise WorkbenchError(
-            f"{role} '{name}' has {bad.mean():.0%} missing values (at most {MAX_MISSING_FRACTION:.0%} can be filled)"
-        )
-    if bad.any():
-        values = _fill_nearest_in_time(values)
-        note = f"filled {bad.sum()} missing value(s) of '{name}' with the nearest sample in time"
-        if note not in survey.notes:
-            survey.notes.append(note)
-    finite = values[np.isfinite(values)]
-    if allow_constant:
-        return values
-    if np.ptp(finite) <= 1e-12 * max(1.0, float(np.abs(finite).max())):
-        raise WorkbenchError(
-            f"{role} '{name}' is constant ({finite[0]:g}); there is nothing to model"
-        )
-    return values

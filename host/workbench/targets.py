@@ -18,10 +18,8 @@ from forcemap.host.workbench.cv import Calibration, CVResult
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.model import Model
 from forcemap.host.workbench.spec import BASELINE, parse_terms
-from forcemap.host.workbench.spikes import without_spikes
 from forcemap.host.workbench.survey_fits import (
     derived_column,
-    finite_target,
     frame_direction,
     grid_inputs,
     hyper_rows,
@@ -29,7 +27,8 @@ from forcemap.host.workbench.survey_fits import (
     survey_inputs,
     terms_with_basis,
 )
-from forcemap.host.workbench.table import NOT_COVARIATES, Survey, is_circular, prepare_column
+from forcemap.host.workbench.table import NOT_COVARIATES, Survey, is_circular
+from forcemap.host.workbench.target_rows import target_rows
 
 N_DRAWS = 128
 # the names callers have always imported from here
@@ -45,14 +44,22 @@ class SurveyModel:
         target: str,
         terms: list[str] | None = None,
         max_basis: int | None = None,
+        rows_with: tuple[str, ...] = (),
     ) -> None:
+        """`rows_with`: covariates outside the terms whose rows the model must be fitted on too (a
+        diagnose candidate judged on the rows that have it)."""
         self.target, self.max_basis = target, max_basis
         terms, self.clock_offset = clock_offset.split_terms(list(terms or BASELINE))
         self.term_specs = parse_terms(terms or BASELINE, is_circular)
         self.vector = survey.vector_target(target)
         self._check_target(survey)
-        # spikes first: a clock offset is judged on the readings the map will be fitted to
-        survey, self.spikes = without_spikes(survey, target)
+        # the rows first (the target there, its spikes left out, every covariate there): a clock offset is
+        # judged on the readings the map will be fitted to
+        needs = {i for s in self.term_specs for i in s.inputs} | set(rows_with)
+        if self.clock_offset is not None:
+            needs |= set(clock_offset.AUTOPILOT_COLUMNS)
+        self.rows = target_rows(survey, target, needs)
+        survey, self.spikes, self.gaps = self.rows.survey, self.rows.spikes, self.rows.gaps
         if self.clock_offset is not None:
             survey, self.clock_offset = clock_offset.corrected_for(
                 survey, self.vector, self.clock_offset
@@ -124,12 +131,13 @@ class SurveyModel:
     def _prepare_y(self) -> None:
         s, vt = self.survey, self.vector
         if vt is None:
-            self.measured = prepare_column(s, self.target, "target")
-            self.y_primary = self.measured
+            self.measured = self.y_primary = s.column(self.target)  # every row has it (target_rows)
+            if np.ptp(self.measured) <= 1e-12 * max(1.0, float(np.abs(self.measured).max())):
+                raise WorkbenchError(
+                    f"target '{self.target}' is constant ({self.measured[0]:g}); there is nothing to model"
+                )
             return
         e, n = s.components(vt)
-        e = finite_target(s, e, f"{vt.prefix} east component")
-        n = finite_target(s, n, f"{vt.prefix} north component")
         if vt.aspect in ("east", "north"):
             self.measured = self.y_primary = e if vt.aspect == "east" else n
             if np.ptp(self.measured) < 1e-12:

@@ -17,8 +17,7 @@ import numpy as np
 from forcemap.host.workbench.flow_axis import uniform
 from forcemap.host.workbench.seiche import SeicheTerm, merian, resolve, seiche_text
 from forcemap.host.workbench.spec import BASELINE, TIME_KINDS
-from forcemap.host.workbench.survey_fits import finite_target, survey_fits, survey_inputs
-from forcemap.host.workbench.table import prepare_column
+from forcemap.host.workbench.survey_fits import survey_fits, survey_inputs
 from forcemap.host.workbench.terms import HilbertGPTerm, TermSpec
 from forcemap.host.workbench.tide_term import (
     TideTerm,
@@ -65,13 +64,12 @@ def _base_models(sm, others: list[TermSpec]) -> list:
     fits = survey_fits(sm.survey)
     X = survey_inputs(sm.survey, {i for s in others for i in s.inputs})
     if sm.vector is None:
-        y = prepare_column(sm.survey, sm.target, "target")
+        y = sm.survey.column(sm.target)  # the rows that have the target (target_rows)
         return [sm.new_primary(others).fit(X, y)]
     terms = [*BASELINE, *frame_terms(others)]
     e, n = sm.survey.components(sm.vector)
     out = []
-    for c, y in (("east", e), ("north", n)):
-        y = finite_target(sm.survey, y, f"{sm.vector.prefix} {c} component")
+    for y in (e, n):  # both there on every row the model is fitted on (target_rows)
         out.append(fits.model(terms).fit(X, y))
     return out
 

@@ -14,8 +14,9 @@ from forcemap.host.workbench import clock_offset
 from forcemap.host.workbench.cv import CVResult, paired_test, random_folds, repeated_blocked_folds
 from forcemap.host.workbench.model import Model, term_inputs
 from forcemap.host.workbench.spec import build_term, parse_term
-from forcemap.host.workbench.spikes import without_spikes
+from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
+from forcemap.host.workbench.target_rows import target_rows
 from forcemap.host.workbench.targets import SurveyModel, survey_inputs
 
 # the comparison between candidates needs no finer spatial basis than this; `fit` goes further
@@ -34,13 +35,30 @@ class Evaluator:
     """The current model of `target` on `survey`, its blocked and random folds, and its held-out errors."""
 
     def __init__(
-        self, survey: Survey, target: str, terms: list[str], folds: int, seed: int
+        self,
+        survey: Survey,
+        target: str,
+        terms: list[str],
+        folds: int,
+        seed: int,
+        rows_with: tuple[str, ...] = (),
+        like: Evaluator | None = None,
     ) -> None:
+        """`rows_with`: covariates whose rows the model is fitted on too; `like`: the evaluator of the
+        same model on more rows, whose hyperparameters it keeps (no optimiser: the same field)."""
         self.target = target
-        self.sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
-        # the rows the model is fitted on: the target's spikes left out (the clock correction is the
-        # model's own business)
-        self.survey = survey = without_spikes(survey, target)[0]
+        self.given = (survey, terms, folds, seed)
+        sm = SurveyModel(survey, target, terms, max_basis=DIAGNOSE_MAX_BASIS, rows_with=rows_with)
+        if like is None:
+            self.sm = sm.fit()
+        else:
+            survey_fits(sm.survey).saved.update(survey_fits(like.sm.survey).shared_hypers())
+            p = like.sm.primary
+            self.sm = sm.fit(theta=p.theta_, n_basis=p.n_basis_)
+        # the rows the model is fitted on: the target there, its spikes left out, every covariate there
+        # (the clock correction is the model's own business)
+        self.survey = survey = self.sm.rows.survey
+        self._on_rows: dict[bytes, Evaluator] = {}
         self.fold_ids, self.blocks = repeated_blocked_folds(survey.xy, folds, seed, REPEATS)
         # the paired unit of every blocked comparison: the block, over all its assignments
         self.groups = np.tile(self.blocks, REPEATS)
@@ -54,6 +72,37 @@ class Evaluator:
         self._base_r: CVResult | None = None
         self._time: tuple | None = None
         self.consequences = consequences_of(target)
+
+    def on_rows_with(self, *names: str) -> Evaluator:
+        """This evaluator, or one on the rows that have the candidates `names` where they miss some of
+        these rows for longer than their correlation time: the current model refitted there, so that a
+        candidate is judged on the rows that have it, against the same model on the same rows."""
+        survey, terms, folds, seed = self.given
+        needs = set(self.sm.rows.covariates)
+        for name in names:
+            needs |= set(clock_offset.AUTOPILOT_COLUMNS) if name == clock_offset.NAME else {name}
+        rows = target_rows(survey, self.target, needs)
+        if rows.n == self.survey.n:  # a subset of these rows as large as they are: the same rows
+            return self
+        key = rows.survey.origin[1].tobytes()
+        if key not in self._on_rows:
+            extra = tuple(sorted(needs - set(self.sm.rows.covariates)))
+            self._on_rows[key] = Evaluator(survey, self.target, terms, folds, seed, extra, self)
+        return self._on_rows[key]
+
+    def rows_note(self, base: Evaluator) -> str:
+        """How the rows this evaluator judges on differ from `base`'s, in words."""
+        left = [
+            f"{g.count:,} without {name} ({g.where()})"
+            for name, g in self.sm.rows.left.items()
+            if name not in base.sm.rows.left
+        ]
+        return (
+            f"judged on the {self.survey.n:,} of {base.survey.n:,} rows that have it ("
+            + "; ".join(left)
+            + ": gaps longer than its correlation time), the current model refitted on them with "
+            "its hyperparameters"
+        )
 
     @property
     def fold_id(self) -> np.ndarray:

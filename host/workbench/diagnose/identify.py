@@ -42,7 +42,10 @@ def time_proxies(survey: Survey, names: list[str]) -> list[str]:
     out = []
     for name in names:
         v = survey.columns.get(name)
-        if v is None or is_circular(name) or len(v) < 3 or not np.all(np.isfinite(v)):
+        if v is None or is_circular(name):
+            continue
+        v = v[np.isfinite(v)]  # a counter with gaps still counts time where it reads
+        if len(v) < 3:
             continue
         d = np.diff(v)
         moving = d[d != 0]

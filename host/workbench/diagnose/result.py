@@ -45,6 +45,7 @@ class Candidate:
     revisit: bool = False  # judged where the boat comes back (diagnose/time_candidate.py)
     time: object = field(default=None, repr=False)  # the revisits' TimeVerdict
     blocked_p: float | None = None  # the blocked-CV p-value, when the revisits' p-value is the candidate's
+    rows: int | None = None  # judged on this many rows, those that have it (None: the model's own)
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
@@ -58,6 +59,7 @@ class Candidate:
             "identifiable": self.identifiable,
             "confounded_with": self.confounded_with,
             "null_gains": self.null_gains,
+            "rows": self.rows,
         }
 
 
@@ -121,6 +123,8 @@ class Round:
                 notes.append("consequence: credited with its random-fold gain")
             if c.identifiable is False:
                 notes.append(f"confounded with {', '.join(c.confounded_with)}")
+            if c.rows is not None:
+                notes.append(f"judged on the {c.rows:,} rows that have it")
             null = f"{max(c.null_gains):>+8.1%}" if c.null_gains else f"{'':>8}"
             mark = "*" if c.significant else " "
             out.append(

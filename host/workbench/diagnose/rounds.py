@@ -57,7 +57,7 @@ PROXY_LEFTOVER = 0.25
 # a direct cause within this many places of a leading proxy may take its place
 PROXY_WINDOW = 10
 ALPHA = 0.05
-PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab"}
+PROXIES = {"t", "app_wind_angle", "app_wind_speed", "cog", "crab", "throttle"}
 
 
 def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
@@ -159,15 +159,15 @@ def diagnose_round(
     names = candidate_covariates(survey, ev.sm)
     proxies = identify.time_proxies(survey, [n for n in names if n != "t"])
     names = [n for n in names if n not in proxies]
-    results, skipped = _evaluate_all(ev, names, Progress(label, len(names), progress))
+    results, skipped, evs = _evaluate_all(ev, names, Progress(label, len(names), progress))
     results.sort(key=lambda c: -c.improvement)
-    results = _prefer_direct_cause(results, ev.pair_gain)
+    results = _prefer_direct_cause(results, lambda a, b: ev.on_rows_with(a, b).pair_gain(a, b))
     seconds = {"candidates": time.perf_counter() - clock}
     for c in results:
         if c.covariate == "t":
             c.time_proxies = proxies
     threshold = alpha / max(len(results), 1)
-    _judge(ev, results, threshold, seconds)
+    _judge(evs, results, threshold, seconds)
     results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
@@ -188,18 +188,25 @@ def diagnose_round(
 
 def _evaluate_all(
     ev: Evaluator, names: list[str], bar: Progress
-) -> tuple[list[Candidate], dict[str, str]]:
-    """Every candidate's evaluation, in the order given; the ones that cannot be modelled, with why."""
+) -> tuple[list[Candidate], dict[str, str], dict[str, Evaluator]]:
+    """Every candidate's evaluation, in the order given, each on the rows that have it (and the evaluator
+    of those rows, by candidate); the ones that cannot be modelled, with why."""
     results: list[Candidate] = []
     skipped: dict[str, str] = {}
+    evs: dict[str, Evaluator] = {}
     for name in names:
         bar.step(name)
         try:
-            results.append(_evaluate(ev, name))
+            evs[name] = on = ev.on_rows_with(name)
+            c = _evaluate(on, name)
         except WorkbenchError as exc:
             skipped[name] = str(exc)
+            continue
+        if on is not ev:
+            c.rows, c.note = on.survey.n, "; ".join(filter(None, [on.rows_note(ev), c.note]))
+        results.append(c)
     bar.close()
-    return results, skipped
+    return results, skipped, evs
 
 
 def _evaluate(ev: Evaluator, name: str) -> Candidate:
@@ -243,12 +250,15 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
         c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
 
 
-def _judge(ev: Evaluator, results: list[Candidate], threshold: float, seconds: dict) -> None:
+def _judge(
+    evs: dict[str, Evaluator], results: list[Candidate], threshold: float, seconds: dict
+) -> None:
     """Mark each candidate significant or not: floor, p-value, null, identifiability (the last two only for
-    the few that pass the first two, best first)."""
+    the few that pass the first two, best first), each on the rows it was evaluated on."""
     t_null = t_ident = 0.0
     screened = 0
     for c in results:
+        ev = evs[c.covariate]
         c.significant = False
         gain, p = c.improvement, c.p_value
         if c.revisit:
@@ -332,7 +342,9 @@ def _component(sm: SurveyModel) -> str:
 def is_proxy(name: str) -> bool:
     """Covariates that stand in for a cause rather than being one: time (everything that changes along the
     track), the apparent wind (speed and angle), course and crab (on straight legs they follow the heading),
-    and the raw paddle-wheel speeds (the boat's speed through water, seen along one axis)."""
+    the throttle (a command, set leg by leg: it follows the heading too, and stands in for the speed
+    through the water), and the raw paddle-wheel speeds (the boat's speed through water, seen along one
+    axis)."""
     return name in PROXIES or re.fullmatch(r"wheel\d+_speed", name) is not None
 
 
