@@ -224,7 +224,7 @@ def explain_candidate(
     """The candidate's line of text: its gain, the verdict and why, a likely cause (naming only the
     survey's own instruments) and a term."""
     cause, term = explain(c.covariate, instruments, family)
-    if c.time is not None:
+    if c.revisit and c.time is not None:
         return explain_time(c, family)
     head = (
         f"adding {c.term}{' ' + what if what else ''} cuts the blocked-CV RMSE by {c.blocked_gain:.0%}"

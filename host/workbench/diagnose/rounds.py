@@ -37,7 +37,7 @@ from forcemap.host.workbench.diagnose.result import (
     explain_candidate,
     revisit_note,
 )
-from forcemap.host.workbench.diagnose.time_candidate import time_term
+from forcemap.host.workbench.diagnose.time_candidate import smooth_time_term, time_term
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.instruments import Instruments
 from forcemap.host.workbench.spec import parse_term
@@ -168,6 +168,8 @@ def diagnose_round(
             c.time_proxies = proxies
     threshold = alpha / max(len(results), 1)
     _judge(evs, results, threshold, seconds)
+    if any(c.covariate == "t" and c.time is not None and not c.revisit for c in results):
+        results.sort(key=lambda c: -c.improvement)  # time now carries its blocks' gain: rank it by that
     results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
@@ -245,9 +247,25 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
     c.revisit, c.time = True, verdict
     c.improvement, c.p_value = verdict.improvement, verdict.p_value
     c.note = revisit_note(verdict, held)
-    term = time_term(verdict, ev.target)
+    smooth = smooth_time_term(ev.target)
+    if smooth != c.term:  # under depth, time is the water level
+        cv, c.blocked_gain, c.blocked_p = ev.blocked(ev.with_term(smooth))
+        c.term, c.cv_rmse = smooth, cv.rmse
+
+
+def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
+    """The term a significant verdict's form advises (a tide, a seiche, a drift), with its blocked-CV RMSE."""
+    term = time_term(c.time, ev.target)
     if term != c.term:
         c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
+
+
+def _judged_on_blocks(c: Candidate) -> None:
+    """Time the revisits could not tell but the blocks' rule found (a short survey's few stretches): the
+    candidate carries the blocks' gain and p-value, and says what the revisits showed."""
+    c.revisit = False
+    c.improvement, c.p_value = c.blocked_gain, c.blocked_p
+    c.note = f"judged on blocks: the revisits alone could not tell (p = {c.time.p_value:.2g}; {c.note})"
 
 
 def _judge(
@@ -266,6 +284,7 @@ def _judge(
             # the exchange of whole stretches' times, the significance its p-value, with no floor
             if c.p_value <= threshold:
                 c.identifiable, c.significant = True, True
+                _advise_time_term(ev, c)
                 continue
             gain, p = c.blocked_gain, c.blocked_p  # else the blocks' evidence, under their own rule
         if gain < FLOOR or p > threshold or screened >= SCREEN:
@@ -294,24 +313,25 @@ def _judge(
             c.confounded_with = identify.confounders(ev)
         c.significant = c.identifiable and beats_null(gain, c.null_gains)
     seconds.update(identifiability=t_ident, null=t_null)
-    _own_direction_after_time(ev, results)
+    for c in results:
+        if c.revisit and c.significant and c.time.p_value > threshold:
+            _judged_on_blocks(c)
+    _own_direction_after_time(evs, results)
 
 
-def _own_direction_after_time(ev: Evaluator, results: list[Candidate]) -> None:
+def _own_direction_after_time(evs: dict[str, Evaluator], results: list[Candidate]) -> None:
     """A speed target's own direction, and the heading relative to it, are derived from the target: when
     the flow changes in time (a tide or a seiche turns it and changes its strength together), they follow
     that change. Once time is found each is credited only with what it adds to a model with time in it."""
-    vt = ev.sm.vector
-    if vt is None or vt.aspect != "speed":
-        return
     t = next((c for c in results if c.covariate == "t" and c.significant), None)
-    if t is None:
+    vt = None if t is None else evs["t"].sm.vector
+    if vt is None or vt.aspect != "speed":
         return
     for own in (vt.column("dir"), f"heading_rel_{vt.prefix}"):
         d = next((c for c in results if c.covariate == own and c.improvement > 0), None)
         if d is None:
             continue
-        left = ev.pair_gain("t", own)
+        left = evs[own].pair_gain("t", own)
         d.note = (
             f"{own} is derived from the target's own direction, and the {vt.prefix} changes in time: "
             f"once time is in the model it adds {left:+.0%} (credited with that)"

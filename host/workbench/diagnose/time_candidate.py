@@ -86,7 +86,7 @@ def time_term(verdict: TimeVerdict, target: str) -> str:
     """The term a verdict advises for `target`: a tide, a periodic term (a seiche), or a smooth change (a
     drift, a stage: `water_level` under depth, a GP in t otherwise; a wind's gusts and veers too)."""
     fam = family(target)
-    smooth = "water_level" if fam == "depth" else "gp(t, matern32)"
+    smooth = smooth_time_term(target)
     if fam == "wind":
         return smooth
     kind = verdict.best.name
@@ -97,6 +97,11 @@ def time_term(verdict: TimeVerdict, target: str) -> str:
     else:
         term = "tide" if kind == "tide" else smooth
     return term if is_time_term(term) else smooth
+
+
+def smooth_time_term(target: str) -> str:
+    """The term of a smooth change in time: the water level under depth, a GP in t otherwise."""
+    return "water_level" if family(target) == "depth" else "gp(t, matern32)"
 
 
 def is_time_term(term: str) -> bool:
