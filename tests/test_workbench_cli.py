@@ -154,7 +154,10 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
     base = json.loads(out_json.read_text())
     assert set(base) == {
         "target", "terms", "cv_rmse", "cv_mae", "coverage95", "calibration", "spikes", "gaps",
+        "crossline_rmse", "crossline_samples",
     }  # fmt: skip
+    # where the lawnmower's turns revisit its lines, each time stretch held out: a real error, on real rows
+    assert base["crossline_samples"] > 0 and 0.0 < base["crossline_rmse"] < 10 * base["cv_rmse"]
     assert set(base["calibration"]) == {"sd_scale", "model_coverage", "coverage", "reach_m"}
     assert base["target"] == "current_speed" and base["terms"] == [
         "const",
