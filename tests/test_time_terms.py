@@ -53,6 +53,12 @@ def truth_current(scenario: str, effects: list[str], xy: np.ndarray, utc: float)
     return np.column_stack([e, n])
 
 
+def fit_tide(lake: Path) -> None:
+    """`forcemap fit LAKE --target current_speed --effects tide`, as a user runs it; it must succeed."""
+    argv = ["fit", str(lake), "--target", "current_speed", "--effects", "tide", "--quiet", "--no-plots"]
+    assert main(argv) == 0
+
+
 def test_tide_amplitude_and_phase_come_back_with_an_sd_that_covers_them(lake: Path) -> None:
     survey = read_survey(lake)
     base = survey.fit("current_east")
@@ -117,21 +123,7 @@ def test_api_and_grid_at_a_time(lake: Path, work: Path) -> None:
     east = ds["current_east"]
     assert abs(float(east.mean()) - truth[:, 0].mean()) < 0.05
     out = work / "maps.nc"
-    assert (
-        main(
-            [
-                "fit",
-                str(lake),
-                "--target",
-                "current_speed",
-                "--effects",
-                "tide",
-                "--quiet",
-                "--no-plots",
-            ]
-        )
-        == 0
-    )
+    fit_tide(lake)
     code = main(["grid", str(lake), "-o", str(out), "--target", "current_speed", "--at", TOMORROW,
                  "--resolution", "10", "--quiet"])  # fmt: skip
     assert code == 0
@@ -243,21 +235,7 @@ def test_tide_on_depth_is_the_water_level(work: Path) -> None:
 
 
 def test_plan_start_reads_the_tide_along_the_mission(lake: Path, work: Path, capsys) -> None:  # type: ignore[no-untyped-def]
-    assert (
-        main(
-            [
-                "fit",
-                str(lake),
-                "--target",
-                "current_speed",
-                "--effects",
-                "tide",
-                "--quiet",
-                "--no-plots",
-            ]
-        )
-        == 0
-    )
+    fit_tide(lake)
     out = work / "lake-plan"
     capsys.readouterr()
     code = main(["plan", str(lake), "--mission", "lawnmower", "--scenario", "lake", "-o", str(out),
