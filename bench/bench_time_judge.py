@@ -1,0 +1,85 @@
+"""Time judged where the boat comes back: the revisits' p-value per survey and radius, and the crossline RMSE
+of the terms a verdict may advise (bench/RESULTS.md, "Time judged where the boat comes back").
+
+    python -m bench.bench_time_judge radius CASE [CASE ...] [--shares 0.2,0.5]
+    python -m bench.bench_time_judge crossline CASE --terms "" "tide" "gp(t, matern32)" [--target T]
+
+A CASE is an injected real case of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`,
+`fjord_level`), a real log's path under the real data (`nmea/irene/irene_2014-06-27_geneva.nmea`), or a
+samples table (a simulated survey's `samples.csv`). Cases are built once into --cases (default
+/tmp/forcemap-cases) and reused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from forcemap.host.workbench.diagnose.time_candidate import time_verdict
+from forcemap.host.workbench.fitting import fit_target
+from forcemap.host.workbench.revisits import MIN_RADIUS_M, map_lengthscale
+from forcemap.host.workbench.spec import BASELINE
+from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.targets import SurveyModel
+
+
+def table_of(case: str, cases: Path) -> Path:
+    """The samples table of `case`: a table given as such, or a real case built once into `cases`."""
+    if case.endswith((".csv", ".parquet")):
+        return Path(case)
+    from tests.real_cases import Cases
+
+    return Cases(cases)(case).csv
+
+
+def radius(case: str, cases: Path, target: str, shares: list[float]) -> None:
+    """The revisits' verdict on the baseline model at each radius (a share of the map's length scale)."""
+    sm = SurveyModel(load_survey(table_of(case, cases)), target, None, max_basis=600).fit()
+    ell = map_lengthscale(sm)
+    cells = []
+    for share in shares:
+        r = max(share * ell, MIN_RADIUS_M)
+        c0 = time.process_time()
+        found = time_verdict(sm, r)
+        if found is None:
+            cells.append(f"R {r:.0f} m: too few revisits")
+            continue
+        v = found[0]
+        cells.append(
+            f"R {r:.0f} m: {v.crossings} crossings, p {v.p_value:.3f}, {v.best.name} "
+            f"{'' if v.best.period_s is None else f'{v.best.period_s / 60:.0f} min'}, cv share "
+            f"{v.share:.2f} ({time.process_time() - c0:.0f} s CPU)"
+        )
+    print(f"{case} {target} (length scale {ell:.0f} m) | " + " | ".join(cells), flush=True)
+
+
+def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
+    """`fit`'s crossline RMSE with the baseline plus each set of terms (`;` between terms of one set)."""
+    survey = load_survey(table_of(case, cases))
+    for extra in terms:
+        ts = [*BASELINE, *[t for t in extra.split(";") if t]]
+        r = fit_target(survey, target, ts, progress=False)
+        xl = "none" if r.crossline is None else f"{r.crossline['crossline_rmse']:.4f}"
+        print(f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}", flush=True)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("what", choices=("radius", "crossline"))
+    p.add_argument("cases", nargs="+", metavar="CASE")
+    p.add_argument("--target", default="current_speed")
+    p.add_argument("--shares", default="0.2,0.5", help="radii as shares of the map's length scale")
+    p.add_argument("--terms", nargs="+", default=["", "tide", "gp(t, matern32)"])
+    p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
+    a = p.parse_args()
+    a.cases_dir.mkdir(parents=True, exist_ok=True)
+    for case in a.cases:
+        if a.what == "radius":
+            radius(case, a.cases_dir, a.target, [float(x) for x in a.shares.split(",")])
+        else:
+            crossline(case, a.cases_dir, a.target, a.terms)
+
+
+if __name__ == "__main__":
+    main()
