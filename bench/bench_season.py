@@ -33,6 +33,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ONE_THREAD = {k: "1" for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
 
 
@@ -77,7 +79,30 @@ def run_config(config: str, folder: Path) -> dict:
         "worker_peak_mib": workers,
         "worker_cpu_s": worker_cpu,
         "basis": len(season.frame.space.J) + 1,
+        "digest": season_digest(season),
     }
+
+
+def season_digest(season) -> str:  # type: ignore[no-untyped-def]
+    """A hash of the season's numbers (the depth and current posteriors, the current's scales and offsets,
+    the water levels): equal digests are identical numbers, bit for bit."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for fit in (season.depth, season.current):
+        if fit is None:
+            continue
+        for a in (
+            fit.theta,
+            fit.post.mean,
+            fit.post.L,
+            getattr(fit, "scales", None),
+            getattr(fit, "offsets", None),
+            getattr(fit, "levels", None),
+        ):
+            if a is not None:
+                h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    return h.hexdigest()[:16]
 
 
 def make(folder: Path, surveys: int, samples: int) -> float:
@@ -158,6 +183,12 @@ def report(rows: list[dict]) -> None:
                     f"  {r['config']} worker(s): {base['client_cpu_s']:.1f} / ({max(r['worker_cpu_s']):.1f} + "
                     f"{r['phases_s']['models_s']:.1f}) = {base['client_cpu_s'] / ideal:.2f}"
                 )
+    digests = {r["config"]: r.get("digest") for r in rows}
+    same = len(set(digests.values())) == 1
+    print(
+        f"\nthe season's numbers (digest of its posteriors, scales, offsets, levels): {digests}: "
+        f"{'identical in every configuration' if same else 'NOT identical'}"
+    )
     one = next((r for r in rows if r["config"] == "1"), base)
     per_log = (one["phases_s"]["statistics_s"] + one["phases_s"]["footprints_s"]) / one["surveys"]
     per_sample = per_log / (one["samples"] / one["surveys"])
