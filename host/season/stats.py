@@ -81,11 +81,18 @@ def chunk_stats(features, Z: np.ndarray, Y: np.ndarray, rows: int = CHUNK_ROWS) 
 
 
 def masked_stats(
-    features, Z: np.ndarray, targets: dict[str, tuple[np.ndarray, np.ndarray]], rows: int = CHUNK_ROWS
+    features,
+    Z: np.ndarray,
+    targets: dict[str, tuple[np.ndarray, np.ndarray]],
+    rows: int = CHUNK_ROWS,
 ) -> dict[str, Stats]:
     """The statistics of each named target (Y, n x k, and the rows that have it) on its own rows, in one
     pass: the features once per chunk, one Gram matrix per chunk, each target's from it less the few
-    rows it lacks (or from its own rows, when it lacks most)."""
+    rows it lacks (or from its own rows, when it lacks most). With the GP's fast tables (`chunk_stats`),
+    one NUFFT pass per set of targets that share their rows."""
+    gp = getattr(features, "gp", None)
+    if gp is not None and fourier.is_fast(gp) and len(Z):
+        return shared_rows_stats(features, Z, targets)
     out: dict[str, Stats] = {}
     for a in range(0, len(Z), rows):
         Phi, G = features(Z[a : a + rows]), None
@@ -103,6 +110,27 @@ def masked_stats(
     for name, (Y, _) in targets.items():
         if name not in out:  # no rows at all
             out[name] = chunk_stats(features, Z[:0], Y[:0])
+    return out
+
+
+def shared_rows_stats(
+    features, Z: np.ndarray, targets: dict[str, tuple[np.ndarray, np.ndarray]]
+) -> dict[str, Stats]:
+    """Each target's statistics on its own rows by `chunk_stats`, the targets that have the same rows
+    stacked into one call (one Gram matrix for them)."""
+    groups: dict[bytes, list[str]] = {}
+    for name, (_, ok) in targets.items():
+        groups.setdefault(np.packbits(ok).tobytes(), []).append(name)
+    out: dict[str, Stats] = {}
+    for names in groups.values():
+        ok = targets[names[0]][1]
+        Ys = [np.asarray(targets[n][0], float).reshape(len(Z), -1)[ok] for n in names]
+        st = chunk_stats(features, Z[ok], np.hstack(Ys))
+        a = 0
+        for n, Y in zip(names, Ys, strict=True):
+            cols = slice(a, a + Y.shape[1])
+            out[n] = Stats(st.G.copy(), st.B[:, cols].copy(), st.R[cols, cols].copy(), st.n)
+            a += Y.shape[1]
     return out
 
 
