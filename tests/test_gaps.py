@@ -275,4 +275,4 @@ def test_season_keeps_the_depth_of_rows_without_current(tmp_path, n_basis):
     ref = {"G": Phi.T @ Phi, "B": Phi.T @ Y, "R": Y.T @ Y}
     for m in ("G", "B", "R"):
         a, b = getattr(one.stats["current"], m), ref[m]
-        assert np.max(np.abs(a - b)) <= 1e-8 * np.max(np.abs(b)), m
+        assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(b)), m

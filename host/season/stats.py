@@ -53,13 +53,19 @@ class ConstAndGP:
         return np.hstack([np.ones((len(Z), 1)), self.gp.features(Z)])
 
 
+def fast_gp(features, Z: np.ndarray):
+    """The GP of `ConstAndGP` features when its statistics come from the NUFFT tables, else None."""
+    gp = getattr(features, "gp", None)
+    return gp if gp is not None and fourier.is_fast(gp) and len(Z) else None
+
+
 def chunk_stats(features, Z: np.ndarray, Y: np.ndarray, rows: int = CHUNK_ROWS) -> Stats:
     """The statistics of targets Y (n x k) against `features(Z)`, streamed over row chunks (never n x m at
     once beyond `rows` rows); for `ConstAndGP` features with a basis large enough, from the GP's cosine and
     sine tables instead (`workbench.fourier`: non-uniform FFTs with finufft, O(n) not O(n m^2), the same
     numbers to rounding)."""
-    gp = getattr(features, "gp", None)
-    if gp is not None and fourier.is_fast(gp) and len(Z):
+    gp = fast_gp(features, Z)
+    if gp is not None:
         Y = np.asarray(Y, float).reshape(len(Z), -1)
         G = np.empty((gp.J.shape[0] + 1,) * 2)
         cross = fourier.transpose_products(gp, Z, np.hstack([np.ones((len(Z), 1)), Y]))
@@ -81,17 +87,13 @@ def chunk_stats(features, Z: np.ndarray, Y: np.ndarray, rows: int = CHUNK_ROWS) 
 
 
 def masked_stats(
-    features,
-    Z: np.ndarray,
-    targets: dict[str, tuple[np.ndarray, np.ndarray]],
-    rows: int = CHUNK_ROWS,
+    features, Z: np.ndarray, targets: dict[str, tuple[np.ndarray, np.ndarray]], rows: int = CHUNK_ROWS
 ) -> dict[str, Stats]:
     """The statistics of each named target (Y, n x k, and the rows that have it) on its own rows, in one
     pass: the features once per chunk, one Gram matrix per chunk, each target's from it less the few
     rows it lacks (or from its own rows, when it lacks most). With the GP's fast tables (`chunk_stats`),
     one NUFFT pass per set of targets that share their rows."""
-    gp = getattr(features, "gp", None)
-    if gp is not None and fourier.is_fast(gp) and len(Z):
+    if fast_gp(features, Z) is not None:
         return shared_rows_stats(features, Z, targets)
     out: dict[str, Stats] = {}
     for a in range(0, len(Z), rows):
@@ -129,7 +131,7 @@ def shared_rows_stats(
         a = 0
         for n, Y in zip(names, Ys, strict=True):
             cols = slice(a, a + Y.shape[1])
-            out[n] = Stats(st.G.copy(), st.B[:, cols].copy(), st.R[cols, cols].copy(), st.n)
+            out[n] = Stats(st.G, st.B[:, cols], st.R[cols, cols], st.n)
             a += Y.shape[1]
     return out
 
