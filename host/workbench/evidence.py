@@ -25,6 +25,9 @@ CHUNK_ROWS = 4096
 SINE_COLS = 8
 # with finufft (`nufft`): up to this many
 NUFFT_COLS = 160
+# a product over at most this many rows comes from their features: a non-uniform FFT's fixed cost (its plan and
+# the FFT of the oversampled grid, about a millisecond) is worth hundreds of rows' features (the folds' cells)
+FEW_ROWS = 256
 # a design with features below this size holds them; a larger one computes them chunk by chunk when needed
 DENSE_BYTES = 160 * 2**20
 
@@ -271,9 +274,10 @@ class Design:
 
     def cross(self, rows, new: np.ndarray) -> np.ndarray:
         """Phi[rows]' new[rows] (M x k): the fast block's part from sine tables when they pay (with finufft,
-        O(n w^D) a column: a diagnosis's candidate costs no n x M features), the rest from the features."""
+        O(n w^D) a column: a diagnosis's candidate costs no n x M features), the rest from the features; a few
+        rows' (`FEW_ROWS`) all from their features."""
         idx = as_rows(rows, self.n)
-        if not self._sines_pay(new.shape[1]):
+        if len(idx) <= FEW_ROWS or not self._sines_pay(new.shape[1]):
             out = np.zeros((self.M, new.shape[1]))
             for c, F in self.row_chunks(idx):
                 out += F.T @ new[c]
