@@ -115,3 +115,25 @@ def test_a_heading_error_on_legs_sailed_at_set_times_is_not_time():
     rp = revisit_pairs(xy, t, 20.0, stretch)
     d = values[rp.pairs[:, 1]] - values[rp.pairs[:, 0]]
     assert judge_time(d, rp, xy, None, permutations=299).p_value <= THRESHOLD + 1e-12
+
+
+@pytest.mark.parametrize("with_heading", [True, False])
+def test_the_permutations_shares_are_those_of_the_columns_formed_in_full(track, with_heading):
+    """The null's shares come from products over the stretches (time_forms.PermutedTimes); for any
+    permutation they equal the least squares of the pairs' permuted columns formed in full."""
+    from forcemap.host.workbench.diagnose import time_forms as tf
+
+    t, xy, heading = track
+    values = noise(len(t), 3) + 0.2 * np.cos(2 * np.pi * t / 4000.0)
+    rp = revisit_pairs(xy, t, 20.0, stretch_length(t, values - np.median(values)))
+    proj = tf.Projector(tf.nuisance(rp, xy, heading if with_heading else None))
+    d = proj(tf.clipped((values[rp.pairs[:, 1]] - values[rp.pairs[:, 0]])[:, None]))
+    ladder = tf.FormLadder(float(np.ptp(rp.t)), rp.stretch_s)
+    rng = np.random.default_rng(5)
+    orders = np.array([rng.permutation(rp.n_stretches) for _ in range(20)])
+    null = tf.PermutedTimes(rp, ladder, proj).null(d, orders)
+    for order, fast in zip(orders, null, strict=True):
+        ta, tb = rp.times(order)
+        full = ladder.shares(d, ta, tb, proj)
+        np.testing.assert_allclose(fast, full, rtol=1e-9, atol=1e-12)
+    assert null[:, 1:].max() > 0.01  # the shares are not all zero: the test can fail

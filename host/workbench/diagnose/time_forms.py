@@ -57,13 +57,18 @@ def pair_shares(d: np.ndarray, C: np.ndarray, S: np.ndarray) -> np.ndarray:
     """Share of the differences' sum of squares explained by each cos/sin column pair (a separate pair of
     coefficients per vector component), vectorised over the pairs of columns."""
     cc, ss, cs = (C * C).sum(0), (S * S).sum(0), (C * S).sum(0)
+    q = quadratic_shares(cc, ss, cs, d.T @ C, d.T @ S)
+    return q / max(float((d * d).sum()), 1e-300)
+
+
+def quadratic_shares(cc, ss, cs, cd: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """The sum of squares a cos/sin column pair explains of each component, summed, from the columns' products
+    cc = C'C, ss = S'S, cs = C'S (one per column pair) and with the components cd = C'd, sd = S'd (components x
+    column pairs); zero where the two columns are collinear."""
     det = cc * ss - cs**2
     det = np.where(det > 1e-9 * (cc * ss) + 1e-300, det, np.inf)
-    q = np.zeros(C.shape[1])
-    for k in range(d.shape[1]):
-        cd, sd = C.T @ d[:, k], S.T @ d[:, k]
-        q += (ss * cd**2 - 2 * cs * cd * sd + cc * sd**2) / det
-    return q / max(float((d * d).sum()), 1e-300)
+    cd, sd = np.atleast_2d(cd), np.atleast_2d(sd)
+    return ((ss * cd**2 - 2 * cs * cd * sd + cc * sd**2) / det).sum(axis=0)
 
 
 def periodic_columns(ta, tb, omega: np.ndarray, proj: Projector) -> tuple[np.ndarray, np.ndarray]:
@@ -112,26 +117,58 @@ class FormLadder:
 
 
 class PermutedTimes:
-    """The ladder's shares with the stretches' times permuted, from sines and cosines computed once:
-    cos(w (t + s)) = cos(w t) cos(w s) - sin(w t) sin(w s), s each stretch's shift."""
+    """The ladder's shares with the stretches' times permuted, many permutations at once.
+
+    Moving stretch s by Delta_s turns a pair's cos(w t) into cos(w t) cos(w Delta_s) - sin(w t) sin(w Delta_s):
+    at each frequency the differenced columns are C = B [c; -s] and S = B [s; c], with c, s the cosines and
+    sines of w Delta over the stretches and B (pairs x 2 stretches, four entries a row) fixed. The shares need
+    only C'C, S'S, C'S (quadratic forms in B' P B, P the projector off the nuisance: a sparse part less a
+    low-rank one) and C'd, S'd (B'd: d is already projected), so a permutation costs stretches, not pairs,
+    per frequency; the numbers are those of the columns formed in full, to rounding."""
 
     def __init__(self, rp: RevisitPairs, ladder: FormLadder, proj: Projector) -> None:
         self.rp, self.ladder, self.proj = rp, ladder, proj
         self.ta, self.tb = rp.times()
         self.sa, self.sb = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
-        w = ladder.omega
-        self.trig = [(np.cos(np.outer(x, w)), np.sin(np.outer(x, w))) for x in (self.ta, self.tb)]
+
+    def _stretch_columns(self, w: float):
+        """B at frequency w: the pairs' cos and sin columns per stretch of each end, later end minus earlier."""
+        from scipy import sparse
+
+        ns, p = self.rp.n_stretches, len(self.ta)
+        rows = np.concatenate([np.arange(p)] * 4)
+        cols = np.concatenate([self.sb, self.sa, self.sb + ns, self.sa + ns])
+        vals = np.concatenate(
+            [np.cos(w * self.tb), -np.cos(w * self.ta), np.sin(w * self.tb), -np.sin(w * self.ta)]
+        )
+        return sparse.csr_matrix((vals, (rows, cols)), shape=(p, 2 * ns))
+
+    def null(self, d: np.ndarray, orders: np.ndarray) -> np.ndarray:
+        """[drift, each period...] shares for each permutation of the stretches (a row of `orders`)."""
+        starts = self.rp.stretch_s * np.arange(self.rp.n_stretches)
+        shifts = (starts[orders] - starts).T  # stretches x permutations
+        out = np.empty((len(orders), 1 + len(self.ladder.omega)))
+        for j in range(len(orders)):
+            shift = shifts[:, j]
+            ta, tb = self.ta + shift[self.sa], self.tb + shift[self.sb]
+            out[j, 0] = share_of(d, drift_columns(ta, tb, self.ladder.span, self.proj))
+        dd = max(float((d * d).sum()), 1e-300)
+        Q = self.proj.Q
+        for i, w in enumerate(self.ladder.omega):
+            B = self._stretch_columns(w)
+            H = (B.T @ B).tocsr()
+            R = None if Q is None else (B.T @ Q).T
+            g = B.T @ d
+            c, s = np.cos(w * shifts), np.sin(w * shifts)
+            X, Y = np.vstack([c, -s]), np.vstack([s, c])
+            HX, HY = H @ X, H @ Y
+            if R is not None:
+                HX -= R.T @ (R @ X)
+                HY -= R.T @ (R @ Y)
+            cc, ss, cs = (X * HX).sum(0), (Y * HY).sum(0), (X * HY).sum(0)
+            out[:, 1 + i] = quadratic_shares(cc, ss, cs, g.T @ X, g.T @ Y) / dd
+        return out
 
     def shares(self, d: np.ndarray, order: np.ndarray) -> np.ndarray:
-        starts = self.rp.stretch_s * np.arange(self.rp.n_stretches)
-        shift = starts[order] - starts
-        w = self.ladder.omega
-        cw, sw = np.cos(np.outer(shift, w)), np.sin(np.outer(shift, w))
-        (ca, sa), (cb, sb) = [
-            (c * cw[st] - s * sw[st], s * cw[st] + c * sw[st])
-            for (c, s), st in zip(self.trig, (self.sa, self.sb), strict=True)
-        ]
-        C, S = self.proj(cb - ca), self.proj(sb - sa)
-        ta, tb = self.ta + shift[self.sa], self.tb + shift[self.sb]
-        drift = share_of(d, drift_columns(ta, tb, self.ladder.span, self.proj))
-        return np.concatenate([[drift], pair_shares(d, C, S)])
+        """The shares for one permutation of the stretches."""
+        return self.null(d, np.asarray(order)[None, :])[0]
