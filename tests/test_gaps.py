@@ -23,10 +23,9 @@ from forcemap.host.workbench.gaps import correlation_time
 from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices.season import make_season
 
+from bench.inject_cases import FJORD
 from bench.synth_survey import make_survey
-from tests.tools import csv_rows, real_data, write_csv_rows
-
-FJORD = "nmea/irene/irene_2013-08-03_flensburg.nmea"
+from tests.tools import csv_rows, write_csv_rows
 
 
 def _run(capsys, argv):
@@ -64,13 +63,10 @@ def _longest_run(t: np.ndarray, empty: np.ndarray) -> tuple[float, float]:
 
 
 @pytest.fixture(scope="module")
-def fjord(tmp_path_factory) -> Path:
-    """The real race imported and exported once: its current and depth have gaps of their own."""
-    folder = tmp_path_factory.mktemp("fjord")
-    log, table = folder / "fjord.mcap", folder / "fjord.csv"
-    assert main(["import", str(real_data() / FJORD), "-o", str(log)]) == 0
-    assert main(["export", str(log), "-o", str(table)]) == 0
-    return table
+def fjord(real_case) -> Path:
+    """The real race imported and exported once per run (tests/real_cases.py, shared with the other modules):
+    its current and depth have gaps of their own."""
+    return real_case(FJORD).csv
 
 
 @pytest.mark.slow
