@@ -187,9 +187,11 @@ class Design:
         if self.lazy and self.n * self.M * 8 <= DENSE_BYTES:
             self.blocks = [b[:] if isinstance(b, TermBlock) else b for b in self.blocks]
 
-    def rows(self, rows) -> np.ndarray:
-        """The features of `rows`, column-major."""
-        self._materialize()
+    def rows(self, rows, hold: bool = True) -> np.ndarray:
+        """The features of `rows`, column-major; with `hold=False` a lazy design computes only theirs (a few
+        rows' products need not make it hold all of its own)."""
+        if hold:
+            self._materialize()
         idx = as_rows(rows, self.n)
         out = np.empty((self.M, len(idx)))
         i = 0
@@ -277,7 +279,9 @@ class Design:
         O(n w^D) a column: a diagnosis's candidate costs no n x M features), the rest from the features; a few
         rows' (`FEW_ROWS`) all from their features."""
         idx = as_rows(rows, self.n)
-        if len(idx) <= FEW_ROWS or not self._sines_pay(new.shape[1]):
+        if len(idx) <= FEW_ROWS:
+            return self.rows(idx, hold=False).T @ new[idx]
+        if not self._sines_pay(new.shape[1]):
             out = np.zeros((self.M, new.shape[1]))
             for c, F in self.row_chunks(idx):
                 out += F.T @ new[c]

@@ -123,9 +123,14 @@ class RevisitPairs:
         ta, tb = self.t[self.pairs[:, 0]], self.t[self.pairs[:, 1]]
         if order is None:
             return ta, tb
-        starts = self.stretch_s * np.arange(self.n_stretches)
-        shift = starts[order] - starts
+        shift = self.shifts(order)
         return ta + shift[self.stretch[self.pairs[:, 0]]], tb + shift[self.stretch[self.pairs[:, 1]]]
+
+    def shifts(self, order: np.ndarray) -> np.ndarray:
+        """How far (s) `order` moves each stretch: to the start of the stretch it gives it (any leading axes of
+        `order`, one permutation per row, are kept)."""
+        starts = self.stretch_s * np.arange(self.n_stretches)
+        return starts[order] - starts
 
 
 def revisit_pairs(

@@ -145,13 +145,11 @@ class PermutedTimes:
 
     def null(self, d: np.ndarray, orders: np.ndarray) -> np.ndarray:
         """[drift, each period...] shares for each permutation of the stretches (a row of `orders`)."""
-        starts = self.rp.stretch_s * np.arange(self.rp.n_stretches)
-        shifts = (starts[orders] - starts).T  # stretches x permutations
         out = np.empty((len(orders), 1 + len(self.ladder.omega)))
-        for j in range(len(orders)):
-            shift = shifts[:, j]
-            ta, tb = self.ta + shift[self.sa], self.tb + shift[self.sb]
+        for j, order in enumerate(orders):
+            ta, tb = self.rp.times(order)
             out[j, 0] = share_of(d, drift_columns(ta, tb, self.ladder.span, self.proj))
+        shifts = self.rp.shifts(orders).T  # stretches x permutations
         dd = max(float((d * d).sum()), 1e-300)
         Q = self.proj.Q
         for i, w in enumerate(self.ladder.omega):
@@ -168,7 +166,3 @@ class PermutedTimes:
             cc, ss, cs = (X * HX).sum(0), (Y * HY).sum(0), (X * HY).sum(0)
             out[:, 1 + i] = quadratic_shares(cc, ss, cs, g.T @ X, g.T @ Y) / dd
         return out
-
-    def shares(self, d: np.ndarray, order: np.ndarray) -> np.ndarray:
-        """The shares for one permutation of the stretches."""
-        return self.null(d, np.asarray(order)[None, :])[0]
