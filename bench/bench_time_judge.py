@@ -3,6 +3,11 @@ of the terms a verdict may advise (bench/RESULTS.md, "Time judged where the boat
 
     python -m bench.bench_time_judge radius CASE [CASE ...] [--shares 0.2,0.5]
     python -m bench.bench_time_judge crossline CASE --terms "" "tide" "gp(t, matern32)" [--target T]
+    python -m bench.bench_time_judge cost CASE [--target T] [--permutations 200] [--diagnose-only]
+
+`cost` prints the CPU of `diagnose` on the case, and of one permutation of the revisit judge's null on the
+baseline model's revisit pairs: from products over the stretches (`PermutedTimes.null`, what diagnose runs)
+and from the pairs' columns formed in full (`FormLadder.shares`), with the largest difference between them.
 
 A CASE is an injected real case of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`,
 `fjord_level`), a real log's path under the real data (`nmea/irene/irene_2014-06-27_geneva.nmea`), or a
@@ -16,6 +21,7 @@ import argparse
 import time
 from pathlib import Path
 
+import numpy as np
 from forcemap.host.workbench.diagnose.time_candidate import time_verdict
 from forcemap.host.workbench.fitting import fit_target
 from forcemap.host.workbench.revisits import MIN_RADIUS_M, map_lengthscale
@@ -64,19 +70,70 @@ def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
         print(f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}", flush=True)
 
 
+def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: bool) -> None:
+    """CPU of `diagnose` on the case, and of one permutation of the judge's null, both ways."""
+    from forcemap.host.workbench.diagnose import time_candidate
+    from forcemap.host.workbench.diagnose.rounds import diagnose
+
+    survey = load_survey(table_of(case, cases))
+    c0 = time.process_time()
+    diagnose(survey, target, progress=False)
+    line = f"{case} {target}: {survey.n} rows, diagnose {time.process_time() - c0:.1f} s CPU"
+    if diagnose_only:
+        print(line, flush=True)
+        return
+    judged = []
+    real = time_candidate.judge_time
+    time_candidate.judge_time = lambda *a, **k: judged.append(a) or real(*a, **k)
+    try:
+        time_verdict(SurveyModel(survey, target, None, max_basis=600).fit())
+    finally:
+        time_candidate.judge_time = real
+    if not judged:
+        print(f"{line}; the track comes back too little to judge time", flush=True)
+        return
+    print(f"{line}; {null_cost(*judged[0], permutations)}", flush=True)
+
+
+def null_cost(d, rp, xy, heading, permutations: int) -> str:
+    """One permutation's CPU (ms) from products over the stretches and from the columns formed in full."""
+    from forcemap.host.workbench.diagnose import time_forms as tf
+
+    proj = tf.Projector(tf.nuisance(rp, xy, heading))
+    d = proj(tf.clipped(np.asarray(d, float).reshape(len(rp.pairs), -1)))
+    ladder = tf.FormLadder(float(np.ptp(rp.t)), rp.stretch_s)
+    rng = np.random.default_rng(0)
+    orders = np.array([rng.permutation(rp.n_stretches) for _ in range(permutations)])
+    c0 = time.process_time()
+    fast = tf.PermutedTimes(rp, ladder, proj).null(d, orders)
+    c1 = time.process_time()
+    full = np.array([ladder.shares(d, *rp.times(o), proj) for o in orders])
+    c2 = time.process_time()
+    diff = float(np.max(np.abs(fast - full)) / max(float(np.abs(full).max()), 1e-300))
+    return (
+        f"null on {len(rp.pairs)} pairs, {rp.n_stretches} stretches: {1e3 * (c1 - c0) / permutations:.2f} ms "
+        f"a permutation over the stretches, {1e3 * (c2 - c1) / permutations:.1f} ms with the columns in "
+        f"full, largest difference {diff:.1e} of the largest share"
+    )
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=("radius", "crossline"))
+    p.add_argument("what", choices=("radius", "crossline", "cost"))
     p.add_argument("cases", nargs="+", metavar="CASE")
     p.add_argument("--target", default="current_speed")
     p.add_argument("--shares", default="0.2,0.5", help="radii as shares of the map's length scale")
     p.add_argument("--terms", nargs="+", default=["", "tide", "gp(t, matern32)"])
+    p.add_argument("--permutations", type=int, default=200, help="cost: permutations timed each way")
+    p.add_argument("--diagnose-only", action="store_true", help="cost: only diagnose's CPU")
     p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
     a = p.parse_args()
     a.cases_dir.mkdir(parents=True, exist_ok=True)
     for case in a.cases:
         if a.what == "radius":
             radius(case, a.cases_dir, a.target, [float(x) for x in a.shares.split(",")])
+        elif a.what == "cost":
+            cost(case, a.cases_dir, a.target, a.permutations, a.diagnose_only)
         else:
             crossline(case, a.cases_dir, a.target, a.terms)
 
