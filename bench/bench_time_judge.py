@@ -18,11 +18,13 @@ samples table (a simulated survey's `samples.csv`). Cases are built once into --
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 from forcemap.host.workbench.diagnose.time_candidate import time_verdict
+from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.fitting import fit_target
 from forcemap.host.workbench.revisits import MIN_RADIUS_M, map_lengthscale
 from forcemap.host.workbench.spec import BASELINE
@@ -129,6 +131,15 @@ def main() -> None:
     p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
     a = p.parse_args()
     a.cases_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        run(a)
+    except (WorkbenchError, FileNotFoundError, KeyError) as e:
+        print(f"bench_time_judge: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+def run(a: argparse.Namespace) -> None:
+    """Each case in turn, as the command line asks."""
     for case in a.cases:
         if a.what == "radius":
             radius(case, a.cases_dir, a.target, [float(x) for x in a.shares.split(",")])
