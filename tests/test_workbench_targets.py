@@ -94,3 +94,24 @@ def test_a_vectors_components_share_one_gram_and_cv_reuses_the_fit_pass(table):
     fresh.design_._folds, fresh.design_._fold_ids, fresh.fold_residuals_ = {}, {}, {}
     for a, b in zip(me.cv_predict(folds), fresh.cv_predict(folds), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-10)
+
+
+@pytest.mark.parametrize("target", ["current_speed", "current_dir", "wind_dir"])
+def test_a_mean_without_spread_is_the_mean_of_its_draws(table, target):
+    """With no latent spread (the diagnosis' CV: `interval=False`), a speed's or a direction's mean is
+    computed without the draws; it equals the mean over the draws (`spread=True` takes that path)."""
+    sm = SurveyModel(load_survey(table), target).fit()
+    mu_p, mu_s = sm.primary.predict(sm.X), sm.secondary.predict(sm.X)
+    zero = np.zeros_like(mu_p)
+    args = (mu_p, zero, sm.primary.noise_std_, mu_s, zero, sm.secondary.noise_std_)
+    mean, lo, hi = sm.combine(*args, interval=False)
+    drawn = sm.combine(*args, interval=False, spread=True)[0]
+    assert np.isnan(lo).all() and np.isnan(hi).all()
+    if target.endswith("_dir"):
+        np.testing.assert_allclose((mean - drawn + 180.0) % 360.0 - 180.0, 0.0, atol=1e-9)
+    else:
+        np.testing.assert_allclose(mean, drawn, rtol=1e-12)
+    # with a spread the draws are taken, and a speed's mean grows (|v| is convex)
+    if target == "current_speed":
+        spread = sm.combine(mu_p, zero + 0.1, 0.0, mu_s, zero + 0.1, 0.0, interval=False)[0]
+        assert (spread >= mean - 1e-12).all() and spread.mean() > mean.mean()

@@ -221,10 +221,16 @@ class SurveyModel:
             (ma, sa, na), (mc, sc, nc) = (mu_p, sd_p, noise_p), (mu_s, sd_s, noise_s)
         else:
             (ma, sa, na), (mc, sc, nc) = (mu_s, sd_s, noise_s), (mu_p, sd_p, noise_p)
-        out_mean, out_lo, out_hi = np.empty(len(mu_p)), np.empty(len(mu_p)), np.empty(len(mu_p))
-        out_sd = np.empty(len(mu_p))
         ue = self.ue if ue is None else ue
         un = self.un if un is None else un
+        if not (interval or spread or np.any(sa) or np.any(sc)):
+            # no spread to draw from: every draw is the mean itself
+            nan = np.full(len(mu_p), np.nan)
+            if self.vector.aspect == "speed":
+                return np.hypot(ma, mc), nan, nan
+            return self.vector.direction(ma * ue - mc * un, ma * un + mc * ue), nan, nan
+        out_mean, out_lo, out_hi = np.empty(len(mu_p)), np.empty(len(mu_p)), np.empty(len(mu_p))
+        out_sd = np.empty(len(mu_p))
         for a0 in range(0, len(mu_p), 4096):
             sl = slice(a0, a0 + 4096)
             a_lat = ma[sl, None] + sa[sl, None] * z1
@@ -276,10 +282,10 @@ class SurveyModel:
     ) -> CVResult:
         """Held-out predictions of the target, weights refitted per fold (hyperparameters from the full fit).
 
-        Without `interval`, no 95 % bounds (NaN), and the primary component's latent spread is left out of a
-        speed's or direction's mean: it moves that mean only at second order (times the squared share of the
-        other component), and its triangular solves are half the cost of a fold. The diagnosis compares
-        errors only, of models treated alike."""
+        Without `interval`, no 95 % bounds (NaN), and both components' latent spreads are left out of a
+        speed's or direction's mean: a spread moves that mean only at second order (times the squared share
+        of the other component), and its triangular solves are half the cost of a fold. The diagnosis
+        compares errors only, of models treated alike (`secondary_cv` is then given without its spread)."""
         primary = primary or self.primary
         mu_p, sd_p = primary.cv_predict(folds, return_std=interval)
         if sd_p is None:
@@ -288,8 +294,12 @@ class SurveyModel:
             mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_, interval=interval)
         else:
             mu_s, sd_s = (
-                secondary_cv if secondary_cv is not None else self.secondary.cv_predict(folds)
+                secondary_cv
+                if secondary_cv is not None
+                else self.secondary.cv_predict(folds, return_std=interval)
             )
+            if sd_s is None:
+                sd_s = np.zeros_like(mu_s)
             ue, un = self._frame_cv(folds)
             mean, lo, hi = self.combine(
                 mu_p,

@@ -66,8 +66,9 @@ class Evaluator:
         self.sec_b: list = [None] * REPEATS
         self.sec_r = None
         if self.sm.secondary is not None:
-            self.sec_b = [self.sm.secondary.cv_predict(f) for f in self.fold_ids]
-            self.sec_r = self.sm.secondary.cv_predict(self.rfold)
+            sec = self.sm.secondary
+            self.sec_b = [sec.cv_predict(f, return_std=False) for f in self.fold_ids]
+            self.sec_r = sec.cv_predict(self.rfold, return_std=False)
         self.base_b = self.blocked_cv(self.sm)
         self._base_r: CVResult | None = None
         self._time: tuple | None = None
@@ -192,7 +193,10 @@ class Evaluator:
         about one turn long, not a spatial block."""
         sm = self.sm
         corrected, tau = clock_offset.corrected_for(sm.survey, sm.vector, math.nan)
-        model = SurveyModel(corrected, self.target, sm.terms, max_basis=DIAGNOSE_MAX_BASIS).fit()
+        # the same field on the same rows: the current model's hyperparameters, not a new search
+        survey_fits(corrected).saved.update(survey_fits(sm.survey).shared_hypers())
+        model = SurveyModel(corrected, self.target, sm.terms, max_basis=DIAGNOSE_MAX_BASIS)
+        model.fit(theta=sm.primary.theta_, n_basis=sm.primary.n_basis_)
         cv = self.blocked_cv(model)
         stretches = (self.survey.trel // clock_offset.PAIRED_STRETCH_S).astype(int)
         gain, p = paired_test(self.base_b.error**2, cv.error**2, np.tile(stretches, REPEATS))
