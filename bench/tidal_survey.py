@@ -2,8 +2,8 @@
 
 A day through the whole offline pipeline at 4 Hz is 345,600 rows and about 12 minutes of CPU (10 s per
 simulated 20 minutes on this machine). The time terms need the day, not the rows: `truth_survey` flies the
-mission in the simulator with its instruments off (the physics alone: 2.4 s of CPU per simulated hour) and
-writes the true track as a samples table every `every_s` seconds, with the measurement error the pipeline
+mission in the simulator with its instruments off (the physics alone, stepped at PHYSICS_DT_S: 0.6 s of
+CPU per simulated hour) and writes the true track as a samples table every `every_s` seconds, with the measurement error the pipeline
 leaves on the simulator's 20-minute survey (measured against its truth, seed 1, the `tidal_stream`
 river: 0.037 m/s per current component and 0.08 m for depth, uncorrelated beyond 5 s) added as independent
 Gaussian noise. The truth files (effects.json, the true samples) are written beside it as the full
@@ -20,6 +20,10 @@ import numpy as np
 from forcemap.sim_devices import truth as truth_files
 from forcemap.sim_devices.engine import Simulation
 
+# the boat's step without instruments: 5 Hz flies the same track as the instruments' 20 Hz (3 h of the
+# tidal river, seed 1: the same 139 legs, cross-track p50 0.99 m both, p95 3.84 against 3.82 m) at a
+# quarter of the CPU
+PHYSICS_DT_S = 0.2
 CURRENT_NOISE_M_S = 0.037
 DEPTH_NOISE_M = 0.08
 COLUMNS = (
@@ -44,7 +48,7 @@ def truth_survey(
     if table.exists():
         return table
     out.mkdir(parents=True, exist_ok=True)
-    sim = Simulation(scenario, mission, effects, seed=seed, instruments=False)
+    sim = Simulation(scenario, mission, effects, seed=seed, instruments=False, dt=PHYSICS_DT_S)
     sim.run(duration_s, lambda *a: None)
     rows = sim.truth_table()
     cols = {c: rows[:, i] for i, c in enumerate(truth_files.COLUMNS)}

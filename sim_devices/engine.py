@@ -65,7 +65,11 @@ class Simulation(MissionLink):
         nmea_bus: bool = False,
         boat_params: BoatParams | None = None,
         gains: Gains | None = None,
+        dt: float = DT,
     ) -> None:
+        """`dt`: the boat's step; only a run without instruments may take a longer one (theirs is DT)."""
+        if instruments and dt != DT:
+            raise ValueError(f"the instruments step at {DT} s; dt={dt} needs instruments=False")
         self.scenario = sc.load(scenario)
         self.mission = ms.load(mission or "lawnmower", self.scenario)
         self.effects = fx.parse_list(self.scenario.default_effects if effects is None else effects)
@@ -75,6 +79,8 @@ class Simulation(MissionLink):
         self.bridge_writable = bridge_writable
         self.events = events
         self.instruments = instruments  # False: world, boat and truth only (fast, no bytes)
+        self.dt = float(dt)
+        self.truth_every = max(1, round(TRUTH_EVERY * DT / self.dt))
         # the NMEA-only boat's bus (nmea_bus.py) on the "nmea" port: on request or with its faults
         self.bus_faults = {f.kind for f in self.faults if f.kind in fl.BUS_KINDS}
         self.nmea_bus = nmea_bus or bool(self.bus_faults)
@@ -259,8 +265,8 @@ class Simulation(MissionLink):
             self.fault_log.append((at, act, src))
 
     def step(self) -> None:
-        """Advance one boat step (DT) with every instrument."""
-        dt = DT
+        """Advance one boat step (`dt`) with every instrument."""
+        dt = self.dt
         p = self.p
         self.throttle, steer = self._steer(dt)
         t_prev = self.t
@@ -284,7 +290,7 @@ class Simulation(MissionLink):
         self.roll = heel_roll(self._effect("heel"), truth.app_speed, truth.app_angle)
         if self.instruments:
             self._instruments(t_prev, t_new, truth, sog, heading_deg)
-        if self.k % TRUTH_EVERY == 0:
+        if self.k % self.truth_every == 0:
             self.rows.append((
                 t_new, s.x, s.y, heading_deg, math.degrees(s.r), sog, s.ve, s.vn, p.depth, p.water_temp,
                 p.wind_east, p.wind_north, p.current_east, p.current_north, *truth.wheels,
@@ -354,7 +360,7 @@ class Simulation(MissionLink):
     def advance(self, t_s: float, progress: Progress | None = None) -> None:
         """Step until sim time ``t_s`` (s since the start), capped at the run's duration."""
         end = min(t_s, self.duration)
-        while self.t + 0.5 * DT < end:
+        while self.t + 0.5 * self.dt < end:
             self.step()
             if progress is not None and self.t >= self.next_progress:
                 self.next_progress += 10.0
@@ -381,7 +387,8 @@ class Simulation(MissionLink):
 
     # ---- results --------------------------------------------------------------------------
     def truth_table(self) -> np.ndarray:
-        """The samples.csv table: one row per 0.1 s, columns as ``truth.COLUMNS``."""
+        """The samples.csv table: one row per 0.1 s (per step when `dt` is longer), columns as
+        ``truth.COLUMNS``."""
         track = self.track or truth_files.track_arrays(self.rows, self.extra)
         if track and self.world is not None:
             track["water_level"] = (
