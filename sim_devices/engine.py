@@ -387,8 +387,7 @@ class Simulation(MissionLink):
 
     # ---- results --------------------------------------------------------------------------
     def truth_table(self) -> np.ndarray:
-        """The samples.csv table: one row per 0.1 s (per step when `dt` is longer), columns as
-        ``truth.COLUMNS``."""
+        """The samples.csv table: a row per 0.1 s (per step if longer), columns as ``truth.COLUMNS``."""
         track = self.track or truth_files.track_arrays(self.rows, self.extra)
         if track and self.world is not None:
             track["water_level"] = (

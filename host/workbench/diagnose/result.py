@@ -170,6 +170,10 @@ class Diagnosis:
     def to_json(self) -> dict:
         """The stable machine-readable contract (docs/WORKBENCH.md documents every key)."""
         first = self.first.to_json()
+        rounds = [r.to_json() for r in self.rounds]
+        for r, after in zip(rounds, rounds[1:], strict=False):
+            if r["added"]:  # the model with the term refitted in full: the next round's own
+                r["cv_rmse_after"] = after["baseline"]["cv_rmse"]
         return {
             "target": self.target,
             "baseline": first["baseline"],
@@ -177,7 +181,7 @@ class Diagnosis:
             "candidates": first["candidates"],
             "advice": first["advice"],
             "data_quality": [f.to_json() for f in self.data],
-            "rounds": [r.to_json() for r in self.rounds],
+            "rounds": rounds,
         }
 
     def details(self) -> dict:
@@ -282,7 +286,8 @@ def round_steps(diagnosis_json: dict) -> list[str]:
         if r.get("added"):
             after = r["cv_rmse_after"]
             fall = 1.0 - after / before if before > 0 else 0.0
-            step += f" -> {after:.4g}{unit} with {r['added']} ({fall:.0%} lower)"
+            change = f"{fall:.0%} lower" if fall >= 0 else f"{-fall:.0%} higher"
+            step += f" -> {after:.4g}{unit} with {r['added']} ({change})"
         else:
             step += ": nothing more found" + (
                 f"; survey advice: {r['advice']}" if r.get("advice") else ""
