@@ -27,13 +27,16 @@ from forcemap.host.convert.capture_file import (
     ImportFailed,
     capture_bytes,
     capture_head,
-    capture_lines,
     plain_file_format,
 )
 from forcemap.host.convert.dataflash import DataflashDecoder
 from forcemap.host.convert.nav_findings import Collector
-from forcemap.host.convert.nmea_prepass import finding_notes, position_seed, why_no_time
-from forcemap.host.decode.nmea import NmeaParser
+from forcemap.host.convert.nmea_prepass import (  # noqa: F401 - nmea_line_times: part of this API
+    finding_notes,
+    nmea_line_times,
+    prepass,
+    why_no_time,
+)
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.fuse.pipeline import Pipeline, Sink
 from forcemap.host.log.mcap import McapLog
@@ -41,7 +44,6 @@ from forcemap.host.outputs import atomic_path
 
 FORMATS = ("nmea", "tlog", "dataflash", "adcp")  # adcp: forcemap.host.convert.adcp_import
 DATAFLASH_MAGIC = b"\xa3\x95"
-DAY = 86400.0
 MAX_TLOG_US = (1 << 63) // 1000  # the latest time an MCAP log can hold (year 2262)
 # a DataFlash log starts with its FMT records: the magic, then message type 128 (FMT), 89 bytes each
 DATAFLASH_FMT = DATAFLASH_MAGIC + b"\x80"
@@ -105,59 +107,6 @@ def check_importable(path: str | Path, fmt: str | None = None) -> str:
         raise ImportFailed(f"{path}: cannot read: {e.strerror or e}") from None
 
 
-def nmea_line_times(lines: list[bytes], checksum: str = "strict") -> tuple[list[float], str]:
-    """A UNIX time for every line (see the module docstring) and how it was found."""
-    parser = NmeaParser(checksum)
-    tods: list[tuple[int, float]] = []
-    date0: float | None = None
-    for i, line in enumerate(lines):
-        if not any(k in line for k in (b"RMC,", b"GGA,", b"GLL,", b"ZDA,")):
-            continue
-        s = parser.parse(line)
-        if s is None or not s.valid or s.data.get("tod") is None:
-            continue
-        tod = s.data["tod"]
-        if date0 is None and s.data.get("utc") is not None:
-            date0 = s.data["utc"] - tod
-        tods.append((i, tod))
-    n = len(lines)
-    if not tods:
-        return [float(i) for i in range(n)], "no UTC in the file: 1 s per line from 1970-01-01"
-    base = date0 if date0 is not None else 0.0
-    anchors: list[tuple[int, float]] = []
-    day = 0.0
-    prev_tod = None
-    for i, tod in tods:
-        if prev_tod is not None and tod < prev_tod - DAY / 2:
-            day += DAY  # past midnight
-        t = base + day + tod
-        prev_tod = tod
-        if anchors and not (anchors[-1][1] < t <= anchors[-1][1] + 3600.0):
-            continue  # not moving forward, or a corrupt stamp
-        anchors.append((i, t))
-    if len(anchors) >= 2 and anchors[-1][0] > anchors[0][0]:
-        rate = (anchors[-1][1] - anchors[0][1]) / (anchors[-1][0] - anchors[0][0])
-    else:
-        rate = 1.0
-    times = [0.0] * n
-    k = 0
-    for i in range(n):
-        while k + 1 < len(anchors) and anchors[k + 1][0] <= i:
-            k += 1
-        i0, t0 = anchors[k]
-        if i < i0:
-            times[i] = t0 - (i0 - i) * rate
-        elif k + 1 < len(anchors):
-            i1, t1 = anchors[k + 1]
-            times[i] = t0 + (t1 - t0) * (i - i0) / (i1 - i0)
-        else:
-            times[i] = t0 + (i - i0) * rate
-    how = "UTC anchors from RMC/GGA/GLL/ZDA" + (
-        "" if date0 is not None else ", no date in the file: 1970-01-01"
-    )
-    return times, how
-
-
 def _pipeline(
     path: str | Path,
     fmt: str,
@@ -193,20 +142,17 @@ def import_nmea(
 ) -> ImportResult:
     """An NMEA 0183 capture through the pipeline's NMEA path (``nmea_checksum``: strict or
     lenient, forcemap.host.decode.nmea_checksum)."""
-    notes: list[str] = []
-    lines = capture_lines(path, notes)
-    times, how = nmea_line_times(lines, nmea_checksum)
-    if how.startswith("no UTC"):
-        raise ImportFailed(why_no_time(lines, Path(path).name, nmea_checksum))
-    pipe = _pipeline(path, "nmea", how, sink, calibration, sync, sample_rate_hz, nmea_checksum)
-    seed = position_seed(lines, nmea_checksum)
-    if seed is not None:
-        pipe.nmea.jumps.seed(*seed)
-    for line, t in zip(lines, times, strict=True):
+    pre = prepass(path, nmea_checksum)
+    if not pre.has_time:
+        raise ImportFailed(why_no_time(pre.lines, Path(path).name, nmea_checksum))
+    pipe = _pipeline(path, "nmea", pre.how, sink, calibration, sync, sample_rate_hz, nmea_checksum)
+    if pre.seed is not None:
+        pipe.nmea.jumps.seed(*pre.seed)
+    for line, t in zip(pre.lines, pre.times, strict=True):
         ns = int(t * 1e9)
         pipe.feed("nmea", ns, ns, line + b"\n")
     pipe.close()
-    res = ImportResult(str(path), "nmea", len(lines), pipe.counters(), [*notes, how])
+    res = ImportResult(str(path), "nmea", len(pre.lines), pipe.counters(), [*pre.notes, pre.how])
     _check_errors(pipe, res)
     return res
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from forcemap.host.convert import depth_findings
+from forcemap.host.convert import depth_findings, nmea_prepass
 from forcemap.host.convert.depth_findings import arrays
 from forcemap.host.convert.importers import ImportResult, import_file, import_to_mcap
 from forcemap.host.fuse import redundancy as rd
@@ -264,12 +264,22 @@ def import_calibrated(
     """Import ``path`` to ``out`` with the log's own calibration applied and its findings recorded."""
     pinned = calibration or Calibration()
     first = SamplesSink()
-    import_file(path, first, fmt, unpinned_first_pass(pinned), sync, sample_rate_hz, nmea_checksum)
-    est = estimate(first.rows, first.columns, pinned, first)
-    meta = {f.name: f.to_metadata() for f in est.findings}
-    res = import_to_mcap(
-        path, out, fmt, est.calibration, sync, check, sample_rate_hz, nmea_checksum, metadata=meta
-    )
+    with nmea_prepass.kept():  # the second pass reads the same lines at the same times
+        raw = unpinned_first_pass(pinned)
+        import_file(path, first, fmt, raw, sync, sample_rate_hz, nmea_checksum)
+        est = estimate(first.rows, first.columns, pinned, first)
+        meta = {f.name: f.to_metadata() for f in est.findings}
+        res = import_to_mcap(
+            path,
+            out,
+            fmt,
+            est.calibration,
+            sync,
+            check,
+            sample_rate_hz,
+            nmea_checksum,
+            metadata=meta,
+        )
     # the calibration changes values, never which rows there are
     res.counters["self_calibration"] = {"first_pass_samples": len(first.rows)}
     return res, est.findings
