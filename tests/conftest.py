@@ -86,8 +86,14 @@ class _CpuTable:
 
     def __init__(self) -> None:
         self.by_test: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
+        self.phases: dict[str, list[tuple[float, float, str]]] = defaultdict(list)  # by worker
+        self.began = time.time()
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        worker = getattr(getattr(report, "node", None), "gateway", None)
+        self.phases[worker.id if worker else "main"].append(
+            (report.start, report.stop, report.nodeid)
+        )
         for name, value in report.user_properties:
             if name == CPU:
                 spent = self.by_test[report.nodeid]
@@ -113,6 +119,21 @@ class _CpuTable:
             ranked = sorted(table.items(), key=lambda kv: -(kv[1][0] + kv[1][1]))[:n]
             for name, (own, kids) in ranked:
                 tr.write_line(f"{own + kids:8.1f} s = {own:7.1f} + {kids:7.1f}  {name}")
+        self._timeline(tr)
+
+    def _timeline(self, tr) -> None:  # type: ignore[no-untyped-def]
+        """Each worker's busy seconds, when it began and ended (s after the session began), and its
+        last tests: how long one worker sat idle while the other finished."""
+        end = time.time()
+        tr.write_line(f"workers (session {end - self.began:.0f} s):")
+        for worker, phases in sorted(self.phases.items()):
+            busy = sum(b - a for a, b, _ in phases)
+            first, last = min(a for a, _, _ in phases), max(b for _, b, _ in phases)
+            tr.write_line(
+                f"  {worker}: busy {busy:.0f} s, from {first - self.began:.0f} to "
+                f"{last - self.began:.0f} s, idle {end - last:.0f} s at the end; last: "
+                + ", ".join(list(dict.fromkeys(n.split("/")[-1] for _, _, n in sorted(phases)))[-3:])
+            )
 
 
 def pytest_configure(config: pytest.Config) -> None:
