@@ -86,6 +86,7 @@ class _CpuTable:
 
     def __init__(self) -> None:
         self.by_test: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
+        self.wall: dict[str, float] = defaultdict(float)
         self.phases: dict[str, list[tuple[float, float, str]]] = defaultdict(list)  # by worker
         self.began = time.time()
 
@@ -94,6 +95,7 @@ class _CpuTable:
         self.phases[worker.id if worker else "main"].append(
             (report.start, report.stop, report.nodeid)
         )
+        self.wall[report.nodeid] += report.duration
         for name, value in report.user_properties:
             if name == CPU:
                 spent = self.by_test[report.nodeid]
@@ -119,7 +121,16 @@ class _CpuTable:
             ranked = sorted(table.items(), key=lambda kv: -(kv[1][0] + kv[1][1]))[:n]
             for name, (own, kids) in ranked:
                 tr.write_line(f"{own + kids:8.1f} s = {own:7.1f} + {kids:7.1f}  {name}")
+        self._waits(tr, n)
         self._timeline(tr)
+
+    def _waits(self, tr, n: int) -> None:  # type: ignore[no-untyped-def]
+        """The tests whose wall time most exceeds their CPU: clocks, sockets, a shared build's lock.
+        While one waits, its worker's core is idle."""
+        waits = {k: w - sum(self.by_test[k]) for k, w in self.wall.items() if k in self.by_test}
+        tr.write_line(f"the {n} tests that waited the most (wall - CPU; {sum(waits.values()):.0f} s in all):")
+        for name, waited in sorted(waits.items(), key=lambda kv: -kv[1])[:n]:
+            tr.write_line(f"{waited:8.1f} s  {name}")
 
     def _timeline(self, tr) -> None:  # type: ignore[no-untyped-def]
         """Each worker's busy seconds, when it began and ended (s after the session began), and its
