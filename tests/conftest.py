@@ -3,7 +3,8 @@
 ``real_case(name)``: a real log imported and exported once per test run (tests/real_cases.py, on
 tests/cache.py's one-build-per-run folders).
 
-``--cpu-top N``: the N tests and modules that used the most CPU, load-independent.
+``--cpu-top N``: the N tests and modules that used the most CPU, load-independent, and the N tests that
+waited the most (wall time less CPU).
 
 Wall-clock durations (``--durations``) say how long a test waited on a busy machine; the CPU a test
 burns, its own process's and its subprocesses' (the daemon, the simulator, the map process, Dask's
@@ -86,7 +87,6 @@ class _CpuTable:
 
     def __init__(self) -> None:
         self.by_test: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
-        self.wall: dict[str, float] = defaultdict(float)
         self.phases: dict[str, list[tuple[float, float, str]]] = defaultdict(list)  # by worker
         self.began = time.time()
 
@@ -95,7 +95,6 @@ class _CpuTable:
         self.phases[worker.id if worker else "main"].append(
             (report.start, report.stop, report.nodeid)
         )
-        self.wall[report.nodeid] += report.duration
         for name, value in report.user_properties:
             if name == CPU:
                 spent = self.by_test[report.nodeid]
@@ -127,7 +126,11 @@ class _CpuTable:
     def _waits(self, tr, n: int) -> None:  # type: ignore[no-untyped-def]
         """The tests whose wall time most exceeds their CPU: clocks, sockets, a shared build's lock.
         While one waits, its worker's core is idle."""
-        waits = {k: w - sum(self.by_test[k]) for k, w in self.wall.items() if k in self.by_test}
+        wall: dict[str, float] = defaultdict(float)
+        for phases in self.phases.values():
+            for start, stop, nodeid in phases:
+                wall[nodeid] += stop - start
+        waits = {k: w - sum(self.by_test[k]) for k, w in wall.items() if k in self.by_test}
         tr.write_line(f"the {n} tests that waited the most (wall - CPU; {sum(waits.values()):.0f} s in all):")
         for name, waited in sorted(waits.items(), key=lambda kv: -kv[1])[:n]:
             tr.write_line(f"{waited:8.1f} s  {name}")

@@ -2,9 +2,10 @@
 
 Two clients from the start, one that connects mid-survey, one that stalls. Each message a client
 decodes must be valid against its advertised schema and be byte for byte a message of the MCAP of
-the same run (same topic, same log time). Nothing here depends on the machine's speed: the daemon
-stamps with the simulator's clock, "mid-survey" is "after the first client saw 40 samples", and the
-stalled client's cost is counted in messages, not seconds.
+the same run (same topic, same log time). The daemon stamps with the simulator's clock, "mid-survey" is
+"after the first client saw 40 samples", and the stalled client's cost is counted in messages, not
+seconds. One thing depends on the pace (SPEED): a channel advertised on first use is received from
+when the client reads its advertisement.
 """
 
 from __future__ import annotations
