@@ -14,12 +14,14 @@ apart), is subtracted instead. CASEs as in bench/bench_time_judge.py.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 from forcemap.host.workbench.diagnose import time_candidate
 from forcemap.host.workbench.diagnose import time_forms as tf
 from forcemap.host.workbench.diagnose.time_judge import judge_time
+from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.table import load_survey
 from forcemap.host.workbench.targets import SurveyModel
 from scipy.linalg import solveh_banded
@@ -48,6 +50,8 @@ def judged_rows(case: str, cases: Path, target: str):  # type: ignore[no-untyped
         time_candidate.judged_values = real_values
         time_candidate.revisit_pairs = real_pairs
         time_candidate.judge_time = real_judge
+    if "xy" not in got:
+        raise WorkbenchError(f"{case}: the track comes back too little to judge time")
     rows = np.searchsorted(sm.survey.trel, got["t"])
     return got["values"][rows], got["t"], got["xy"], got["heading"], got["rp"]
 
@@ -110,8 +114,12 @@ def main() -> None:
     p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
     a = p.parse_args()
     a.cases_dir.mkdir(parents=True, exist_ok=True)
-    for case in a.cases:
-        report(case, a.cases_dir, a.target, a.period, a.permutations)
+    try:
+        for case in a.cases:
+            report(case, a.cases_dir, a.target, a.period, a.permutations)
+    except (WorkbenchError, FileNotFoundError, KeyError) as e:
+        print(f"bench_heading_confound: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 if __name__ == "__main__":
