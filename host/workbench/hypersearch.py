@@ -115,8 +115,9 @@ class HyperSearch:
             out = out + t.mean(Z, theta[sl])
         return out
 
-    def _objective(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
-        """Negative log marginal likelihood of the hyperparameter rows, and its gradient."""
+    def _objective(self, theta: np.ndarray, grad: bool = True) -> tuple[float, np.ndarray | None]:
+        """Negative log marginal likelihood of the hyperparameter rows, and its gradient (None when not
+        `grad`: the value alone spares the triangular inverse, as much work again as the Cholesky)."""
         loglam, ders = self._loglam(theta)
         hd = self._hdesign
         if self.mean_terms_:
@@ -125,9 +126,11 @@ class HyperSearch:
         else:
             r, b, rr = None, self._hb, self._hrr
         try:
-            logp, g_lam, g_sn2, post = evidence(hd.G, b, rr, hd.n, loglam, theta[0])
+            logp, g_lam, g_sn2, post = evidence(hd.G, b, rr, hd.n, loglam, theta[0], grad=grad)
         except (np.linalg.LinAlgError, ValueError):
-            return 1e25, np.zeros_like(theta)
+            return 1e25, np.zeros_like(theta) if grad else None
+        if not grad:
+            return (-logp if np.isfinite(logp) else 1e25), None
         grad = np.zeros_like(theta)
         grad[0] = g_sn2
         i = 0
@@ -160,11 +163,11 @@ class HyperSearch:
         for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True):
             if isinstance(t, HilbertGPTerm):
                 lo, hi = math.log(t.l_min * 1.1), math.log(2.0 * float(t.half.max()))
-                best, best_val = theta, self._objective(theta)[0]
+                best, best_val = theta, self._objective(theta, grad=False)[0]
                 for logl in np.linspace(lo, hi, 7):
                     trial = theta.copy()
                     trial[sl.start + t.hyper_index("lengthscale")] = logl
-                    val = self._objective(trial)[0]
+                    val = self._objective(trial, grad=False)[0]
                     if val < best_val:
                         best, best_val = trial, val
                 return best

@@ -110,14 +110,22 @@ class SurveyFits:
         return self._shared[key + "/east"], self._shared[key + "/north"]
 
     def secondary(
-        self, vt: VectorTarget, primary_is_along: bool, y: np.ndarray, time_terms: tuple = ()
+        self,
+        vt: VectorTarget,
+        primary_is_along: bool,
+        y: np.ndarray,
+        time_terms: tuple = (),
+        max_basis: int | None = None,
     ) -> Model:
         """The baseline model (with the target's time terms: a tide moves both components) of the
-        flow-frame component a target's other terms do not act on (`y`)."""
+        flow-frame component a target's other terms do not act on (`y`), at the primary's basis cap
+        `max_basis`: a speed is judged with both components at one spatial resolution."""
         key = f"secondary/{vt.prefix}/{'across' if primary_is_along else 'along'}"
         key += "".join(f"/{t}" for t in time_terms)
+        key += "" if max_basis is None else f"/basis<={max_basis}"
         if key not in self._shared:
-            self._fit(key, [*BASELINE, *time_terms], survey_inputs(self.survey, set()), y)
+            X = survey_inputs(self.survey, set())
+            self._fit(key, [*BASELINE, *time_terms], X, y, max_basis=max_basis)
         return self._shared[key]
 
     def _fit(self, key: str, terms, X: dict, y: np.ndarray, **kw) -> Model:

@@ -187,7 +187,11 @@ class SurveyModel:
         if self.vector and self.vector.aspect in ("speed", "dir"):
             fits = survey_fits(self.survey)
             self.secondary = fits.secondary(
-                self.vector, self.primary_is_along, self.y_secondary, self.time_terms
+                self.vector,
+                self.primary_is_along,
+                self.y_secondary,
+                self.time_terms,
+                self.max_basis,
             )
         else:
             self.secondary = None
