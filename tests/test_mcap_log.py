@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import json
 import math
+import struct
 
 import pytest
-from forcemap.host.log.mcap import FileScan, McapLog, has_footer, read_messages
+from forcemap.host.log.mcap import FileScan, McapLog, has_footer, iter_metadata, read_messages
 from mcap.reader import make_reader
 
 
@@ -143,3 +144,28 @@ def test_messages_are_compact_json(tmp_path):
     with open(log.path, "rb") as f:
         [(_, _, msg)] = list(make_reader(f).iter_messages())
     assert json.loads(msg.data) == {"x": [1, 2], "s": [3]}
+
+
+def test_metadata_of_a_whole_file_comes_from_its_index_and_of_a_cut_one_from_its_records(tmp_path):
+    """iter_metadata: the same records in file order, whole (read by the summary's index) or cut before
+    its summary (read through); a record written after a message is not lost either way."""
+    log = McapLog(tmp_path, chunk_size=512)
+    log.metadata("calibration", {"navigation": "smoothed"})
+    for i in range(200):
+        log.write("/a", i, {"i": i})
+    log.metadata("qa.finding.1", {"check": "latency", "value": 0.25})
+    log.close()
+    whole = list(iter_metadata(log.path))
+    assert whole == [
+        ("calibration", {"navigation": "smoothed"}),
+        ("qa.finding.1", {"check": "latency", "value": "0.25"}),
+    ]
+    summary, _ = _summary(log.path)
+    assert summary.statistics.metadata_count == 2 == len(summary.metadata_indexes)
+    data = log.path.read_bytes()
+    # the footer ends in summary_start, summary_offset_start (u64 each) and a CRC (u32), then the magic
+    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 4 - 8 - 8)[0]
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:summary_start])
+    assert not has_footer(cut)
+    assert list(iter_metadata(cut)) == whole

@@ -130,16 +130,15 @@ def log_findings(
     paths: Sequence[str | os.PathLike[str]], compute: bool = True
 ) -> list[QaFinding]:
     """The logs' navigation findings: as the import wrote them, else computed now (``compute``)."""
-    from forcemap.host.log.mcap import FileScan, iter_records
-    from mcap.records import Metadata
+    from forcemap.host.log.mcap import iter_metadata
 
     found: dict[str, QaFinding] = {}
     for path in paths:
-        for record in iter_records(path, FileScan(path)):
-            if isinstance(record, Metadata) and is_finding(record.name):
-                f = QaFinding.from_metadata(dict(record.metadata))
+        for name, data in iter_metadata(path):
+            if is_finding(name):
+                f = QaFinding.from_metadata(data)
                 if f.check == "latency" and "noise" in f.extra:
-                    found[record.name] = f
+                    found[name] = f
     if found or not compute:
         return list(found.values())
     from forcemap.host.convert.navigation_table import fitted

@@ -22,29 +22,18 @@ from forcemap.host.convert import nav_readings
 from forcemap.host.convert.navigation import Navigation
 from forcemap.host.fuse import compensation as comp
 from forcemap.host.fuse.sources import AUTOPILOT_CONNECTIONS, split_name
-from forcemap.host.log.mcap import FileScan, iter_records, read_messages
+from forcemap.host.log.mcap import iter_metadata, read_messages
 from forcemap.host.log.messages import SAMPLE_COLUMNS
 
 
 def log_metadata(paths: Sequence[str | os.PathLike[str]], name: str) -> dict[str, str]:
     """The last metadata record ``name`` of the logs (empty if none): from a complete file's
-    summary, else by reading the file through."""
-    from mcap.reader import make_reader
-    from mcap.records import Metadata
-
+    summary, else by reading the file through (`iter_metadata`)."""
     found: dict[str, str] = {}
     for path in paths:
-        try:
-            with open(path, "rb") as f:
-                for m in make_reader(f).iter_metadata():
-                    if m.name == name:
-                        found = dict(m.metadata)
-            continue
-        except Exception:  # no summary (a killed or truncated log): read the records themselves
-            pass
-        for record in iter_records(path, FileScan(path)):
-            if isinstance(record, Metadata) and record.name == name:
-                found = dict(record.metadata)
+        for key, data in iter_metadata(path):
+            if key == name:
+                found = data
     return found
 
 
