@@ -32,28 +32,13 @@ from bench.bench_time_judge import table_of
 def judged_rows(case: str, cases: Path, target: str):  # type: ignore[no-untyped-def]
     """What time_verdict judges: the kept rows' values, times, positions and headings, and their pairs."""
     sm = SurveyModel(load_survey(table_of(case, cases)), target, None, max_basis=600).fit()
-    got = {}
-    real_values, real_pairs, real_judge = (
-        time_candidate.judged_values, time_candidate.revisit_pairs, time_candidate.judge_time,
-    )  # fmt: skip
-    time_candidate.judged_values = lambda m: got.setdefault("values", real_values(m))
-
-    def pairs(xy, t, *a):  # type: ignore[no-untyped-def]
-        got["t"] = t  # the rows' times since the survey's start (rp.t counts from the first row kept)
-        return got.setdefault("rp", real_pairs(xy, t, *a))
-
-    time_candidate.revisit_pairs = pairs
-    time_candidate.judge_time = lambda d, rp, xy, heading, **k: got.update(xy=xy, heading=heading)
-    try:
-        time_candidate.time_verdict(sm)
-    finally:
-        time_candidate.judged_values = real_values
-        time_candidate.revisit_pairs = real_pairs
-        time_candidate.judge_time = real_judge
-    if "xy" not in got:
+    found = time_candidate.revisits_of(sm)
+    if found is None:
         raise WorkbenchError(f"{case}: the track comes back too little to judge time")
-    rows = np.searchsorted(sm.survey.trel, got["t"])
-    return got["values"][rows], got["t"], got["xy"], got["heading"], got["rp"]
+    rows, rp, _, values = found
+    s = sm.survey
+    heading = s.columns.get("heading")
+    return values[rows], s.trel[rows], s.xy[rows], None if heading is None else heading[rows], rp
 
 
 def harmonics(heading: np.ndarray) -> np.ndarray:
@@ -88,10 +73,15 @@ def report(case: str, cases: Path, target: str, period_s: float, permutations: i
     N = tf.nuisance(rp, xy, heading)
     d = tf.clipped(values[b] - values[a])
     cells = []
-    for label, P in (("with the heading's harmonics", tf.Projector(N)), ("without", tf.Projector(N[:, :2]))):
+    for label, P in (
+        ("with the heading's harmonics", tf.Projector(N)),
+        ("without", tf.Projector(N[:, :2])),
+    ):
         drift = tf.share_of(P(d), tf.drift_columns(ta, tb, float(np.ptp(rp.t)), P))
         C, S = tf.periodic_columns(ta, tb, np.array([2 * np.pi / period_s]), P)
-        cells.append(f"{label}: drift {drift:.3f}, {period_s:.0f} s {tf.pair_shares(P(d), C, S)[0]:.3f}")
+        cells.append(
+            f"{label}: drift {drift:.3f}, {period_s:.0f} s {tf.pair_shares(P(d), C, S)[0]:.3f}"
+        )
     C0, S0 = tf.periodic_columns(ta, tb, np.array([2 * np.pi / period_s]), tf.Projector(None))
     C1, S1 = tf.periodic_columns(ta, tb, np.array([2 * np.pi / period_s]), tf.Projector(N))
     kept = ((C1**2).sum() + (S1**2).sum()) / ((C0**2).sum() + (S0**2).sum())

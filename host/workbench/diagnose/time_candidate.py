@@ -10,10 +10,13 @@ was at each time: the radius is kept to half the map's length scale, where the m
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from forcemap.host.workbench.diagnose.time_judge import M2_S, TimeVerdict, judge_time
 from forcemap.host.workbench.revisits import (
     MIN_RADIUS_M,
+    RevisitPairs,
     revisit_pairs,
     stretch_length,
     target_radius,
@@ -58,9 +61,19 @@ def under_way(xy: np.ndarray, t: np.ndarray, radius: float, stretch_s: float) ->
     return np.hypot(*(after - before).T) > radius
 
 
-def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] | None:
-    """The revisits' verdict on time for the fitted model `sm`, and how many rows were left out as held in
-    one place; None when the track comes back too little to judge it."""
+class Revisits(NamedTuple):
+    """What the time judge compares: the rows judged (under way, their values finite), their revisit pairs
+    (`rp.pairs` index `rows`), how many rows were left out as held in one place, and every row's judged
+    values (`judged_values`)."""
+
+    rows: np.ndarray
+    rp: RevisitPairs
+    held: int
+    values: np.ndarray
+
+
+def revisits_of(sm, radius_m: float | None = None) -> Revisits | None:
+    """The revisits of the fitted model `sm`; None when the track comes back too little to judge time."""
     s = sm.survey
     t = s.trel
     resid = sm.y_primary - sm.primary.predict(sm.X)
@@ -75,11 +88,21 @@ def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] |
     rp = revisit_pairs(s.xy[rows], t[rows], radius_m, stretch)
     if len(rp.pairs) < MIN_PAIRS or rp.crossings < MIN_CROSSINGS:
         return None
+    return Revisits(rows, rp, int((~moving).sum()), values)
+
+
+def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] | None:
+    """The revisits' verdict on time for the fitted model `sm`, and how many rows were left out as held in
+    one place; None when the track comes back too little to judge it."""
+    found = revisits_of(sm, radius_m)
+    if found is None:
+        return None
+    rows, rp, held, values = found
     v = rows[rp.pairs]
     d = values[v[:, 1]] - values[v[:, 0]]
-    heading = s.columns.get("heading")
-    verdict = judge_time(d, rp, s.xy[rows], None if heading is None else heading[rows])
-    return verdict, int((~moving).sum())
+    heading = sm.survey.columns.get("heading")
+    verdict = judge_time(d, rp, sm.survey.xy[rows], None if heading is None else heading[rows])
+    return verdict, held
 
 
 def time_term(verdict: TimeVerdict, target: str) -> str:
