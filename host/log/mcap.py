@@ -336,25 +336,29 @@ def iter_metadata(path: str | os.PathLike[str]) -> Iterator[tuple[str, dict[str,
     """(name, data) of every metadata record of a file, in file order: from a complete file's metadata
     index without reading a message, else (no summary, or an index short of the summary's count) by
     reading the file through."""
-    from mcap.reader import make_reader
-
-    indexed = None
-    if has_footer(path):
-        try:
-            with open(path, "rb") as f:
-                reader = make_reader(f)
-                summary = reader.get_summary()
-                stats = summary.statistics if summary is not None else None
-                if stats is not None and stats.metadata_count == len(summary.metadata_indexes):
-                    indexed = [(m.name, dict(m.metadata)) for m in reader.iter_metadata()]
-        except Exception:  # a summary the reader cannot use: read the records themselves
-            indexed = None
+    indexed = _indexed_metadata(path) if has_footer(path) else None
     if indexed is not None:
         yield from indexed
         return
     for record in iter_records(path):
         if isinstance(record, Metadata):
             yield record.name, dict(record.metadata)
+
+
+def _indexed_metadata(path: str | os.PathLike[str]) -> list[tuple[str, dict[str, str]]] | None:
+    """The metadata records a complete file's summary indexes, or None when it does not index them all."""
+    from mcap.reader import make_reader
+
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            stats = summary.statistics if summary is not None else None
+            if stats is None or stats.metadata_count != len(summary.metadata_indexes):
+                return None
+            return [(m.name, dict(m.metadata)) for m in reader.iter_metadata()]
+    except Exception:  # a summary the reader cannot use: the caller reads the records themselves
+        return None
 
 
 def read_messages(
