@@ -71,6 +71,7 @@ def test_a_seiche_is_found_with_its_period(track):
     # the pairs counted are the pairs judged, and the crossings are the laps that came back
     assert v.pairs > 50 and v.crossings >= 17
     assert 0.0 < v.share < 1.0
+    assert_forms_named_by_kind(v)
 
 
 def test_a_smooth_tide_is_no_null_of_itself(track):
@@ -82,6 +83,7 @@ def test_a_smooth_tide_is_no_null_of_itself(track):
     v = verdict(noise(len(t), 2) + tide, t, xy, heading)
     assert v.p_value <= THRESHOLD + 1e-12, v
     assert v.best.name in ("drift", "tide"), v.best
+    assert_forms_named_by_kind(v)
 
 
 def test_a_drift_is_found(track):
@@ -89,6 +91,29 @@ def test_a_drift_is_found(track):
     v = verdict(noise(len(t), 3) + 0.3 * t / SPAN_S, t, xy, heading)
     assert v.p_value <= THRESHOLD + 1e-12, v
     assert v.best.name == "drift", v.best
+    assert_forms_named_by_kind(v)
+
+
+def assert_forms_named_by_kind(v) -> None:  # type: ignore[no-untyped-def]
+    """Every form is named by its kind: a period longer than the record is part of a cycle, a drift; a
+    tidal period a tide; and the kinds the data cannot tell from the best are other kinds than its own."""
+    for f in v.forms:
+        if f.period_s is None or f.period_s > v.span_s:
+            assert f.name in ("drift", "tide"), f
+        else:
+            assert f.name in ("periodic", "tide"), f
+    assert v.best.name not in v.indistinct, (v.best, v.indistinct)
+
+
+def test_a_drift_is_told_from_a_period_the_record_holds_or_not(track):
+    """A slow rise over the record is fitted as well by a period longer than the record as by the drift's
+    quadratic: both are a drift, and neither is "another kind it cannot be told from"."""
+    t, xy, heading = track
+    v = verdict(noise(len(t), 7) + 0.3 * (t / SPAN_S) ** 2, t, xy, heading)
+    assert v.best.name == "drift", v.best
+    assert_forms_named_by_kind(v)
+    longer = [f for f in v.forms if f.name == "drift" and f.period_s is not None]
+    assert longer, "the ladder reaches past the record"
 
 
 @pytest.mark.parametrize("seed", [4, 5, 6])

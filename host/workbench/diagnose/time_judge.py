@@ -89,11 +89,9 @@ class TimeVerdict:
 
 
 def form_at(ladder: FormLadder, i: int, share: float, p: float) -> Form:
-    """The ladder's form i: the drift, or a periodic change (a tide when its period is tidal)."""
-    if i == 0:
-        return Form("drift", None, share, p)
-    period = float(ladder.periods[i - 1])
-    return Form("tide" if is_tidal(period) else "periodic", period, share, p)
+    """The ladder's form i, named by its kind (`kind_of`): the drift, or a periodic change."""
+    form = Form("drift", None if i == 0 else float(ladder.periods[i - 1]), share, p)
+    return Form(kind_of(form, ladder.span, None), form.period_s, share, p)
 
 
 def kind_of(form: Form, span_s: float, sd_s: float | None) -> str:
@@ -166,7 +164,7 @@ def judge_time(
         best=best,
         forms=forms,
         period_sd_s=sd,
-        indistinct=indistinct(forms, best_i, n_eff),
+        indistinct=indistinct(forms, best, n_eff),
     )
 
 
@@ -200,13 +198,14 @@ def period_sd(d, ta, tb, period_s: float, n_eff: int, proj: Projector) -> float 
     return float(0.5 * (grid[hi] - grid[lo]))
 
 
-def indistinct(forms: list[Form], best_i: int, n_eff: int) -> list[str]:
-    """The kinds of form (drift, tide, periodic) whose best member the data cannot tell from the best."""
-    top = log_lik(forms[best_i].share, n_eff)
+def indistinct(forms: list[Form], best: Form, n_eff: int) -> list[str]:
+    """The kinds of form (drift, tide, periodic) other than the best's whose best member the data cannot
+    tell from it."""
+    top = log_lik(best.share, n_eff)
     out = []
     for kind in ("drift", "tide", "periodic"):
         members = [f for f in forms if f.name == kind]
-        if kind == forms[best_i].name or not members:
+        if kind == best.name or not members:
             continue
         if top - max(log_lik(f.share, n_eff) for f in members) < TELL_APART:
             out.append(kind)
