@@ -169,7 +169,9 @@ def diagnose_round(
     threshold = alpha / max(len(results), 1)
     _judge(evs, results, threshold, seconds)
     if any(c.covariate == "t" and c.time is not None and not c.revisit for c in results):
-        results.sort(key=lambda c: -c.improvement)  # time now carries its blocks' gain: rank it by that
+        results.sort(
+            key=lambda c: -c.improvement
+        )  # time now carries its blocks' gain: rank it by that
     results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
@@ -230,15 +232,16 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
     c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence)
     c.hypers = model.theta_
     if name == "t":
-        _judged_at_revisits(ev, c)
+        _judged_at_revisits(ev, c, model)
     return c
 
 
-def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
+def _judged_at_revisits(ev: Evaluator, c: Candidate, model) -> None:  # type: ignore[no-untyped-def]
     """Time judged where the boat comes back too (host/workbench/diagnose/time_judge.py): the revisits'
     share and p-value become the candidate's, the term is the one their form advises, and the blocked-CV
-    figures stay beside them (a short survey's few stretches may judge weakly what its blocks show
-    plainly). Nothing changes when the track comes back too little."""
+    figures (of `model`, the current model plus a GP in t) stay beside them (a short survey's few
+    stretches may judge weakly what its blocks show plainly). Nothing changes when the track comes back
+    too little."""
     found = ev.time_verdict()
     if found is None:
         return
@@ -248,9 +251,12 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
     c.improvement, c.p_value = verdict.improvement, verdict.p_value
     c.note = revisit_note(verdict, held)
     smooth = smooth_time_term(ev.target)
+    X = ev.inputs("t")
     if smooth != c.term:  # under depth, time is the water level
-        cv, c.blocked_gain, c.blocked_p = ev.blocked(ev.with_term(smooth))
+        model, X = ev.with_term(smooth), ev.term_inputs(smooth)
+        cv, c.blocked_gain, c.blocked_p = ev.blocked(model)
         c.term, c.cv_rmse = smooth, cv.rmse
+    ev.blocks_time = (model, X)
 
 
 def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
@@ -260,12 +266,33 @@ def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
         c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
 
 
-def _judged_on_blocks(c: Candidate) -> None:
-    """Time the revisits could not tell but the blocks' rule found (a short survey's few stretches): the
-    candidate carries the blocks' gain and p-value, and says what the revisits showed."""
+def _judged_on_blocks(ev: Evaluator, c: Candidate, threshold: float) -> None:
+    """Time the revisits' forms could not tell but the blocks' rule found (a short survey's few stretches).
+    It is credited, with the blocks' gain and p-value, only when the revisits bear out the change the
+    blocks' model fitted (its differences at the pairs, one column, against the same exchanges of
+    stretches' times): a lawnmower's lines follow the clock, and a GP in time can map the field across
+    them, a change the pairs, each at one place, do not show."""
+    check = ev.time_claim()
+    if check is not None and check.p_value > threshold:
+        c.significant = False
+        c.note = (
+            f"the blocks' change in time is not borne out where the boat comes back: it would make the "
+            f"{check.pairs} pairs differ by {check.rms_claimed:.3g} RMS; they differ by "
+            f"{check.rms_difference:.3g} and follow it with a slope of {check.slope:.2f} "
+            f"(p = {check.p_value:.2g}); {c.note}"
+        )
+        return
+    borne = (
+        ""
+        if check is None
+        else f"; the revisits bear out its change (slope {check.slope:.2f}, p = {check.p_value:.2g})"
+    )
     c.revisit = False
     c.improvement, c.p_value = c.blocked_gain, c.blocked_p
-    c.note = f"judged on blocks: the revisits alone could not tell (p = {c.time.p_value:.2g}; {c.note})"
+    c.note = (
+        f"judged on blocks: the revisits' forms alone could not tell (p = {c.time.p_value:.2g}{borne}; "
+        f"{c.note})"
+    )
 
 
 def _judge(
@@ -315,7 +342,7 @@ def _judge(
     seconds.update(identifiability=t_ident, null=t_null)
     for c in results:
         if c.revisit and c.significant and c.time.p_value > threshold:
-            _judged_on_blocks(c)
+            _judged_on_blocks(evs[c.covariate], c, threshold)
     _own_direction_after_time(evs, results)
 
 
