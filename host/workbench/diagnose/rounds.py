@@ -266,26 +266,28 @@ def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
         c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
 
 
-def _judged_on_blocks(ev: Evaluator, c: Candidate, threshold: float) -> None:
+def _judged_on_blocks(ev: Evaluator, c: Candidate) -> None:
     """Time the revisits' forms could not tell but the blocks' rule found (a short survey's few stretches).
-    It is credited, with the blocks' gain and p-value, only when the revisits bear out the change the
-    blocks' model fitted (its differences at the pairs, one column, against the same exchanges of
-    stretches' times): a lawnmower's lines follow the clock, and a GP in time can map the field across
-    them, a change the pairs, each at one place, do not show."""
+    The revisits may still overrule it: the change the blocks' model fitted makes differences at the pairs
+    (one column), and where the pairs' own differences show no sign of it (their projection on it, against
+    the same exchanges of stretches' times, p above ALPHA) the blocks mapped something else: a lawnmower's
+    lines follow the clock, and a GP in time can map the field across them. A veto only removes findings,
+    so it needs no correction for the candidates; the change is fitted on the same rows, so its own p-value
+    is not a finding's. Otherwise the candidate carries the blocks' gain and p-value."""
     check = ev.time_claim()
-    if check is not None and check.p_value > threshold:
+    if check is not None and check.p_value > ALPHA:
         c.significant = False
         c.note = (
             f"the blocks' change in time is not borne out where the boat comes back: it would make the "
             f"{check.pairs} pairs differ by {check.rms_claimed:.3g} RMS; they differ by "
             f"{check.rms_difference:.3g} and follow it with a slope of {check.slope:.2f} "
-            f"(p = {check.p_value:.2g}); {c.note}"
+            f"(p = {check.p_value:.2g}: no sign of it; the nuisance taken out); {c.note}"
         )
         return
     borne = (
         ""
         if check is None
-        else f"; the revisits bear out its change (slope {check.slope:.2f}, p = {check.p_value:.2g})"
+        else f"; the revisits show a sign of its change (slope {check.slope:.2f}, p = {check.p_value:.2g})"
     )
     c.revisit = False
     c.improvement, c.p_value = c.blocked_gain, c.blocked_p
@@ -342,7 +344,7 @@ def _judge(
     seconds.update(identifiability=t_ident, null=t_null)
     for c in results:
         if c.revisit and c.significant and c.time.p_value > threshold:
-            _judged_on_blocks(evs[c.covariate], c, threshold)
+            _judged_on_blocks(evs[c.covariate], c)
     _own_direction_after_time(evs, results)
 
 
