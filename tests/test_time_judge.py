@@ -9,8 +9,11 @@ noise alone and on a heading error sailed at set times.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
+from forcemap.host.workbench.diagnose.catalogue import time_form_cause
 from forcemap.host.workbench.diagnose.time_judge import check_claim, judge_time
 from forcemap.host.workbench.revisits import revisit_pairs, stretch_length
 
@@ -114,6 +117,10 @@ def test_a_drift_is_told_from_a_period_the_record_holds_or_not(track):
     assert_forms_named_by_kind(v)
     longer = [f for f in v.forms if f.name == "drift" and f.period_s is not None]
     assert longer, "the ladder reaches past the record"
+    cause = time_form_cause(v, "current", short_for_tide=False)
+    assert "a steady rise or fall" in cause and "from a steady drift" not in cause, cause
+    if "periodic" in v.indistinct:  # the period it cannot be told from is named
+        assert re.search(r"another period \(\d+ min\)", cause), cause
 
 
 @pytest.mark.parametrize("seed", [4, 5, 6])

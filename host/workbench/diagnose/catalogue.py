@@ -221,7 +221,9 @@ def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
             "the lake or basin (Merian: T = 2 L / (n sqrt(g h)) for a basin of length L and depth h)"
         )
     else:
-        cause = f"{what}: a steady rise or fall (a river's stage, a discharge changing, a slow drift)"
+        cause = (
+            f"{what}: a steady rise or fall (a river's stage, a discharge changing, a slow drift)"
+        )
     if short_for_tide and form.name != "tide":
         cause += (
             f"; a record of {_hours(verdict.span_s)} cannot tell a tide (12.42 h) from it: in tidal water "
@@ -229,8 +231,16 @@ def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
         )
     others = [k for k in verdict.indistinct if not (short_for_tide and k == "tide")]
     if others:
-        names = {"drift": "a steady drift", "tide": "a tide", "periodic": "another period"}
-        cause += f"; the revisits cannot tell it from {' or '.join(names[k] for k in others)}"
+        cause += f"; the revisits cannot tell it from {' or '.join(_kind_named(verdict, k) for k in others)}"
     if level:
         cause += "; or give a gauge's record with --water-level"
     return cause
+
+
+def _kind_named(verdict, kind: str) -> str:
+    """A kind of form in words, with the period of its best member where it has one."""
+    best = max((f for f in verdict.forms if f.name == kind), key=lambda f: f.share, default=None)
+    names = {"drift": "a steady drift", "tide": "a tide", "periodic": "another period"}
+    if best is None or best.period_s is None or kind == "drift":
+        return names[kind]
+    return f"{names[kind]} ({_hours(best.period_s)})"
