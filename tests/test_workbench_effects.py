@@ -76,23 +76,3 @@ def test_no_effect_reports_no_missing_effect(tmp_path_factory, target, seed):
     for c in d.candidates:
         if c.covariate in ("sog", "cog", "crab"):
             assert not c.significant, d.summary()
-
-
-@pytest.mark.slow
-def test_a_short_survey_without_an_effect_credits_no_time_the_revisits_do_not_bear_out(
-    tmp_path_factory, tmp_path
-):
-    """The first 15 minutes of the river without an effect (seed 2): a GP in time maps the field across
-    the lawnmower's lines, which follow the clock, and gains +20 % on spatial blocks although the field
-    is steady. The revisits' forms cannot tell (their p-value fails), and the change the blocks' model
-    fitted is checked where the boat comes back: the passes over one place do not follow it."""
-    import pandas as pd
-
-    table = simulated(tmp_path_factory, "river", [], 2, DURATION_S)
-    rows = pd.read_csv(table)
-    short = tmp_path / "samples.csv"
-    rows[rows["t"] < rows["t"].iloc[0] + 900.0].to_csv(short, index=False)
-    d = diagnose(load_survey(short), "current_speed", rounds=1, progress=False)
-    t = next(c for c in d.candidates if c.covariate == "t")
-    assert not t.significant, d.summary()
-    assert not d.missing_effect_found or d.candidates[0].covariate != "t", d.summary()

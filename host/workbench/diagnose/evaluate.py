@@ -72,9 +72,6 @@ class Evaluator:
         self.base_b = self.blocked_cv(self.sm)
         self._base_r: CVResult | None = None
         self._time: tuple | None = None
-        self._revisits: tuple | None = None
-        # the blocked-CV model of time and its inputs, whose change the revisits check (rounds.py)
-        self.blocks_time: tuple | None = None
         self.consequences = consequences_of(target)
 
     def on_rows_with(self, *names: str) -> Evaluator:
@@ -170,47 +167,23 @@ class Evaluator:
         cv = self.sm.cv(self.rfold, primary=model, secondary_cv=self.sec_r, interval=False)
         return paired_test(self.base_r.error**2, cv.error**2, self.blocks)
 
-    def term_inputs(self, term: str) -> dict[str, np.ndarray]:
-        """The current model's inputs plus time and the inputs of `term`."""
-        X = self.inputs("t")
-        for name in parse_term(term, is_circular).inputs:
-            if name not in X:
-                X.update(survey_inputs(self.survey, {name}))
-        return X
-
     def with_term(self, term: str) -> Model:
         """The current model plus the term `term` (written as a user writes it: `water_level`, `tide`,
         `gp(t, matern32)`), every hyperparameter refitted."""
         spec = parse_term(term, is_circular)
-        X = self.term_inputs(term)
+        X = self.inputs("t")
+        for name in spec.inputs:
+            if name not in X:
+                X.update(survey_inputs(self.survey, {name}))
         return self.sm.primary.extended(build_term(spec, is_circular), X, self.sm.y_primary)
-
-    def revisits(self):
-        """The current model's revisits (`time_candidate.revisits_of`), found once; None when too few."""
-        if self._revisits is None:
-            from forcemap.host.workbench.diagnose.time_candidate import revisits_of
-
-            self._revisits = (revisits_of(self.sm),)
-        return self._revisits[0]
 
     def time_verdict(self):
         """What the revisits say about time (`time_candidate.time_verdict`), computed once."""
         if self._time is None:
-            from forcemap.host.workbench.diagnose.time_candidate import verdict_on
+            from forcemap.host.workbench.diagnose.time_candidate import time_verdict
 
-            found = self.revisits()
-            self._time = (None if found is None else verdict_on(self.sm, found),)
+            self._time = (time_verdict(self.sm),)
         return self._time[0]
-
-    def time_claim(self):
-        """The blocked-CV model of time's change checked at the revisits (`time_candidate.claim_at_revisits`);
-        None without revisits or without that model."""
-        from forcemap.host.workbench.diagnose.time_candidate import claim_at_revisits
-
-        found = self.revisits()
-        if found is None or self.blocks_time is None:
-            return None
-        return claim_at_revisits(self.sm, found, *self.blocks_time)
 
     def clock(self) -> tuple[str, float, float, float]:
         """(term, cv_rmse, gain, p) of correcting a clock offset between the boat-frame reading and the

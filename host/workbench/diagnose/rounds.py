@@ -169,9 +169,7 @@ def diagnose_round(
     threshold = alpha / max(len(results), 1)
     _judge(evs, results, threshold, seconds)
     if any(c.covariate == "t" and c.time is not None and not c.revisit for c in results):
-        results.sort(
-            key=lambda c: -c.improvement
-        )  # time now carries its blocks' gain: rank it by that
+        results.sort(key=lambda c: -c.improvement)  # time now carries its blocks' gain: rank it by that
     results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
@@ -232,16 +230,15 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
     c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence)
     c.hypers = model.theta_
     if name == "t":
-        _judged_at_revisits(ev, c, model)
+        _judged_at_revisits(ev, c)
     return c
 
 
-def _judged_at_revisits(ev: Evaluator, c: Candidate, model) -> None:  # type: ignore[no-untyped-def]
+def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
     """Time judged where the boat comes back too (host/workbench/diagnose/time_judge.py): the revisits'
     share and p-value become the candidate's, the term is the one their form advises, and the blocked-CV
-    figures (of `model`, the current model plus a GP in t) stay beside them (a short survey's few
-    stretches may judge weakly what its blocks show plainly). Nothing changes when the track comes back
-    too little."""
+    figures stay beside them (a short survey's few stretches may judge weakly what its blocks show
+    plainly). Nothing changes when the track comes back too little."""
     found = ev.time_verdict()
     if found is None:
         return
@@ -251,12 +248,9 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate, model) -> None:  # type: ig
     c.improvement, c.p_value = verdict.improvement, verdict.p_value
     c.note = revisit_note(verdict, held)
     smooth = smooth_time_term(ev.target)
-    X = ev.inputs("t")
     if smooth != c.term:  # under depth, time is the water level
-        model, X = ev.with_term(smooth), ev.term_inputs(smooth)
-        cv, c.blocked_gain, c.blocked_p = ev.blocked(model)
+        cv, c.blocked_gain, c.blocked_p = ev.blocked(ev.with_term(smooth))
         c.term, c.cv_rmse = smooth, cv.rmse
-    ev.blocks_time = (model, X)
 
 
 def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
@@ -266,35 +260,12 @@ def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
         c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
 
 
-def _judged_on_blocks(ev: Evaluator, c: Candidate) -> None:
-    """Time the revisits' forms could not tell but the blocks' rule found (a short survey's few stretches).
-    The revisits may still overrule it: the change the blocks' model fitted makes differences at the pairs
-    (one column), and where the pairs' own differences show no sign of it (their projection on it, against
-    the same exchanges of stretches' times, p above ALPHA) the blocks mapped something else: a lawnmower's
-    lines follow the clock, and a GP in time can map the field across them. A veto only removes findings,
-    so it needs no correction for the candidates; the change is fitted on the same rows, so its own p-value
-    is not a finding's. Otherwise the candidate carries the blocks' gain and p-value."""
-    check = ev.time_claim()
-    if check is not None and check.p_value > ALPHA:
-        c.significant = False
-        c.note = (
-            f"the blocks' change in time is not borne out where the boat comes back: it would make the "
-            f"{check.pairs} pairs differ by {check.rms_claimed:.3g} RMS; they differ by "
-            f"{check.rms_difference:.3g} and follow it with a slope of {check.slope:.2f} "
-            f"(p = {check.p_value:.2g}: no sign of it; the nuisance taken out); {c.note}"
-        )
-        return
-    borne = (
-        ""
-        if check is None
-        else f"; the revisits show a sign of its change (slope {check.slope:.2f}, p = {check.p_value:.2g})"
-    )
+def _judged_on_blocks(c: Candidate) -> None:
+    """Time the revisits could not tell but the blocks' rule found (a short survey's few stretches): the
+    candidate carries the blocks' gain and p-value, and says what the revisits showed."""
     c.revisit = False
     c.improvement, c.p_value = c.blocked_gain, c.blocked_p
-    c.note = (
-        f"judged on blocks: the revisits' forms alone could not tell (p = {c.time.p_value:.2g}{borne}; "
-        f"{c.note})"
-    )
+    c.note = f"judged on blocks: the revisits alone could not tell (p = {c.time.p_value:.2g}; {c.note})"
 
 
 def _judge(
@@ -344,7 +315,7 @@ def _judge(
     seconds.update(identifiability=t_ident, null=t_null)
     for c in results:
         if c.revisit and c.significant and c.time.p_value > threshold:
-            _judged_on_blocks(evs[c.covariate], c)
+            _judged_on_blocks(c)
     _own_direction_after_time(evs, results)
 
 

@@ -13,13 +13,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from forcemap.host.workbench.diagnose.time_judge import (
-    M2_S,
-    ClaimCheck,
-    TimeVerdict,
-    check_claim,
-    judge_time,
-)
+from forcemap.host.workbench.diagnose.time_judge import M2_S, TimeVerdict, judge_time
 from forcemap.host.workbench.revisits import (
     MIN_RADIUS_M,
     RevisitPairs,
@@ -37,8 +31,6 @@ MIN_CROSSINGS = 5
 TIDE_SPAN_SHARE = 0.25
 # a boat that moves less than this in a stretch holds its place (a mooring's swing, a GNSS's wander)
 STATION_M = 10.0
-# a model's inputs that are time: the rest are held at one row to read its change in time
-TIME_INPUTS = ("t", "utc")
 
 
 def judged_values(sm) -> np.ndarray:
@@ -103,32 +95,14 @@ def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] |
     """The revisits' verdict on time for the fitted model `sm`, and how many rows were left out as held in
     one place; None when the track comes back too little to judge it."""
     found = revisits_of(sm, radius_m)
-    return None if found is None else verdict_on(sm, found)
-
-
-def verdict_on(sm, found: Revisits) -> tuple[TimeVerdict, int]:
-    """`time_verdict` on revisits already found (`revisits_of(sm)`)."""
+    if found is None:
+        return None
     rows, rp, held, values = found
     v = rows[rp.pairs]
     d = values[v[:, 1]] - values[v[:, 0]]
     heading = sm.survey.columns.get("heading")
     verdict = judge_time(d, rp, sm.survey.xy[rows], None if heading is None else heading[rows])
     return verdict, held
-
-
-def claim_at_revisits(sm, found: Revisits, model, X: dict) -> ClaimCheck:
-    """The change in time `model` (a model of `sm`'s primary component with a time term, inputs `X`) fitted,
-    checked at `sm`'s revisits: its prediction with every input but time held at the first row's is the
-    change, and the pairs' differences are what `sm` leaves of the primary component."""
-    rows, rp = found.rows, found.rp
-    held = {k: v if k in TIME_INPUTS else np.repeat(v[:1], len(v), axis=0) for k, v in X.items()}
-    change = model.predict(held)[rows]
-    resid = (sm.y_primary - sm.primary.predict(sm.X))[rows]
-    d = resid[rp.pairs[:, 1]] - resid[rp.pairs[:, 0]]
-    heading = sm.survey.columns.get("heading")
-    return check_claim(
-        d, rp, sm.survey.xy[rows], None if heading is None else heading[rows], change
-    )
 
 
 def time_term(verdict: TimeVerdict, target: str) -> str:

@@ -41,7 +41,7 @@ from forcemap.host.workbench.diagnose.time_forms import (
 )
 from forcemap.host.workbench.revisits import RevisitPairs
 
-__all__ = ["M2_S", "ClaimCheck", "Form", "TimeVerdict", "check_claim", "judge_time"]
+__all__ = ["M2_S", "Form", "TimeVerdict", "judge_time"]
 
 PERMUTATIONS = 999
 # the periods a tide has (s): semidiurnal 12.0-12.66 h, diurnal 23.93-25.82 h
@@ -226,59 +226,3 @@ def cv_share(d: np.ndarray, rp: RevisitPairs, A: np.ndarray, k: int = 5) -> floa
         w, *_ = np.linalg.lstsq(A[~test], d[~test], rcond=None)
         resid[test] = d[test] - A[test] @ w
     return float(1.0 - (resid * resid).sum() / (d * d).sum())
-
-
-@dataclass
-class ClaimCheck:
-    """A change in time fitted elsewhere (the blocked-CV model's time term), checked where the boat comes
-    back: the differences it makes at the revisit pairs against those the pairs show."""
-
-    pairs: int
-    rms_claimed: float  # RMS of the differences the claimed change makes at the pairs
-    rms_difference: float  # RMS of the pairs' own differences
-    slope: (
-        float  # of the pairs' differences on the claimed ones: 1 where it is borne out, 0 where not
-    )
-    p_value: float  # one-sided, against exchanges of whole stretches' times
-
-
-def check_claim(
-    d: np.ndarray,
-    rp: RevisitPairs,
-    xy: np.ndarray,
-    heading: np.ndarray | None,
-    claimed: np.ndarray,
-    permutations: int = PERMUTATIONS,
-    seed: int = 0,
-) -> ClaimCheck:
-    """Whether the revisits bear out a claimed change in time: `claimed` is its value at each row of `rp`
-    (a function of time), `d` the pairs' residual differences (later minus earlier). The statistic is
-    the differences' projection on the claimed ones (the nuisance taken out of both); its null moves
-    whole stretches to other stretches' times, which carries the claim with them."""
-    proj = Projector(nuisance(rp, xy, heading))
-    d = proj(clipped(np.asarray(d, float).reshape(-1, 1)))[:, 0]
-
-    def differences(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
-        return proj((np.interp(tb, rp.t, claimed) - np.interp(ta, rp.t, claimed))[:, None])[:, 0]
-
-    def statistic(c: np.ndarray) -> float:
-        return float(d @ c) / max(float(np.sqrt(c @ c)), 1e-300)
-
-    ta, tb = rp.times()
-    c = differences(ta, tb)
-    obs = statistic(c)
-    rng = np.random.default_rng(seed)
-    null = np.array(
-        [
-            statistic(differences(*rp.times(rng.permutation(rp.n_stretches))))
-            for _ in range(permutations)
-        ]
-    )
-    raw = np.interp(tb, rp.t, claimed) - np.interp(ta, rp.t, claimed)
-    return ClaimCheck(
-        pairs=len(rp.pairs),
-        rms_claimed=float(np.sqrt(np.mean(raw**2))),
-        rms_difference=float(np.sqrt(np.mean(d**2))),
-        slope=float(d @ c) / max(float(c @ c), 1e-300),
-        p_value=float((1 + (null >= obs).sum()) / (1 + permutations)),
-    )
