@@ -6,9 +6,10 @@ confounded on a race course").
 For the first round's residuals of `current_speed` (the inputs `time_candidate.time_verdict` gives the
 judge), it prints the drift's share of the revisit differences with the heading's harmonics taken out (as
 the judge does) and without them, the same at `--period` with the share of the periodic columns' energy
-the harmonics leave, and the judge's verdict once the heading's effect, estimated where the heading changes
-fast (tacks, turns: the rows' values and harmonics less their course in time, hat functions two stretches
-apart), is subtracted instead. CASEs as in bench/bench_time_judge.py.
+the harmonics leave, and the judge's verdict (with the kinds of form it cannot tell from its best), also
+once the heading's effect, estimated where the heading changes fast (tacks, turns: the rows' values and
+harmonics less their course in time, hat functions two stretches apart), is subtracted instead. CASEs as
+in bench/bench_time_judge.py.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from forcemap.host.workbench.diagnose import time_candidate
 from forcemap.host.workbench.diagnose import time_forms as tf
+from forcemap.host.workbench.diagnose.catalogue import kind_named
 from forcemap.host.workbench.diagnose.time_judge import judge_time
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.table import load_survey
@@ -91,7 +93,11 @@ def report(case: str, cases: Path, target: str, period_s: float, permutations: i
     sub = judge_time(vv[b] - vv[a], rp, xy, None, permutations=permutations)
     for label, v in (("judge", base), ("turns' estimate subtracted", sub)):
         period = "" if v.best.period_s is None else f" {v.best.period_s:.0f} s"
-        cells.append(f"{label}: p {v.p_value:.4f}, share {v.share:.3f}, {v.best.name}{period}")
+        others = " or ".join(kind_named(v, k) for k in v.indistinct)
+        told = f" (not told from {others})" if others else ""
+        cells.append(
+            f"{label}: p {v.p_value:.4f}, share {v.share:.3f}, {v.best.name}{period}{told}"
+        )
     print(f"{case} {target} ({len(rp.pairs)} pairs) | " + " | ".join(cells), flush=True)
 
 

@@ -15,15 +15,14 @@ bench/bench_time_judge.py.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 from forcemap.host.workbench import flow_axis, survey_fits
-from forcemap.host.workbench.fitting import fit_target
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.errors import WorkbenchError
 
-from bench.bench_time_judge import table_of
+from bench.bench_time_judge import crossline
 
 
 def survey_axis_frame(me, mn, survey, X: dict, mean: tuple | None = None):  # type: ignore[no-untyped-def]
@@ -37,17 +36,6 @@ def survey_axis_frame(me, mn, survey, X: dict, mean: tuple | None = None):  # ty
     return np.full(n, ref[0]), np.full(n, ref[1])
 
 
-def run(table: Path, target: str, terms: list[str], label: str) -> None:
-    survey = load_survey(table)  # a fresh survey: its frames are built anew
-    for extra in terms:
-        ts = [*BASELINE, *[t for t in extra.split(";") if t]]
-        r = fit_target(survey, target, ts, progress=False)
-        xl = "none" if r.crossline is None else f"{r.crossline['crossline_rmse']:.4f}"
-        print(
-            f"{label:<22} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}", flush=True
-        )
-
-
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("case")
@@ -55,10 +43,16 @@ def main() -> None:
     p.add_argument("--target", default="current_speed")
     p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
     a = p.parse_args()
-    table = table_of(a.case, a.cases_dir)
-    run(table, a.target, a.terms, "axis at each place")
-    survey_fits.axis_frame = survey_axis_frame
-    run(table, a.target, a.terms, "one axis for the survey")
+    try:
+        # `crossline` loads the survey anew on each call, so each run builds its own frames
+        print("axis at each place:", flush=True)
+        crossline(a.case, a.cases_dir, a.target, a.terms)
+        survey_fits.axis_frame = survey_axis_frame
+        print("one axis for the survey:", flush=True)
+        crossline(a.case, a.cases_dir, a.target, a.terms)
+    except (WorkbenchError, FileNotFoundError, KeyError) as e:
+        print(f"bench_tide_frame: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 if __name__ == "__main__":

@@ -9,12 +9,10 @@ noise alone and on a heading error sailed at set times.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 import pytest
 from forcemap.host.workbench.diagnose.catalogue import time_form_cause
-from forcemap.host.workbench.diagnose.time_judge import judge_time
+from forcemap.host.workbench.diagnose.time_judge import Form, TimeVerdict, judge_time
 from forcemap.host.workbench.revisits import revisit_pairs, stretch_length
 
 SPAN_S = 3 * 3600.0
@@ -124,8 +122,25 @@ def test_a_drift_is_told_from_a_period_the_record_holds_or_not(track):
     assert longer, "the ladder reaches past the record"
     cause = time_form_cause(v, "current", short_for_tide=False)
     assert "a steady rise or fall" in cause and "from a steady drift" not in cause, cause
-    if "periodic" in v.indistinct:  # the period it cannot be told from is named
-        assert re.search(r"another period \(\d+ min\)", cause), cause
+
+
+def test_a_cause_names_the_period_it_cannot_tell_its_form_from():
+    """A drift the revisits cannot tell from a periodic change: the cause names the period of the best
+    periodic form (not of a weaker one), and never the drift's own kind."""
+    forms = [
+        Form("drift", None, 0.22, 0.001),
+        Form("periodic", 2820.0, 0.21, 0.001),
+        Form("periodic", 1500.0, 0.05, 0.3),
+        Form("drift", 9600.0, 0.23, 0.001),
+    ]
+    v = TimeVerdict(
+        pairs=6000, crossings=85, span_s=8640.0, stretch_s=120.0, radius_m=54.0,
+        rms_difference=0.35, share=0.2, p_value=0.001, permutations=999,
+        best=forms[3], forms=forms, indistinct=["periodic"],
+    )  # fmt: skip
+    cause = time_form_cause(v, "current", short_for_tide=False)
+    assert cause.endswith("the revisits cannot tell it from another period (47 min)"), cause
+    assert "from a steady drift" not in cause, cause
 
 
 @pytest.mark.parametrize("seed", [4, 5, 6])

@@ -200,6 +200,9 @@ def explain(
     )
 
 
+KIND_NAMES = {"drift": "a steady drift", "tide": "a tide", "periodic": "another period"}
+
+
 def _hours(seconds: float) -> str:
     return f"{seconds / 3600:.2f} h" if seconds >= 3 * 3600 else f"{seconds / 60:.0f} min"
 
@@ -231,16 +234,15 @@ def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
         )
     others = [k for k in verdict.indistinct if not (short_for_tide and k == "tide")]
     if others:
-        cause += f"; the revisits cannot tell it from {' or '.join(_kind_named(verdict, k) for k in others)}"
+        cause += f"; the revisits cannot tell it from {' or '.join(kind_named(verdict, k) for k in others)}"
     if level:
         cause += "; or give a gauge's record with --water-level"
     return cause
 
 
-def _kind_named(verdict, kind: str) -> str:
-    """A kind of form in words, with the period of its best member where it has one."""
-    best = max((f for f in verdict.forms if f.name == kind), key=lambda f: f.share, default=None)
-    names = {"drift": "a steady drift", "tide": "a tide", "periodic": "another period"}
-    if best is None or best.period_s is None or kind == "drift":
-        return names[kind]
-    return f"{names[kind]} ({_hours(best.period_s)})"
+def kind_named(verdict, kind: str) -> str:
+    """A kind of form in words, with the period of its best member (a tide's, another period's)."""
+    periodic = [f for f in verdict.forms if f.name == kind and f.period_s is not None]
+    if kind == "drift" or not periodic:
+        return KIND_NAMES[kind]
+    return f"{KIND_NAMES[kind]} ({_hours(max(periodic, key=lambda f: f.share).period_s)})"
