@@ -69,7 +69,11 @@ def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
         ts = [*BASELINE, *[t for t in extra.split(";") if t]]
         r = fit_target(survey, target, ts, progress=False)
         xl = "none" if r.crossline is None else f"{r.crossline['crossline_rmse']:.4f}"
-        print(f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}", flush=True)
+        axis = "" if r.model.axis is None else f"; {r.model.axis.line()}"
+        print(
+            f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}{axis}",
+            flush=True,
+        )
 
 
 def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: bool) -> None:

@@ -10,6 +10,12 @@ velocity and C the covariance of the time terms' velocity over the cycle. Along 
 `m + tide`, signed, a sum of harmonics; the ellipse's minor axis is across it. The axis points with the
 mean flow where the mean is clear, else with the survey's overall axis (north-going if even that has no
 mean), so that it never flips between neighbouring places.
+
+Where the "mean flow" is mostly an instrument's error (a yacht's leeway, a speed log's calibration), the
+axis at each place follows that error, and a uniform tide projected on it changes amplitude from place to
+place; where a real stream turns with its channels, the axis at each place is the right one. Which of the
+two (that axis, or the survey's overall axis at every place) a survey gets is chosen by the held-out
+vector's error (host/workbench/axis_choice.py).
 """
 
 from __future__ import annotations
@@ -107,14 +113,18 @@ def mean_flow(model, X: dict) -> np.ndarray:
     return model.predict(X) - time_part(model, X)
 
 
-def axis_frame(me, mn, survey, X: dict, mean: tuple | None = None):
+def axis_frame(me, mn, survey, X: dict, mean: tuple | None = None, one_axis: bool = False):
     """Unit vectors (east, north) of the oscillating flow's axis at the places of `X` (fixed in time); the
-    places' mean velocity may be given (`mean`: a cross-validated one)."""
+    places' mean velocity may be given (`mean`: a cross-validated one). With `one_axis`, the survey's
+    overall axis at every place (host/workbench/axis_choice.py says when)."""
     tau_mean, tau_cov = cycle_stats(me, mn, survey)
-    if mean is None:
-        mean = (mean_flow(me, X), mean_flow(mn, X))
     rows = survey_inputs_cached(survey)
     ref = reference(mean_flow(me, rows), mean_flow(mn, rows), tau_mean, tau_cov)
+    if one_axis:
+        n = len(next(iter(X.values())))
+        return np.full(n, ref[0]), np.full(n, ref[1])
+    if mean is None:
+        mean = (mean_flow(me, X), mean_flow(mn, X))
     ue, un, lam = axes(mean[0], mean[1], tau_mean, tau_cov)
     return oriented(ue, un, lam, mean[0], mean[1], ref)
 

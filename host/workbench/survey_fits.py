@@ -7,6 +7,7 @@ import functools
 
 import numpy as np
 from forcemap.host.vessel.geodesy import wrap_from_minus180
+from forcemap.host.workbench.axis_choice import AxisChoice, choose_axis
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.flow_axis import axis_frame, time_part
 from forcemap.host.workbench.gaps import DERIVED_INPUTS, bridged, prepare_column, too_few
@@ -56,7 +57,9 @@ class SurveyFits:
 
     def __init__(self, survey: Survey) -> None:
         self.survey = survey
-        self._frame_cv: dict[tuple[str, str, bytes], tuple[np.ndarray, np.ndarray]] = {}
+        self._frame_cv: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._axes: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._axis: dict[tuple, AxisChoice] = {}
         self._derived: dict[str, np.ndarray] = {}
         # hyperparameters of the shared models from an earlier fit on this survey (`shared_hypers`), by key:
         # the models are then rebuilt without the optimiser, the same maps
@@ -116,12 +119,14 @@ class SurveyFits:
         y: np.ndarray,
         time_terms: tuple = (),
         max_basis: int | None = None,
+        one_axis: bool = False,
     ) -> Model:
         """The baseline model (with the target's time terms: a tide moves both components) of the
-        flow-frame component a target's other terms do not act on (`y`), at the primary's basis cap
-        `max_basis`: a speed is judged with both components at one spatial resolution."""
+        flow-frame component a target's other terms do not act on (`y`, in the frame `one_axis` names), at
+        the primary's basis cap `max_basis`: a speed is judged with both components at one spatial
+        resolution."""
         key = f"secondary/{vt.prefix}/{'across' if primary_is_along else 'along'}"
-        key += "".join(f"/{t}" for t in time_terms)
+        key += "".join(f"/{t}" for t in time_terms) + ("/one-axis" if one_axis else "")
         key += "" if max_basis is None else f"/basis<={max_basis}"
         if key not in self._shared:
             X = survey_inputs(self.survey, set())
@@ -147,11 +152,37 @@ class SurveyFits:
             for k, m in self._shared.items()
         }
 
-    def frame_cv(
-        self, vt: VectorTarget, folds: np.ndarray, time_terms: tuple = ()
+    def axis(self, vt: VectorTarget, time_terms: tuple) -> AxisChoice:
+        """Whether a vector with time terms is modelled along one axis for the survey or the axis at each
+        place (host/workbench/axis_choice.py), chosen once."""
+        key = (vt.prefix, vt.aspect, time_terms)
+        if key not in self._axis:
+            self._axis[key] = choose_axis(self, vt, time_terms)
+        return self._axis[key]
+
+    def frame_axes(
+        self, vt: VectorTarget, time_terms: tuple, one_axis: bool
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The flow frame's unit vector at each sample from the frame models refitted without its fold."""
-        key = (vt.prefix, vt.aspect, np.ascontiguousarray(folds).tobytes(), time_terms)
+        """The oscillating flow's axis at each sample, from the frame models fitted on every row."""
+        key = (vt.prefix, vt.aspect, time_terms, one_axis)
+        if key not in self._axes:
+            me, mn = self.frame(vt, time_terms)
+            X = survey_inputs(self.survey, set())
+            self._axes[key] = axis_frame(me, mn, self.survey, X, one_axis=one_axis)
+        return self._axes[key]
+
+    def frame_cv(
+        self,
+        vt: VectorTarget,
+        folds: np.ndarray,
+        time_terms: tuple = (),
+        one_axis: bool | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The flow frame's unit vector at each sample from the frame models refitted without its fold
+        (with time terms: in the frame `one_axis` names, by default the one `axis` chose)."""
+        if time_terms and one_axis is None:
+            one_axis = self.axis(vt, time_terms).one_axis
+        key = (vt.prefix, vt.aspect, np.ascontiguousarray(folds).tobytes(), time_terms, one_axis)
         if key not in self._frame_cv:
             me, mn = self.frame(vt, time_terms)
             e = me.cv_predict(folds, return_std=False)[0]
@@ -159,7 +190,7 @@ class SurveyFits:
             if time_terms:
                 X = survey_inputs(self.survey, set())
                 mean = (e - time_part(me, X), n - time_part(mn, X))
-                self._frame_cv[key] = axis_frame(me, mn, self.survey, X, mean)
+                self._frame_cv[key] = axis_frame(me, mn, self.survey, X, mean, bool(one_axis))
                 return self._frame_cv[key]
             sp = np.hypot(e, n)
             sp = np.where(sp > 1e-9, sp, 1.0)
@@ -200,13 +231,15 @@ def frame_direction(
     time_terms: tuple[str, ...] = (),
 ) -> tuple[np.ndarray, np.ndarray]:
     """Unit vector of the smooth flow at positions `xy` and survey times `t` (default: mid-survey); with
-    `time_terms` (a tide, a seiche), the oscillating flow's axis there, which does not change in time."""
-    me, mn = survey_fits(survey).frame(vt, time_terms)
+    `time_terms` (a tide, a seiche), the oscillating flow's axis there, which does not change in time (at
+    each place or one for the survey, as `SurveyFits.axis` chose)."""
+    fits = survey_fits(survey)
+    me, mn = fits.frame(vt, time_terms)
     if t is None:
         t = np.full(len(xy), float(np.median(survey.trel)))
     X = {"position": xy, "t": t, "utc": survey.t0 + t, "lat": np.full(len(xy), survey.lat0)}
     if time_terms:
-        return axis_frame(me, mn, survey, X)
+        return axis_frame(me, mn, survey, X, one_axis=fits.axis(vt, time_terms).one_axis)
     e, n = me.predict(X), mn.predict(X)
     s = np.hypot(e, n)
     s = np.where(s > 1e-9, s, 1.0)

@@ -121,6 +121,14 @@ class SurveyModel:
         return time_terms.frame_terms(self.term_specs)
 
     @property
+    def axis(self):
+        """The frame a vector with time terms is modelled in, and the held-out errors that chose it
+        (`axis_choice.AxisChoice`); None without time terms or for a component target."""
+        if not self.frame_terms or self.vector is None or self.vector.aspect not in ("speed", "dir"):
+            return None
+        return survey_fits(self.survey).axis(self.vector, self.frame_terms)
+
+    @property
     def circular(self) -> bool:
         return bool(self.vector and self.vector.aspect == "dir")
 
@@ -192,6 +200,7 @@ class SurveyModel:
                 self.y_secondary,
                 self.time_terms,
                 self.max_basis,
+                one_axis=self.axis is not None and self.axis.one_axis,
             )
         else:
             self.secondary = None

@@ -127,7 +127,8 @@ def _span(seconds: float) -> str:
 def tide_summary(sm) -> dict:
     """A fitted `SurveyModel`'s tide and seiche: constituents of its modelled component (target units: the
     along-flow component of a speed, the across-flow one of a direction), a vector's tidal ellipses from its
-    east and north frame models, and a seiche's period (estimated, or as given)."""
+    east and north frame models, the frame's axis and why (`axis_choice`), and a seiche's period (estimated,
+    or as given)."""
     out: dict = {"constituents": constituents(sm.primary), "ellipses": [], "seiche": None}
     k = term_block(sm.primary, TideTerm)
     if k is not None:
@@ -135,6 +136,7 @@ def tide_summary(sm) -> dict:
     if sm.secondary is not None and sm.frame_terms:
         me, mn = survey_fits(sm.survey).frame(sm.vector, sm.frame_terms)
         out["ellipses"] = ellipses(me, mn)
+        out["axis"] = sm.axis.to_json()
     k = term_block(sm.primary, SeicheTerm)
     if k is not None:
         est = sm.seiche_estimate
@@ -160,4 +162,6 @@ def describe(sm) -> list[str]:
         )
     if sm.seiche_estimate is not None:
         lines.append(sm.seiche_estimate.describe())
+    if sm.secondary is not None and sm.axis is not None:
+        lines.append(f"  {sm.axis.line()}")
     return lines
