@@ -241,7 +241,8 @@ class Fit:
 
     def tide(self) -> dict:
         """The fitted tide and seiche: each constituent's amplitude and Greenwich phase with their sd
-        (`constituents`), a vector's tidal ellipses (`ellipses`), a seiche's estimated period (`seiche`)."""
+        (`constituents`), a vector's tidal ellipses (`ellipses`) and the axis its components are modelled
+        along (`axis`, host/workbench/axis_choice.py), a seiche's estimated period (`seiche`)."""
         from forcemap.host.workbench.time_terms import tide_summary
 
         return tide_summary(self._fitted())
