@@ -166,6 +166,30 @@ def test_rdi_withbt_gets_a_clear_verdict(raws):
     assert np.isnan(full.lat).all()
 
 
+def test_a_file_without_positions_exports_its_soundings_with_their_uncertainty(tmp_path):
+    """RDI_withBT has no GPS: its table has soundings but no place. Export writes them, each with a TVU
+    of its sounder and attitude (no slope term: a bed's slope needs a track), never a crash."""
+    out = tmp_path / "bt.mcap"
+    assert main(["import", str(_dir() / "RDI_withBT.000"), "-o", str(out)]) == 0
+    csv_path = tmp_path / "bt.csv"
+    assert main(["export", str(out), "-o", str(csv_path)]) == 0
+    rows = list(csv.DictReader(csv_path.open()))
+    assert rows and not any(r.get("lat") for r in rows)
+    sounded = [r for r in rows if r["depth"]]
+    assert len(sounded) > 0.5 * len(rows)
+    def column(name: str) -> np.ndarray:
+        return np.array([float(r[name]) if r[name] else np.nan for r in sounded])
+
+    depth, tvu = column("depth"), column("depth_tvu")
+    tilt = np.maximum(np.abs(column("roll")), np.abs(column("pitch")))
+    assert np.isfinite(tvu).mean() > 0.9 and np.all(tvu[np.isfinite(tvu)] > 0)
+    # held level, within a few percent of the depth; tilted tens of degrees (the file has such
+    # ensembles), the attitude's term makes it larger
+    level, tilted = np.isfinite(tvu) & (tilt < 5.0), np.isfinite(tvu) & (tilt > 20.0)
+    assert level.sum() > 100 and np.all(tvu[level] < 0.1 * depth[level] + 0.5)
+    assert tilted.any() and np.median(tvu[tilted]) > 2 * np.median(tvu[level])
+
+
 def test_import_writes_findings_and_a_table_with_the_adcp_columns(tmp_path, capsys):
     out = tmp_path / "rp.mcap"
     assert main(["import", str(_dir() / "RiverPro_test01.PD0"), "-o", str(out)]) == 0

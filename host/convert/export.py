@@ -185,7 +185,9 @@ def with_tvu(table: Table, paths: Sequence[str | os.PathLike[str]]) -> Table:
     sd, _ = tvu.position_sd(log_findings(paths, compute=False), pos)
     offset = _number(cal.get("depth_offset_m")) or 0.0
     depth, lost = col("depth"), col("bottom_lost")
-    xy = local_xy(col("lat"), col("lon"))  # type: ignore[arg-type]
+    lat, lon = col("lat"), col("lon")
+    # a log with no position (an ADCP on bottom track alone): no slope along a track, so no such term
+    xy = np.full((len(depth), 2), np.nan) if lat is None or lon is None else local_xy(lat, lon)
     u = tvu.table_tvu(
         depth, xy, tvu.spec_of(cal), col("depth_raw"), col("roll"), col("pitch"), sd, 0.0, offset
     ).tvu  # type: ignore[arg-type]
