@@ -70,6 +70,9 @@ def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
         r = fit_target(survey, target, ts, progress=False)
         xl = "none" if r.crossline is None else f"{r.crossline['crossline_rmse']:.4f}"
         axis = "" if r.model.axis is None else f"; {r.model.axis.line()}"
+        if r.model.axis is not None and r.model.axis.one_axis:
+            toward = np.degrees(np.arctan2(r.model.ue[0], r.model.un[0])) % 360.0
+            axis += f", along {toward:05.1f} deg"
         print(
             f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}{axis}",
             flush=True,

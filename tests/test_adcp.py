@@ -177,6 +177,7 @@ def test_a_file_without_positions_exports_its_soundings_with_their_uncertainty(t
     assert rows and not any(r.get("lat") for r in rows)
     sounded = [r for r in rows if r["depth"]]
     assert len(sounded) > 0.5 * len(rows)
+
     def column(name: str) -> np.ndarray:
         return np.array([float(r[name]) if r[name] else np.nan for r in sounded])
 

@@ -35,8 +35,7 @@ def tide_model(real_case, name: str) -> SurveyModel:  # type: ignore[no-untyped-
 
 def axial_gap_deg(a: np.ndarray, b: float) -> np.ndarray:
     """Angle between axes (0-90 deg: an axis and its reverse are one axis)."""
-    d = np.abs((np.asarray(a) - b + 90.0) % 180.0 - 90.0)
-    return d
+    return np.abs((np.asarray(a) - b + 90.0) % 180.0 - 90.0)
 
 
 def test_a_uniform_tide_on_a_yachts_log_is_modelled_along_one_axis_its_own(real_case):

@@ -194,13 +194,14 @@ class SurveyModel:
             self.primary = primary.fit(self.X, self.y_primary)
         if self.vector and self.vector.aspect in ("speed", "dir"):
             fits = survey_fits(self.survey)
+            axis = self.axis
             self.secondary = fits.secondary(
                 self.vector,
                 self.primary_is_along,
                 self.y_secondary,
                 self.time_terms,
                 self.max_basis,
-                one_axis=self.axis is not None and self.axis.one_axis,
+                one_axis=axis is not None and axis.one_axis,
             )
         else:
             self.secondary = None
