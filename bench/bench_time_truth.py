@@ -1,0 +1,149 @@
+"""What the revisits can see of an injected current: the case's injected part scaled, and the time judge's
+verdict on each (bench/RESULTS.md, "What the revisits see of an injected current").
+
+    python -m bench.bench_time_truth CASE [CASE ...] [--gains 0,1,2,3]
+
+A CASE is an injected current of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`). Gain 1
+is the case's table as built; gain g adds (g - 1) times the injected current to its east and north columns
+and recomputes the speed and direction (the table level, not the NMEA: the pipeline keeps an injected
+current with slopes 0.96-1.01, bench/RESULTS.md "Known effects injected into real NMEA logs"); gain 0 is the
+case with its injection taken out again.
+
+Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagnose judges them:
+- the verdict (`judge_time`): p-value, form, period;
+- `kept`: the share of the injected current's sd the maps leave in their residuals (the same component models
+  with their hyperparameters fixed, fitted to the injected current alone: the map is a linear smoother there);
+- `truth explains`: the share of the revisit differences' sum of squares that the injected current's own
+  differences (through the maps, the nuisance taken out) explain, with its fitted coefficient per component
+  (1 where the revisits see it as it is; at gain 0 the truth of gain 1, which is not in the table);
+- `through the maps`: the period whose columns, passed through the same maps before they are differenced,
+  explain the most of the differences (Frisch-Waugh-Lovell with the map as a nuisance; the judge itself
+  differences the bare columns).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from forcemap.host.workbench.diagnose import time_forms as tf
+from forcemap.host.workbench.diagnose.time_candidate import revisits_of
+from forcemap.host.workbench.diagnose.time_judge import judge_time
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.targets import SurveyModel
+
+PERIODS_MIN = np.geomspace(20.0, 300.0, 40)
+
+
+def scaled_table(case: str, cases: Path, gain: float) -> tuple[Path, pd.DataFrame]:
+    """The case's table with its injected current times `gain`, and the truth."""
+    from tests.real_cases import Cases
+
+    built = Cases(cases)(case)
+    if built.truth is None:
+        raise WorkbenchError(f"{case}: not an injected case")
+    truth = pd.read_csv(built.truth)
+    out = cases / f"{case}.gain{gain:g}" / "log.csv"
+    if not out.exists():
+        df = pd.read_csv(built.csv)
+        for c in ("east", "north"):
+            df[f"current_{c}"] += (gain - 1.0) * np.interp(df.t, truth.t, truth[f"current_{c}"])
+        df["current_speed"] = np.hypot(df.current_east, df.current_north)
+        df["current_dir"] = np.degrees(np.arctan2(df.current_east, df.current_north)) % 360.0
+        out.parent.mkdir(parents=True, exist_ok=True)
+        df.to_csv(out.with_suffix(".tmp"), index=False)
+        out.with_suffix(".tmp").rename(out)
+    return out, truth
+
+
+def through_map(m: SurveyModel, Y: np.ndarray) -> np.ndarray:
+    """Each column of Y less the map of `m` fitted to it with `m`'s hyperparameters (its residual)."""
+    out = np.empty_like(Y)
+    for j in range(Y.shape[1]):
+        p = m.new_primary()
+        p.set_params(init=np.asarray(m.primary.theta_), optimize=False)
+        p.fit(m.X, Y[:, j])
+        out[:, j] = Y[:, j] - p.predict(m.X)
+    return out
+
+
+def share_by_component(d: np.ndarray, cols: list[np.ndarray]) -> float:
+    """Share of d's sum of squares explained by each component's own columns (least squares)."""
+    ex = 0.0
+    for k, A in enumerate(cols):
+        w, *_ = np.linalg.lstsq(A, d[:, k], rcond=None)
+        ex += float(((A @ w) ** 2).sum())
+    return ex / float((d * d).sum())
+
+
+def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) -> str:
+    """One gain's line: the verdict, what the maps keep of the truth, what the truth explains."""
+    sm = SurveyModel(load_survey(table), "current_speed", None, max_basis=600).fit()
+    s = sm.survey
+    found = revisits_of(sm)
+    if found is None:
+        return f"gain {gain:g}: the track comes back too little"
+    rows, rp, _, values = found
+    v = rows[rp.pairs]
+    heading = s.columns.get("heading")
+    hd = None if heading is None else heading[rows]
+    ver = judge_time(values[v[:, 1]] - values[v[:, 0]], rp, s.xy[rows], hd)
+    proj = tf.Projector(tf.nuisance(rp, s.xy[rows], hd))
+    d = proj(tf.clipped(values[v[:, 1]] - values[v[:, 0]]))
+    tt = s.trel + s.t0
+    T = np.column_stack([np.interp(tt, truth.t, truth[f"current_{c}"]) for c in ("east", "north")])
+    T *= gain if gain > 0 else 1.0
+    u = s.trel / np.ptp(s.trel)
+    F = np.column_stack(
+        [f(2 * np.pi * s.trel / (60 * P)) for P in PERIODS_MIN for f in (np.cos, np.sin)]
+    )
+    kept, truth_cols, form_cols = [], [], []
+    for k, aspect in enumerate(("east", "north")):
+        m = SurveyModel(s, sm.vector.column(aspect), [str(x) for x in sm.term_specs], max_basis=600)
+        m.fit()
+        R = through_map(m, np.column_stack([T[:, k], F, u, u * u]))
+        kept.append(np.std(R[:, 0]) / max(np.std(T[:, k]), 1e-12))
+        diff = proj(R[v[:, 1]] - R[v[:, 0]])
+        truth_cols.append(diff[:, :1])
+        form_cols.append(diff[:, 1:])
+    coef = [float(np.linalg.lstsq(c, d[:, k], rcond=None)[0][0]) for k, c in enumerate(truth_cols)]
+    shares = [
+        share_by_component(d, [c[:, 2 * i : 2 * i + 2] for c in form_cols])
+        for i in range(len(PERIODS_MIN))
+    ]
+    drift = share_by_component(d, [c[:, -2:] for c in form_cols])
+    best = int(np.argmax(shares))
+    b = ver.best
+    period = "" if b.period_s is None else f" {b.period_s / 60:.0f} min"
+    mapped = f"{PERIODS_MIN[best]:.0f} min ({shares[best]:.3f}; drift {drift:.3f})"
+    return (
+        f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period}; "
+        f"kept {np.mean(kept):.2f}; truth explains {share_by_component(d, truth_cols):.3f} "
+        f"(coefficients {coef[0]:.2f}, {coef[1]:.2f}); through the maps {mapped}"
+    )
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("cases", nargs="+", metavar="CASE")
+    p.add_argument("--gains", default="0,1,2,3")
+    p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
+    a = p.parse_args()
+    a.cases_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        for case in a.cases:
+            for gain in (float(g) for g in a.gains.split(",")):
+                table, truth = scaled_table(case, a.cases_dir, gain)
+                along = np.hypot(truth.current_east, truth.current_north).max()
+                print(f"{case} {judge_gain(table, truth, gain, f'{gain * along:.2f} m/s')}", flush=True)
+    except (WorkbenchError, FileNotFoundError, KeyError) as e:
+        print(f"bench_time_truth: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+if __name__ == "__main__":
+    main()
