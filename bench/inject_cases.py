@@ -12,7 +12,12 @@ plausible for the place (and are issue 36's):
 - ``fjord_tide``: the Flensburg Fjord race (Irene, 2013-08-03, 3.9 h), an M2 tidal stream of +-0.26
   m/s along the fjord's axis there (050/230 deg), phase 30 deg so that it turns mid-race;
 - ``fjord_level``: the same race, the water rising 0.6 m (a smooth step, 45 min wide, mid-race: a
-  Baltic wind set-up).
+  Baltic wind set-up);
+- ``fjord_seiche``: the same race, a seiche of the inner fjord (Merian for a basin open at one end, 12 km
+  long and 12 m deep: 4 L / sqrt(g h), about 74 min) as a current of +-0.25 m/s along its axis (050/230
+  deg). Stronger than the lake's: on Geneva's 85 crossings the revisits cannot see a +-0.15 m/s seiche
+  beside the race's own changes (bench/RESULTS.md, "What the revisits see of an injected current"); the
+  fjord race's 363 crossings at +-0.25 m/s test that the judge names a period where the track can show one.
 
 A current is uniform in space (bench/inject_effects.py). The ``clean`` cases are the repository's
 real NMEA logs as they are (the null cases); ``sfbay`` is a real flood tide, not injected.
@@ -57,6 +62,7 @@ INJECTED = {
     "lake_drift": Case(GENEVA_2008, Effect(Current(Shape("ramp", 0.2), 250.0))),
     "fjord_tide": Case(FJORD, Effect(Current(Shape("tidal", 0.26, phase_deg=30.0), 50.0))),
     "fjord_level": Case(FJORD, Effect(level=Shape("step", 0.6, width_s=2700.0))),
+    "fjord_seiche": Case(FJORD, Effect(Current(Shape("periodic", 0.25, period_s=4440.0), 50.0))),
 }
 
 

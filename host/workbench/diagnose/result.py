@@ -299,7 +299,10 @@ def round_steps(diagnosis_json: dict) -> list[str]:
 def revisit_note(verdict, held_rows: int) -> str:
     """How many revisit pairs judged time, and what they showed."""
     held = (
-        f"; {held_rows} rows where the boat stayed in one place are no revisits" if held_rows else ""
+        f"; {held_rows} {'row' if held_rows == 1 else 'rows'} where the boat stayed in one place "
+        f"{'is no revisit' if held_rows == 1 else 'are no revisits'}"
+        if held_rows
+        else ""
     )
     return (
         f"judged on {verdict.pairs} revisit pairs ({verdict.crossings} crossings within "

@@ -149,8 +149,13 @@ def judge_time(
     n_eff = max(rp.crossings, 2)
     forms = [form_at(ladder, i, float(obs[i]), float(per_form[i])) for i in range(len(obs))]
     best = forms[best_i]
-    sd = period_sd(d, ta, tb, best.period_s, n_eff, proj) if best.period_s else None
-    best = Form(kind_of(best, span, sd), best.period_s, best.share, best.p_value)
+    period, sd = best.period_s, None
+    if period is not None:
+        period, sd = refined_period(d, ta, tb, period, n_eff, proj)
+    best = Form(kind_of(Form(best.name, period, 0, 0), span, sd), period, best.share, best.p_value)
+    columns = ladder.columns(best_i, ta, tb, proj)
+    if period is not None:
+        columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -158,7 +163,7 @@ def judge_time(
         stretch_s=rp.stretch_s,
         radius_m=rp.radius_m,
         rms_difference=rms,
-        share=cv_share(d, rp, ladder.columns(best_i, ta, tb, proj)),
+        share=cv_share(d, rp, columns),
         p_value=p,
         permutations=permutations,
         best=best,
@@ -179,14 +184,19 @@ def log_lik(share: float, n_eff: int) -> float:
     return -0.5 * n_eff * math.log(max(1.0 - share, 1e-12))
 
 
-def period_sd(d, ta, tb, period_s: float, n_eff: int, proj: Projector) -> float | None:
-    """The period's sd from its profile likelihood: the half-width where it falls by 1/2 from its peak,
-    on a fine grid of periods around it (None when the profile does not fall on both sides: the period
-    is not determined by the survey)."""
+def refined_period(d, ta, tb, period_s: float, n_eff: int, proj: Projector):
+    """The period at the top of the profile likelihood next to the ladder's `period_s` (a fine grid from
+    half to twice it, climbed from the ladder's period to its local peak: the ladder's steps are 16 % apart,
+    several sd of a well-determined period), and its sd: the half-width where the profile falls by 1/2 from
+    the peak (None when it does not fall on both sides: the period is not determined by the survey)."""
     grid = period_s * np.geomspace(0.5, 2.0, 241)
     shares = pair_shares(d, *periodic_columns(ta, tb, 2 * np.pi / grid, proj))
     ll = np.array([log_lik(s, n_eff) for s in shares])
-    top = int(np.argmax(ll))
+    top = len(grid) // 2
+    while top < len(grid) - 1 and ll[top + 1] > ll[top]:
+        top += 1
+    while top > 0 and ll[top - 1] > ll[top]:
+        top -= 1
     inside = ll >= ll[top] - 0.5
     lo, hi = top, top
     while lo > 0 and inside[lo - 1]:
@@ -194,8 +204,8 @@ def period_sd(d, ta, tb, period_s: float, n_eff: int, proj: Projector) -> float 
     while hi < len(grid) - 1 and inside[hi + 1]:
         hi += 1
     if lo == 0 or hi == len(grid) - 1:
-        return None
-    return float(0.5 * (grid[hi] - grid[lo]))
+        return float(grid[top]), None
+    return float(grid[top]), float(0.5 * (grid[hi] - grid[lo]))
 
 
 def indistinct(forms: list[Form], best: Form, n_eff: int) -> list[str]:
