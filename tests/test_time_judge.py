@@ -70,7 +70,7 @@ def test_a_seiche_is_found_with_its_period(track):
     assert v.p_value <= THRESHOLD + 1e-12, v
     assert v.best.name == "periodic", v.best
     assert v.period_sd_s is not None and v.period_sd_s < 0.2 * period
-    assert abs(v.best.period_s - period) <= max(3 * v.period_sd_s, 0.1 * period), (
+    assert abs(v.best.period_s - period) <= 2 * v.period_sd_s, (
         v.best,
         v.period_sd_s,
     )
