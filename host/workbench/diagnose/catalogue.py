@@ -207,11 +207,18 @@ def _hours(seconds: float) -> str:
     return f"{seconds / 3600:.2f} h" if seconds >= 3 * 3600 else f"{seconds / 60:.0f} min"
 
 
+def _spread(sd_s: float, period_s: float | None) -> str:
+    """A period's sd in the unit `_hours` gives the period, one more digit."""
+    if period_s is not None and period_s >= 3 * 3600:
+        return f"{sd_s / 3600:.3f} h"
+    return f"{sd_s / 60:.1f} min"
+
+
 def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
     """The likely cause of a change in time the revisits found, named by its form (a tide near 12.42 or
     23.93 h, another period a seiche, a steady change a stage or a drift), with what they cannot tell apart."""
     form = verdict.best
-    sd = f" ± {_hours(verdict.period_sd_s)}" if verdict.period_sd_s else ""
+    sd = f" ± {_spread(verdict.period_sd_s, form.period_s)}" if verdict.period_sd_s else ""
     if family == "wind":
         return "the wind changes in time: gusts, a veer or a front passing"
     level = family == "depth"
@@ -223,6 +230,11 @@ def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
             f"{what}: an oscillation with a period of {_hours(form.period_s)}{sd}, such as a seiche of "
             "the lake or basin (Merian: T = 2 L / (n sqrt(g h)) for a basin of length L and depth h)"
         )
+        if verdict.fitted_period_s:
+            cause += (
+                f"; fitted with the map on every row, {verdict.fitted_period_s / 60:.1f} ± "
+                f"{verdict.fitted_period_sd_s / 60:.1f} min, which agrees"
+            )
     else:
         cause = (
             f"{what}: a steady rise or fall (a river's stage, a discharge changing, a slow drift)"

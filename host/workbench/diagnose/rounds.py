@@ -37,7 +37,11 @@ from forcemap.host.workbench.diagnose.result import (
     explain_candidate,
     revisit_note,
 )
-from forcemap.host.workbench.diagnose.time_candidate import smooth_time_term, time_term
+from forcemap.host.workbench.diagnose.time_candidate import (
+    fitted_seiche,
+    smooth_time_term,
+    time_term,
+)
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.instruments import Instruments
 from forcemap.host.workbench.spec import parse_term
@@ -256,6 +260,11 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
 def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
     """The term a significant verdict's form advises (a tide, a seiche, a drift), with its blocked-CV RMSE."""
     term = time_term(c.time, ev.target)
+    if term.startswith("seiche("):
+        est = fitted_seiche(ev.sm, c.time)
+        if est is not None:
+            c.time.fitted_period_s, c.time.fitted_period_sd_s = est.period_s, est.period_sd_s
+            term = f"seiche({est.period_s:.0f} s)"
     if term != c.term:
         c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
 

@@ -122,6 +122,31 @@ def time_term(verdict: TimeVerdict, target: str) -> str:
     return term if is_time_term(term) else smooth
 
 
+def fitted_seiche(sm, verdict: TimeVerdict):
+    """`fit`'s own estimate of a periodic change's period on the model `sm` (the term `seiche` resolved as
+    `fit` resolves it: the residual's periodogram and the marginal likelihood, on every row, the map beside
+    it), when it agrees with the revisits' period within twice their combined sd; None when it does not or
+    cannot be made. The revisits see time where the boat comes back; the fit sees every row, so where the two
+    agree the fit's period is the more precise."""
+    from forcemap.host.workbench import time_terms
+    from forcemap.host.workbench.errors import WorkbenchError
+    from forcemap.host.workbench.targets import SurveyModel
+
+    if verdict.best.name != "periodic" or verdict.period_sd_s is None:
+        return None
+    terms = [str(t) for t in sm.term_specs if t.kind not in ("seiche", "tide")]
+    probe = SurveyModel(sm.survey, sm.target, [*terms, "seiche"], max_basis=sm.max_basis)
+    try:
+        time_terms.resolve_seiche(probe)
+    except (WorkbenchError, np.linalg.LinAlgError, ValueError):
+        return None
+    est = probe.seiche_estimate
+    if est is None or not np.isfinite(est.period_sd_s):
+        return None
+    combined = np.hypot(est.period_sd_s, verdict.period_sd_s)
+    return est if abs(est.period_s - verdict.best.period_s) <= 2.0 * combined else None
+
+
 def smooth_time_term(target: str) -> str:
     """The term of a smooth change in time: the water level under depth, a GP in t otherwise."""
     return "water_level" if family(target) == "depth" else "gp(t, matern32)"

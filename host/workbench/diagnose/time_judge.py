@@ -79,6 +79,9 @@ class TimeVerdict:
     forms: list[Form] = field(default_factory=list)
     period_sd_s: float | None = None
     indistinct: list[str] = field(default_factory=list)  # forms the data cannot tell from the best
+    # `fit`'s own estimate of a periodic best's period, where it agrees (time_candidate.fitted_seiche)
+    fitted_period_s: float | None = None
+    fitted_period_sd_s: float | None = None
 
     @property
     def improvement(self) -> float:
