@@ -101,13 +101,13 @@ def form_at(ladder: FormLadder, i: int, share: float, p: float) -> Form:
 
 def kind_of(form: Form, span_s: float, sd_s: float | None) -> str:
     """What a fitted form is: a tide (a period in a tidal band), a periodic change (a period the record
-    holds at least once), or a drift (no period, or a period longer than the record: a part of a cycle is a
-    smooth rise or fall, whatever the rest of the cycle would be)."""
+    holds at least once, two sd above it included), or a drift (no period, or a period that may be longer
+    than the record: a part of a cycle is a smooth rise or fall, whatever the rest of the cycle would be)."""
     if form.period_s is None:
         return "drift"
     if is_tidal(form.period_s, sd_s or 0.0):
         return "tide"
-    return "periodic" if form.period_s <= span_s else "drift"
+    return "periodic" if form.period_s + 2.0 * (sd_s or 0.0) <= span_s else "drift"
 
 
 def is_tidal(period_s: float, sd_s: float = 0.0) -> bool:
