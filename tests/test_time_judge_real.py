@@ -67,8 +67,8 @@ def test_an_injected_seiche_is_named_by_its_period(real_case):
     """A seiche of +-0.25 m/s and 74 minutes put into the fjord race (3.9 h, several hundred crossings):
     time is credited in the first round as a periodic change, its period within 10 % of the injected one
     and its sd given; the fit's own estimate of the period agrees and is advised, and that term cuts the
-    error where the boat comes back. (On the Geneva race's 85 crossings the injected +-0.15 m/s seiche is not what the revisits
-    see: bench/RESULTS.md, "What the revisits see of an injected current".)"""
+    error where the boat comes back. (On the Geneva race's 85 crossings the injected +-0.15 m/s seiche is
+    not what the revisits see: bench/RESULTS.md, "What the revisits see of an injected current".)"""
     survey = load_survey(real_case("fjord_seiche").csv)
     d = diagnose(survey, "current_speed", rounds=1, progress=False)
     found = time_findings(d)

@@ -264,7 +264,7 @@ def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
         est = fitted_seiche(ev.sm, c.time)
         if est is not None:
             c.time.fitted_period_s, c.time.fitted_period_sd_s = est.period_s, est.period_sd_s
-            term = f"seiche({est.period_s:.0f} s)"
+            term = time_term(c.time, ev.target)
     if term != c.term:
         c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
 

@@ -106,8 +106,9 @@ def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] |
 
 
 def time_term(verdict: TimeVerdict, target: str) -> str:
-    """The term a verdict advises for `target`: a tide, a periodic term (a seiche), or a smooth change (a
-    drift, a stage: `water_level` under depth, a GP in t otherwise; a wind's gusts and veers too)."""
+    """The term a verdict advises for `target`: a tide, a periodic term (a seiche, at the fit's own period
+    where it agrees: `fitted_seiche`), or a smooth change (a drift, a stage: `water_level` under depth, a
+    GP in t otherwise; a wind's gusts and veers too)."""
     fam = family(target)
     smooth = smooth_time_term(target)
     if fam == "wind":
@@ -116,7 +117,7 @@ def time_term(verdict: TimeVerdict, target: str) -> str:
     if kind == "tide" and short_for_a_tide(verdict):
         kind = "drift"
     if kind == "periodic":
-        term = f"seiche({verdict.best.period_s:.0f} s)"
+        term = f"seiche({verdict.fitted_period_s or verdict.best.period_s:.0f} s)"
     else:
         term = "tide" if kind == "tide" else smooth
     return term if is_time_term(term) else smooth

@@ -26,7 +26,7 @@ at set times would otherwise look like a change in time).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from forcemap.host.workbench.diagnose.time_forms import (
@@ -153,16 +153,16 @@ def judge_time(
     best_i = best_form(obs, null)
     n_eff = max(rp.crossings, 2)
     forms = [form_at(ladder, i, float(obs[i]), float(per_form[i])) for i in range(len(obs))]
-    best = forms[best_i]
-    period, sd = best.period_s, None
-    if period is not None:
-        period, sd = refined_period(d, ta, tb, period, n_eff, proj)
+    best, sd = forms[best_i], None
+    if best.period_s is None:
+        columns = ladder.columns(best_i, ta, tb, proj)
+    else:
+        period, sd = refined_period(d, ta, tb, best.period_s, n_eff, proj)
         if sd is not None:
             sd = max(sd, bootstrap_period_sd(d, ta, tb, period, rp, proj, seed))
-    best = Form(kind_of(Form(best.name, period, 0, 0), span, sd), period, best.share, best.p_value)
-    columns = ladder.columns(best_i, ta, tb, proj)
-    if period is not None:
+        best = replace(best, period_s=period)
         columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
+    best = replace(best, name=kind_of(best, span, sd))
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -191,7 +191,9 @@ def log_lik(share: float, n_eff: int) -> float:
     return -0.5 * n_eff * math.log(max(1.0 - share, 1e-12))
 
 
-def refined_period(d, ta, tb, period_s: float, n_eff: int, proj: Projector):
+def refined_period(
+    d, ta, tb, period_s: float, n_eff: int, proj: Projector
+) -> tuple[float, float | None]:
     """The period at the top of the profile likelihood next to the ladder's `period_s` (a fine grid from
     half to twice it, climbed from the ladder's period to its local peak: the ladder's steps are 16 % apart,
     several sd of a well-determined period), and its sd: the half-width where the profile falls by 1/2 from
@@ -215,13 +217,15 @@ def refined_period(d, ta, tb, period_s: float, n_eff: int, proj: Projector):
     return float(grid[top]), float(0.5 * (grid[hi] - grid[lo]))
 
 
-def bootstrap_period_sd(d, ta, tb, period_s: float, rp: RevisitPairs, proj: Projector, seed: int = 0):
+def bootstrap_period_sd(
+    d, ta, tb, period_s: float, rp: RevisitPairs, proj: Projector, seed: int = 0
+) -> float:
     """The period's sd over the stretches resampled with replacement (BOOTSTRAP times), a pair weighted by
     the product of its two stretches' counts (Owen's pigeonhole bootstrap: a pair depends on both): where
     the peak moves when other passes happen to come back. The profile's curvature counts every crossing as
     independent evidence of one sinusoid, and a crossing's bootstrap does too; on the simulated laps of
-    tests/test_time_judge.py both gave sds about three times too small (16 seeds, periods of 50 and 74
-    min), this one about 1.2 times too large."""
+    tests/test_time_judge.py they gave sds five and three times too small (16 seeds, periods of 50 and 74
+    min), this one about 1.2 times too large (bench/bench_period_sd.py)."""
     grid = period_s * np.geomspace(2.0 / 3.0, 1.5, 81)
     C, S = periodic_columns(ta, tb, 2 * np.pi / grid, proj)
     sa, sb = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
