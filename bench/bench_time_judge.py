@@ -5,7 +5,7 @@ of the terms a verdict may advise (bench/RESULTS.md, "Time judged where the boat
     python -m bench.bench_time_judge crossline CASE --terms "" "tide" "gp(t, matern32)" [--target T]
     python -m bench.bench_time_judge cost CASE [--target T] [--permutations 200] [--diagnose-only]
 
-`cost` prints the CPU of `diagnose` on the case, and of one permutation of the revisit judge's null on the
+`cost` prints the CPU of `diagnose` on the case (and its first round's verdict on `t`), and of one permutation of the revisit judge's null on the
 baseline model's revisit pairs: from products over the stretches (`PermutedTimes.null`, what diagnose runs)
 and from the pairs' columns formed in full (`FormLadder.shares`), with the largest difference between them.
 
@@ -86,8 +86,9 @@ def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: 
 
     survey = load_survey(table_of(case, cases))
     c0 = time.process_time()
-    diagnose(survey, target, progress=False)
+    d = diagnose(survey, target, progress=False)
     line = f"{case} {target}: {survey.n} rows, diagnose {time.process_time() - c0:.1f} s CPU"
+    line += time_finding(d)
     if diagnose_only:
         print(line, flush=True)
         return
@@ -102,6 +103,21 @@ def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: 
         print(f"{line}; the track comes back too little to judge time", flush=True)
         return
     print(f"{line}; {null_cost(*judged[0], permutations)}", flush=True)
+
+
+def time_finding(d) -> str:
+    """The first round's verdict on `t` at the revisits, if it was judged there: form, period, advice."""
+    t = next((c for c in d.rounds[0].candidates if c.covariate == "t"), None)
+    v = None if t is None else t.time
+    if v is None:
+        return ""
+    out = f"; t: p {v.p_value:.3f}, {v.best.name}"
+    if v.best.period_s is not None:
+        sd = "" if v.period_sd_s is None else f" +- {v.period_sd_s:.0f}"
+        out += f" {v.best.period_s:.0f}{sd} s"
+    if v.fitted_period_s is not None:
+        out += f", the fit's {v.fitted_period_s:.0f} +- {v.fitted_period_sd_s:.0f} s"
+    return out + f", advised {t.term}" if t.significant else out
 
 
 def null_cost(d, rp, xy, heading, permutations: int) -> str:
