@@ -3,11 +3,13 @@ verdict on each (bench/RESULTS.md, "What the revisits see of an injected current
 
     python -m bench.bench_time_truth CASE [CASE ...] [--gains 0,1,2,3]
 
-A CASE is an injected current of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`). Gain 1
-is the case's table as built; gain g adds (g - 1) times the injected current to its east and north columns
-and recomputes the speed and direction (the table level, not the NMEA: the pipeline keeps an injected
-current with slopes 0.96-1.01, bench/RESULTS.md "Known effects injected into real NMEA logs"); gain 0 is the
-case with its injection taken out again.
+A CASE is an injected case of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`,
+`fjord_seiche`, `fjord_level`). Gain 1 is the case's table as built; gain g adds (g - 1) times the injected
+current to its east and north columns and recomputes the speed and direction, or (g - 1) times the injected
+level to its depth (the table level, not the NMEA: the pipeline keeps an injected current with slopes
+0.96-1.01 and a level with 1.001, bench/RESULTS.md "Known effects injected into real NMEA logs"); gain 0 is
+the case with its injection taken out again. A current is judged on `current_speed` (its east and north
+components), a level on `depth`.
 
 Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagnose judges them:
 - the verdict (`judge_time`): p-value, form, period;
@@ -50,6 +52,8 @@ def scaled_table(case: str, cases: Path, gain: float) -> tuple[Path, pd.DataFram
     out = cases / f"{case}.gain{gain:g}" / "log.csv"
     if not out.exists():
         df = pd.read_csv(built.csv)
+        if is_level(truth):
+            df["depth"] += (gain - 1.0) * np.interp(df.t, truth.t, truth.level)
         for c in ("east", "north"):
             df[f"current_{c}"] += (gain - 1.0) * np.interp(df.t, truth.t, truth[f"current_{c}"])
         df["current_speed"] = np.hypot(df.current_east, df.current_north)
@@ -58,6 +62,23 @@ def scaled_table(case: str, cases: Path, gain: float) -> tuple[Path, pd.DataFram
         df.to_csv(out.with_suffix(".tmp"), index=False)
         out.with_suffix(".tmp").rename(out)
     return out, truth
+
+
+def is_level(truth: pd.DataFrame) -> bool:
+    """Whether the case's injected part is a water level (soundings read deeper), not a current."""
+    return bool(np.ptp(truth.level) > 0)
+
+
+def components(sm: SurveyModel, truth: pd.DataFrame, t: np.ndarray):
+    """The judged components' models (a vector's east and north models with `sm`'s terms, or `sm`) and
+    the injected part on each at UNIX times `t`."""
+    if sm.vector is None:
+        return [(sm, np.interp(t, truth.t, truth.level))]
+    out = []
+    for aspect in ("east", "north"):
+        m = SurveyModel(sm.survey, sm.vector.column(aspect), [str(x) for x in sm.term_specs], max_basis=600)
+        out.append((m.fit(), np.interp(t, truth.t, truth[f"current_{aspect}"])))
+    return out
 
 
 def through_map(m: SurveyModel, Y: np.ndarray) -> np.ndarray:
@@ -82,7 +103,8 @@ def share_by_component(d: np.ndarray, cols: list[np.ndarray]) -> float:
 
 def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) -> str:
     """One gain's line: the verdict, what the maps keep of the truth, what the truth explains."""
-    sm = SurveyModel(load_survey(table), "current_speed", None, max_basis=600).fit()
+    target = "depth" if is_level(truth) else "current_speed"
+    sm = SurveyModel(load_survey(table), target, None, max_basis=600).fit()
     s = sm.survey
     found = revisits_of(sm)
     if found is None:
@@ -94,19 +116,15 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     ver = judge_time(values[v[:, 1]] - values[v[:, 0]], rp, s.xy[rows], hd)
     proj = tf.Projector(tf.nuisance(rp, s.xy[rows], hd))
     d = proj(tf.clipped(values[v[:, 1]] - values[v[:, 0]]))
-    tt = s.trel + s.t0
-    T = np.column_stack([np.interp(tt, truth.t, truth[f"current_{c}"]) for c in ("east", "north")])
-    T *= gain if gain > 0 else 1.0
     u = s.trel / np.ptp(s.trel)
     F = np.column_stack(
         [f(2 * np.pi * s.trel / (60 * P)) for P in PERIODS_MIN for f in (np.cos, np.sin)]
     )
     kept, truth_cols, form_cols = [], [], []
-    for k, aspect in enumerate(("east", "north")):
-        m = SurveyModel(s, sm.vector.column(aspect), [str(x) for x in sm.term_specs], max_basis=600)
-        m.fit()
-        R = through_map(m, np.column_stack([T[:, k], F, u, u * u]))
-        kept.append(np.std(R[:, 0]) / max(np.std(T[:, k]), 1e-12))
+    for m, T in components(sm, truth, s.trel + s.t0):
+        T = T * (gain if gain > 0 else 1.0)
+        R = through_map(m, np.column_stack([T, F, u, u * u]))
+        kept.append(np.std(R[:, 0]) / max(np.std(T), 1e-12))
         diff = proj(R[v[:, 1]] - R[v[:, 0]])
         truth_cols.append(diff[:, :1])
         form_cols.append(diff[:, 1:])
@@ -123,7 +141,7 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     return (
         f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period}; "
         f"kept {np.mean(kept):.2f}; truth explains {share_by_component(d, truth_cols):.3f} "
-        f"(coefficients {coef[0]:.2f}, {coef[1]:.2f}); through the maps {mapped}"
+        f"(coefficients {', '.join(f'{c:.2f}' for c in coef)}); through the maps {mapped}"
     )
 
 
@@ -138,8 +156,11 @@ def main() -> None:
         for case in a.cases:
             for gain in (float(g) for g in a.gains.split(",")):
                 table, truth = scaled_table(case, a.cases_dir, gain)
-                along = np.hypot(truth.current_east, truth.current_north).max()
-                print(f"{case} {judge_gain(table, truth, gain, f'{gain * along:.2f} m/s')}", flush=True)
+                if is_level(truth):
+                    size = f"{gain * np.ptp(truth.level):.2f} m"
+                else:
+                    size = f"{gain * np.hypot(truth.current_east, truth.current_north).max():.2f} m/s"
+                print(f"{case} {judge_gain(table, truth, gain, size)}", flush=True)
     except (WorkbenchError, FileNotFoundError, KeyError) as e:
         print(f"bench_time_truth: {e}", file=sys.stderr)
         raise SystemExit(2) from None
