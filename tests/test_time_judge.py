@@ -189,3 +189,22 @@ def test_the_permutations_shares_are_those_of_the_columns_formed_in_full(track, 
         full = ladder.shares(d, ta, tb, proj)
         np.testing.assert_allclose(fast, full, rtol=1e-9, atol=1e-12)
     assert null[:, 1:].max() > 0.01  # the shares are not all zero: the test can fail
+
+
+def test_the_evidence_counts_the_crossings_a_change_rests_on():
+    """A change fitted at one crossing rests on one, whatever its number of pairs; a change seen alike at
+    every crossing rests on all of them; and the crossing that carries most is named by its passes' times."""
+    from forcemap.host.workbench.diagnose.time_judge import evidence
+    from forcemap.host.workbench.revisits import RevisitPairs
+
+    t = np.array([0.0, 10.0, 100.0, 110.0, 200.0, 210.0, 300.0, 310.0])
+    stretch = np.array([0, 0, 1, 1, 2, 2, 3, 3])
+    # crossings (0, 3) with four pairs, (1, 2) and (0, 1) with one each
+    pairs = np.array([[0, 6], [1, 7], [0, 7], [1, 6], [2, 4], [0, 2]])
+    rp = RevisitPairs(pairs, stretch, 4, 100.0, 3.0, t)
+    at_start_and_end = np.array([1.0, 1, 1, 1, 0, 0])[:, None]
+    n, (a, b) = evidence(0.6 * at_start_and_end, rp, at_start_and_end)
+    assert n == pytest.approx(1.0) and (a, b) == (5.0, 305.0)
+    everywhere = np.array([0.5, 0.5, 0.5, 0.5, 1.0, 1.0])[:, None]  # each crossing's pairs add to 1
+    n, _ = evidence(0.6 * everywhere, rp, everywhere)
+    assert n == pytest.approx(3.0)

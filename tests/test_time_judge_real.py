@@ -110,3 +110,22 @@ def test_a_real_flood_tide_is_time_and_the_currents_own_direction_is_not_its_cau
     assert first.added.time is not None and first.added.p_value <= threshold(first)
     for r in d.rounds:
         assert r.added is None or r.added.covariate not in ("current_dir", "heading_rel_current")
+
+
+def test_an_injected_level_is_seen_at_the_harbour_it_was_passed_at_the_start_and_end(real_case):
+    """The fjord's 0.6 m rise under a real sounder (`fjord_level`, soundings read deeper by the level): its
+    revisits see a rise, and the finding says where: on a handful of the race's crossings, most of all the
+    harbour passed in its first and its last minutes (one comparison: bench/RESULTS.md, "The injected level
+    seen at the revisits")."""
+    from forcemap.host.workbench.diagnose.result import revisit_note
+    from forcemap.host.workbench.diagnose.time_candidate import time_verdict
+    from forcemap.host.workbench.targets import SurveyModel
+
+    survey = load_survey(real_case("fjord_level").csv)
+    v, held = time_verdict(SurveyModel(survey, "depth", None, max_basis=600).fit())
+    assert v.best.name == "drift" and v.p_value <= 0.01, v.best
+    assert v.evidence_crossings <= v.crossings / 3, (v.evidence_crossings, v.crossings)
+    first, last = v.evidence_at_s
+    assert first < 0.1 * v.span_s and last > 0.9 * v.span_s, v.evidence_at_s
+    note = revisit_note(v, held)
+    assert f"rests on about {v.evidence_crossings:.0f} of the {v.crossings} crossings" in note, note

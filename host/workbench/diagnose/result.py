@@ -308,7 +308,23 @@ def revisit_note(verdict, held_rows: int) -> str:
         f"judged on {verdict.pairs} revisit pairs ({verdict.crossings} crossings within "
         f"{verdict.radius_m:.0f} m, stretches of {verdict.stretch_s:.0f} s or more apart){held}: their "
         f"differences have an RMS of {verdict.rms_difference:.3g}, of which a change in time explains "
-        f"{verdict.rms_time:.3g} RMS ({verdict.share:.0%} of their mean square, cross-validated)"
+        + (
+            f"{verdict.rms_time:.3g} RMS ({verdict.share:.0%} of their mean square, cross-validated)"
+            if verdict.share > 0
+            else "nothing (cross-validated)"
+        )
+        + evidence_note(verdict)
+    )
+
+
+def evidence_note(verdict) -> str:
+    """Where the fitted change is seen: how many crossings it rests on, and the passes that carry most."""
+    if verdict.evidence_crossings <= 0 or verdict.share <= 0:
+        return ""
+    a, b = (x / 60.0 for x in verdict.evidence_at_s)
+    return (
+        f"; the change it fits rests on about {verdict.evidence_crossings:.0f} of the "
+        f"{verdict.crossings} crossings, most on the passes {a:.0f} and {b:.0f} min into the survey"
     )
 
 

@@ -82,6 +82,10 @@ class TimeVerdict:
     # `fit`'s own estimate of a periodic best's period, where it agrees (time_candidate.fitted_seiche)
     fitted_period_s: float | None = None
     fitted_period_sd_s: float | None = None
+    # how many crossings the fitted change rests on, and the times (s) of the two passes of the one that
+    # carries most of it (`evidence`)
+    evidence_crossings: float = 0.0
+    evidence_at_s: tuple[float, float] = (0.0, 0.0)
 
     @property
     def improvement(self) -> float:
@@ -163,6 +167,7 @@ def judge_time(
         best = replace(best, period_s=period)
         columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
     best = replace(best, name=kind_of(best, span, sd))
+    n_evidence, at = evidence(d, rp, columns)
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -177,7 +182,27 @@ def judge_time(
         forms=forms,
         period_sd_s=sd,
         indistinct=indistinct(forms, best, n_eff),
+        evidence_crossings=n_evidence,
+        evidence_at_s=at,
     )
+
+
+def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tuple[float, float]]:
+    """How many crossings the change fitted by the columns `A` rests on: the participation ratio
+    (sum s)^2 / sum s^2 of each crossing's share s of the sum of squares the change explains (every crossing
+    alike: their number; one crossing: 1), and the mean times of the two passes of the crossing with the
+    largest share. A change seen where one place was passed at the start and at the end rests on that one
+    comparison, however many pairs it has."""
+    w, *_ = np.linalg.lstsq(A, d, rcond=None)
+    explained = ((A @ w) ** 2).sum(axis=1)
+    a, b = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
+    crossing = np.unique(a * rp.n_stretches + b, return_inverse=True)[1].ravel()
+    s = np.bincount(crossing, weights=explained)
+    if not np.isfinite(s).all() or s.sum() <= 0:
+        return 0.0, (0.0, 0.0)
+    top = crossing == int(np.argmax(s))
+    ta, tb = rp.times()
+    return float(s.sum() ** 2 / (s * s).sum()), (float(ta[top].mean()), float(tb[top].mean()))
 
 
 def best_form(obs: np.ndarray, null: np.ndarray) -> int:
