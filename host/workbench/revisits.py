@@ -110,8 +110,12 @@ class RevisitPairs:
     @property
     def crossings(self) -> int:
         """How many distinct pairs of stretches meet: the number of times a pass came back."""
+        return int(self.crossing_index().max(initial=-1)) + 1
+
+    def crossing_index(self) -> np.ndarray:
+        """Each pair's crossing (the pair of stretches it joins), numbered 0 .. crossings - 1."""
         a, b = self.stretch[self.pairs[:, 0]], self.stretch[self.pairs[:, 1]]
-        return len(np.unique(a * self.n_stretches + b))
+        return np.unique(a * self.n_stretches + b, return_inverse=True)[1].ravel()
 
     @property
     def rows(self) -> np.ndarray:

@@ -195,8 +195,7 @@ def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tup
     comparison, however many pairs it has."""
     w, *_ = np.linalg.lstsq(A, d, rcond=None)
     explained = ((A @ w) ** 2).sum(axis=1)
-    a, b = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
-    crossing = np.unique(a * rp.n_stretches + b, return_inverse=True)[1].ravel()
+    crossing = rp.crossing_index()
     s = np.bincount(crossing, weights=explained)
     if not np.isfinite(s).all() or s.sum() <= 0:
         return 0.0, (0.0, 0.0)
