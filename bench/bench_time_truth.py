@@ -12,7 +12,8 @@ the case with its injection taken out again. A current is judged on `current_spe
 components), a level on `depth`.
 
 Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagnose judges them:
-- the verdict (`judge_time`): p-value, form, period;
+- the verdict (`judge_time`): p-value, form, period, and how many crossings the change it fits rests on
+  (`time_judge.evidence`);
 - `kept`: the share of the injected current's sd the maps leave in their residuals (the same component models
   with their hyperparameters fixed, fitted to the injected current alone: the map is a linear smoother there);
 - `truth explains`: the share of the revisit differences' sum of squares that the injected current's own
@@ -139,7 +140,9 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     period = "" if b.period_s is None else f" {b.period_s / 60:.0f} min"
     mapped = f"{PERIODS_MIN[best]:.0f} min ({shares[best]:.3f}; drift {drift:.3f})"
     return (
-        f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period}; "
+        f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period} "
+        f"(resting on {ver.evidence_crossings:.1f} crossings, most at {ver.evidence_at_s[0] / 60:.0f} and "
+        f"{ver.evidence_at_s[1] / 60:.0f} min); "
         f"kept {np.mean(kept):.2f}; truth explains {share_by_component(d, truth_cols):.3f} "
         f"(coefficients {', '.join(f'{c:.2f}' for c in coef)}); through the maps {mapped}"
     )
