@@ -120,6 +120,10 @@ def test_diagnose_of_a_real_log_with_gaps_says_what_it_left_out(fjord, capsys, t
     assert gaps[0]["text"].startswith(f"{empty.sum():,} of {len(empty):,} rows have no current")
     assert f"the other {len(empty) - empty.sum():,}" in gaps[0]["text"]
     assert len(d["candidates"]) >= 10  # the diagnosis ran over the candidates, gaps or not
+    # time is judged where the race comes back, and the JSON says by how many pairs and on how many crossings
+    v = next(c for c in d["candidates"] if c["covariate"] == "t")["time"]
+    assert v["pairs"] > 50 and 1.0 <= v["evidence_crossings"] <= v["crossings"], v
+    assert all(0.0 <= s <= v["span_s"] for s in v["evidence_at_s"]), v
 
 
 @pytest.mark.slow

@@ -229,8 +229,9 @@ def test_diagnose_json_contract(survey_csv, tmp_path, capsys):
     }
     assert set(d["baseline"]) == {"terms", "cv_rmse"}
     keys = {"covariate", "cv_rmse", "improvement", "explanation"}
-    keys |= {"identifiable", "confounded_with", "null_gains", "rows"}
+    keys |= {"identifiable", "confounded_with", "null_gains", "rows", "time"}
     assert d["candidates"] and all(set(c) == keys for c in d["candidates"])
+    assert all(c["time"] is None for c in d["candidates"] if c["covariate"] != "t")  # the revisits judge t
     assert d["rounds"][0]["candidates"] == d["candidates"]
     assert d["rounds"][0]["added"] == ("gp(depth, matern32)" if d["missing_effect_found"] else None)
     gains = [c["improvement"] for c in d["candidates"]]

@@ -60,6 +60,7 @@ class Candidate:
             "confounded_with": self.confounded_with,
             "null_gains": self.null_gains,
             "rows": self.rows,
+            "time": None if self.time is None else dataclasses.asdict(self.time),
         }
 
 
