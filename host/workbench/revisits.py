@@ -114,8 +114,8 @@ class RevisitPairs:
 
     def crossing_index(self) -> np.ndarray:
         """Each pair's crossing (the pair of stretches it joins), numbered 0 .. crossings - 1."""
-        a, b = self.stretch[self.pairs[:, 0]], self.stretch[self.pairs[:, 1]]
-        return np.unique(a * self.n_stretches + b, return_inverse=True)[1].ravel()
+        key = crossing_keys(self.pairs, self.stretch, self.n_stretches)
+        return np.unique(key, return_inverse=True)[1].ravel()
 
     @property
     def rows(self) -> np.ndarray:
@@ -156,13 +156,18 @@ def revisit_pairs(
     return RevisitPairs(p.reshape(-1, 2), stretch, n_st, float(stretch_s), float(radius_m), t)
 
 
+def crossing_keys(pairs: np.ndarray, stretch: np.ndarray, n_stretches: int) -> np.ndarray:
+    """Each pair's crossing as one number: the pair of stretches it joins."""
+    return stretch[pairs[:, 0]] * n_stretches + stretch[pairs[:, 1]]
+
+
 def balanced(p: np.ndarray, stretch: np.ndarray, n_st: int, seed: int) -> np.ndarray:
     """At most MAX_PAIRS pairs, as evenly as possible over the crossings (pairs of stretches): a boat that
     circles at a mark for minutes makes thousands of pairs of one crossing, and a uniform sample of the
     pairs would judge time almost only there."""
     if len(p) <= MAX_PAIRS:
         return p
-    key = stretch[p[:, 0]] * n_st + stretch[p[:, 1]]
+    key = crossing_keys(p, stretch, n_st)
     rng = np.random.default_rng(seed)
     order = rng.permutation(len(p))
     key = key[order]
