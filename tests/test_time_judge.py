@@ -208,3 +208,29 @@ def test_the_evidence_counts_the_crossings_a_change_rests_on():
     everywhere = np.array([0.5, 0.5, 0.5, 0.5, 1.0, 1.0])[:, None]  # each crossing's pairs add to 1
     n, _ = evidence(0.6 * everywhere, rp, everywhere)
     assert n == pytest.approx(3.0)
+
+
+def test_a_p_value_near_its_threshold_is_resolved_with_more_exchanges(track):
+    """999 exchanges cannot tell a p-value of 0.003 from a threshold of 0.05 / 24 = 0.0021 (two
+    exceedances against one or none); the exact p-value's 99 % interval says so, and a verdict asked for a
+    threshold inside it draws exchanges up to MAX_PERMUTATIONS, the first ones the same. A threshold far
+    from the p-value costs nothing more."""
+    from forcemap.host.workbench.diagnose.time_judge import MAX_PERMUTATIONS, undecided
+
+    assert undecided(0.003, 999, 0.05 / 24) and undecided(0.001, 999, 0.05 / 24)
+    assert not undecided(0.0001, 9999, 0.05 / 24)  # no exceedance in 9,999: below 0.00053
+    assert not undecided(0.4, 999, 0.05 / 24) and undecided(0.4, 999, 0.42)
+    t, xy, heading = track
+    values = noise(len(t), 4) + 0.1 * np.cos(np.radians(heading))
+    stretch = stretch_length(t, values - np.median(values))
+    rp = revisit_pairs(xy, t, 20.0, stretch)
+    d = values[rp.pairs[:, 1]] - values[rp.pairs[:, 0]]
+    first = judge_time(d, rp, xy, heading, permutations=299)
+    far = judge_time(d, rp, xy, heading, permutations=299, threshold=0.05 / 24)
+    assert far.permutations == 299 and far.p_value == first.p_value
+    near = judge_time(d, rp, xy, heading, permutations=299, threshold=first.p_value)
+    assert near.permutations == MAX_PERMUTATIONS
+    k = first.p_value * 300  # exceedances (and the observed) among the first 299, kept in the 9,999
+    assert near.p_value * (MAX_PERMUTATIONS + 1) >= k - 1e-9
+    se = np.sqrt(first.p_value * (1 - first.p_value) / 299)
+    assert abs(near.p_value - first.p_value) < 4 * se, (near.p_value, first.p_value)

@@ -177,12 +177,19 @@ class Evaluator:
                 X.update(survey_inputs(self.survey, {name}))
         return self.sm.primary.extended(build_term(spec, is_circular), X, self.sm.y_primary)
 
-    def time_verdict(self):
-        """What the revisits say about time (`time_candidate.time_verdict`), computed once."""
-        if self._time is None:
-            from forcemap.host.workbench.diagnose.time_candidate import time_verdict
+    def time_verdict(self, threshold: float | None = None):
+        """What the revisits say about time (`time_candidate.time_verdict`), computed once; again with more
+        permutations when a `threshold` lies within its p-value's sampling error."""
+        from forcemap.host.workbench.diagnose.time_candidate import time_verdict
+        from forcemap.host.workbench.diagnose.time_judge import undecided
 
+        if self._time is None:
             self._time = (time_verdict(self.sm),)
+        found = self._time[0]
+        if threshold is not None and found is not None:
+            v = found[0]
+            if undecided(v.p_value, v.permutations, threshold):
+                self._time = (time_verdict(self.sm, threshold=threshold),)
         return self._time[0]
 
     def clock(self) -> tuple[str, float, float, float]:

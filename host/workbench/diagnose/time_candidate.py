@@ -91,9 +91,12 @@ def revisits_of(sm, radius_m: float | None = None) -> Revisits | None:
     return Revisits(rows, rp, int((~moving).sum()), values)
 
 
-def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] | None:
+def time_verdict(
+    sm, radius_m: float | None = None, threshold: float | None = None
+) -> tuple[TimeVerdict, int] | None:
     """The revisits' verdict on time for the fitted model `sm`, and how many rows were left out as held in
-    one place; None when the track comes back too little to judge it."""
+    one place; None when the track comes back too little to judge it. With a `threshold`, the p-value is
+    resolved on either side of it (`judge_time`)."""
     found = revisits_of(sm, radius_m)
     if found is None:
         return None
@@ -101,7 +104,8 @@ def time_verdict(sm, radius_m: float | None = None) -> tuple[TimeVerdict, int] |
     v = rows[rp.pairs]
     d = values[v[:, 1]] - values[v[:, 0]]
     heading = sm.survey.columns.get("heading")
-    verdict = judge_time(d, rp, sm.survey.xy[rows], None if heading is None else heading[rows])
+    hd = None if heading is None else heading[rows]
+    verdict = judge_time(d, rp, sm.survey.xy[rows], hd, threshold=threshold)
     return verdict, held
 
 

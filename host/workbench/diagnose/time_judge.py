@@ -44,6 +44,11 @@ from forcemap.host.workbench.revisits import RevisitPairs
 __all__ = ["M2_S", "Form", "TimeVerdict", "judge_time"]
 
 PERMUTATIONS = 999
+# and at most this many, drawn when the first PERMUTATIONS leave a threshold inside the p-value's sampling
+# error (`undecided`): a Bonferroni threshold of 0.05 / 24 = 0.0021 is two exceedances in 999
+MAX_PERMUTATIONS = 9999
+# the confidence of the exact p-value's interval a decision needs
+DECIDED = 0.99
 # resamples of the stretches for the period's sd
 BOOTSTRAP = 200
 # the periods a tide has (s): semidiurnal 12.0-12.66 h, diurnal 23.93-25.82 h
@@ -138,9 +143,11 @@ def judge_time(
     heading: np.ndarray | None = None,
     permutations: int = PERMUTATIONS,
     seed: int = 0,
+    threshold: float | None = None,
 ) -> TimeVerdict:
     """Judge a change in time from the residual differences `d` (one row per pair of `rp`, one column per
-    vector component, the later sample minus the earlier)."""
+    vector component, the later sample minus the earlier). With a `threshold`, permutations are added up to
+    MAX_PERMUTATIONS while the p-value cannot yet say on which side of it the exact one lies."""
     d = np.asarray(d, float).reshape(len(rp.pairs), -1)
     rms = float(np.sqrt(np.mean((d * d).sum(axis=1))))
     proj = Projector(nuisance(rp, xy, heading))
@@ -154,6 +161,11 @@ def judge_time(
     orders = np.array([rng.permutation(rp.n_stretches) for _ in range(permutations)])
     null = pt.null(d, orders)
     per_form, p = permutation_p(obs, null)
+    if threshold is not None and len(null) < MAX_PERMUTATIONS and undecided(p, len(null), threshold):
+        more = MAX_PERMUTATIONS - len(null)
+        orders = np.array([rng.permutation(rp.n_stretches) for _ in range(more)])
+        null = np.concatenate([null, pt.null(d, orders)])
+        per_form, p = permutation_p(obs, null)
     best_i = best_form(obs, null)
     n_eff = max(rp.crossings, 2)
     forms = [form_at(ladder, i, float(obs[i]), float(per_form[i])) for i in range(len(obs))]
@@ -177,7 +189,7 @@ def judge_time(
         rms_difference=rms,
         share=cv_share(d, rp, columns),
         p_value=p,
-        permutations=permutations,
+        permutations=len(null),
         best=best,
         forms=forms,
         period_sd_s=sd,
@@ -202,6 +214,19 @@ def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tup
     top = crossing == int(np.argmax(s))
     ta, tb = rp.times()
     return float(s.sum() ** 2 / (s * s).sum()), (float(ta[top].mean()), float(tb[top].mean()))
+
+
+def undecided(p: float, n: int, threshold: float) -> bool:
+    """Whether a permutation p-value from `n` permutations leaves `threshold` inside the DECIDED
+    Clopper-Pearson interval of the exact p-value (the share of all exchanges that reach the observed
+    statistic): more permutations could move it to the other side."""
+    from scipy.stats import beta
+
+    k = max(round(p * (n + 1)) - 1, 0)  # the exceedances among the n
+    tail = 0.5 * (1.0 - DECIDED)
+    lo = float(beta.ppf(tail, k, n - k + 1)) if k > 0 else 0.0
+    hi = float(beta.ppf(1.0 - tail, k + 1, n - k)) if k < n else 1.0
+    return lo <= threshold <= hi
 
 
 def best_form(obs: np.ndarray, null: np.ndarray) -> int:
