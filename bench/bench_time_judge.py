@@ -4,6 +4,11 @@ of the terms a verdict may advise (bench/RESULTS.md, "Time judged where the boat
     python -m bench.bench_time_judge radius CASE [CASE ...] [--shares 0.2,0.5]
     python -m bench.bench_time_judge crossline CASE --terms "" "tide" "gp(t, matern32)" [--target T]
     python -m bench.bench_time_judge cost CASE [--target T] [--permutations 200] [--diagnose-only]
+    python -m bench.bench_time_judge seeds CASE [--target T] [--seeds 4] [--threshold 0.0021]
+
+`seeds` prints the verdict's p-value on the baseline model's revisits for each seed of the exchanges: from
+999 of them, and as diagnose takes it against `--threshold` (0.05 over 24 candidates by default: more
+exchanges, up to 9,999, while the threshold lies within the p-value's sampling error).
 
 `cost` prints the CPU of `diagnose` on the case (and its first round's verdict on `t`), and of one permutation of the revisit judge's null on the
 baseline model's revisit pairs: from products over the stretches (`PermutedTimes.null`, what diagnose runs)
@@ -105,6 +110,34 @@ def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: 
     print(f"{line}; {null_cost(*judged[0], permutations)}", flush=True)
 
 
+def seeds(case: str, cases: Path, target: str, n: int, threshold: float) -> None:
+    """The verdict's p-value for seeds 0 .. n-1: from PERMUTATIONS exchanges, and resolved against
+    `threshold` (`judge_time`'s `threshold`)."""
+    from forcemap.host.workbench.diagnose.time_candidate import revisits_of
+    from forcemap.host.workbench.diagnose.time_judge import judge_time
+
+    sm = SurveyModel(load_survey(table_of(case, cases)), target, None, max_basis=600).fit()
+    found = revisits_of(sm)
+    if found is None:
+        print(f"{case} {target}: the track comes back too little", flush=True)
+        return
+    rows, rp, _, values = found
+    v = rows[rp.pairs]
+    heading = sm.survey.columns.get("heading")
+    args = (values[v[:, 1]] - values[v[:, 0]], rp, sm.survey.xy[rows])
+    args += (None if heading is None else heading[rows],)
+    cells = []
+    for seed in range(n):
+        first = judge_time(*args, seed=seed)
+        c0 = time.process_time()
+        resolved = judge_time(*args, seed=seed, threshold=threshold)
+        cells.append(
+            f"seed {seed}: p {first.p_value:.4f} ({first.permutations}), {resolved.p_value:.4f} "
+            f"({resolved.permutations}, {time.process_time() - c0:.1f} s CPU)"
+        )
+    print(f"{case} {target} against {threshold:.4f} | " + " | ".join(cells), flush=True)
+
+
 def time_finding(d) -> str:
     """The first round's verdict on `t` at the revisits, if it was judged there: form, period, advice."""
     t = next((c for c in d.rounds[0].candidates if c.covariate == "t"), None)
@@ -144,13 +177,15 @@ def null_cost(d, rp, xy, heading, permutations: int) -> str:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=("radius", "crossline", "cost"))
+    p.add_argument("what", choices=("radius", "crossline", "cost", "seeds"))
     p.add_argument("cases", nargs="+", metavar="CASE")
     p.add_argument("--target", default="current_speed")
     p.add_argument("--shares", default="0.2,0.5", help="radii as shares of the map's length scale")
     p.add_argument("--terms", nargs="+", default=["", "tide", "gp(t, matern32)"])
     p.add_argument("--permutations", type=int, default=200, help="cost: permutations timed each way")
     p.add_argument("--diagnose-only", action="store_true", help="cost: only diagnose's CPU")
+    p.add_argument("--seeds", type=int, default=4, help="seeds: how many seeds of the exchanges")
+    p.add_argument("--threshold", type=float, default=0.05 / 24, help="seeds: diagnose's threshold")
     p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
     a = p.parse_args()
     a.cases_dir.mkdir(parents=True, exist_ok=True)
@@ -166,6 +201,8 @@ def run(a: argparse.Namespace) -> None:
     for case in a.cases:
         if a.what == "radius":
             radius(case, a.cases_dir, a.target, [float(x) for x in a.shares.split(",")])
+        elif a.what == "seeds":
+            seeds(case, a.cases_dir, a.target, a.seeds, a.threshold)
         elif a.what == "cost":
             cost(case, a.cases_dir, a.target, a.permutations, a.diagnose_only)
         else:
