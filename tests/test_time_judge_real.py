@@ -129,3 +129,20 @@ def test_an_injected_level_is_seen_at_the_harbour_it_was_passed_at_the_start_and
     assert first < 0.1 * v.span_s and last > 0.9 * v.span_s, v.evidence_at_s
     note = revisit_note(v, held)
     assert f"rests on about {v.evidence_crossings:.0f} of the {v.crossings} crossings" in note, note
+
+
+def test_a_level_the_revisits_cannot_pin_is_reported_as_the_beds(real_case):
+    """Without a gauge, `water_level` on the fjord race (a sounder under a heeling yacht, a bed from 10 to
+    70 m that the map resolves to a couple of hundred metres) takes the bed's detail along the track: held
+    out where the track comes back it makes the passes agree less than the map alone, and `fit` says so
+    with both errors and the level's range, and names the gauge as the way out."""
+    survey = load_survey(real_case("fjord_level").csv)
+    fitted = fit_target(survey, "depth", [*BASELINE, "water_level"], progress=False)
+    check = fitted.level
+    assert check is not None and not check.holds, check
+    assert check.with_level > check.without_level > 0
+    assert check.range_m > 10 * 0.6, check  # the injected rise is 0.6 m
+    summary = fitted.summary()
+    assert "makes the passes agree less" in summary and "--water-level GAUGE.csv" in summary, summary
+    assert fitted.to_json()["level_check"]["holds"] is False
+    assert fit_target(survey, "depth", BASELINE, progress=False).level is None

@@ -243,6 +243,11 @@ def test_the_level_is_estimated_from_the_crossings(tmp_path, seed):
     assert np.sqrt(np.mean(err**2)) < 0.05, (np.sqrt(np.mean(err**2)), sd.mean())
     # the sounder's own noise is left, not the tide's swing
     assert fit.model.primary.noise_std_ < 0.15
+    # and held out where the lines are run again, the level makes the passes agree better than the map alone
+    check = fit.level
+    assert check is not None and check.holds, check
+    assert check.with_level < 0.5 * check.without_level, check
+    assert abs(check.range_m - np.ptp(truth)) < 0.2 * np.ptp(truth), (check.range_m, np.ptp(truth))
 
 
 @pytest.mark.slow

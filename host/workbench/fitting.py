@@ -19,12 +19,13 @@ from forcemap.host.workbench.cv import (
 )
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.failures import failure_summary
+from forcemap.host.workbench.level_check import LevelCheck, check_level
 from forcemap.host.workbench.revisits import target_radius
 from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
 from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import Survey, unit_of
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
-from forcemap.host.workbench.water_level import crossline_rmse
+from forcemap.host.workbench.water_level import crossline_rmse, level_term
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
 
 # from this many rows on, the Gram tables' direct sums cost more than the rest of a fit (host/workbench/nufft.py)
@@ -56,6 +57,8 @@ class FitResult:
     failures: list[str]
     # the held-out error where the track revisits itself (water_level.crossline_rmse), or None
     crossline: dict | None = None
+    # a depth model's level against the same error without it (level_check.check_level), or None
+    level: LevelCheck | None = None
 
     def to_json(self) -> dict:
         """The stable machine-readable contract."""
@@ -71,6 +74,8 @@ class FitResult:
         }
         if self.model.time_terms:
             out["time_terms"] = time_terms.tide_summary(self.model)
+        if self.level is not None:
+            out["level_check"] = self.level.to_json()
         return out | (self.crossline or {})
 
     def summary(self) -> str:
@@ -86,6 +91,8 @@ class FitResult:
                 f"where the track revisits itself ({self.crossline['crossline_samples']} samples, each "
                 f"time stretch held out): RMSE {self.crossline['crossline_rmse']:.4g}{unit}"
             )
+        if self.level is not None:
+            lines.append(f"level: {self.level.line()}")
         if m.calibration is not None:
             lines.append(m.calibration.line())
         lines += [f"gaps: {t}" for t in m.rows.lines()]
@@ -172,7 +179,11 @@ def fit_target(
     unit = f" {u}" if (u := unit_of(target)) else ""
     # depth is read from the moving surface: what blocked CV cannot see shows where the track crosses itself
     crossline = crossline_rmse(sm, target_radius(sm))
-    return FitResult(sm, cv, folds, failure_summary(sm.survey, cv.error, unit), crossline)
+    if crossline is not None and level_term(sm.primary) is not None:
+        note("checking the level against the map alone where the track comes back ...", progress)
+    level = check_level(sm, crossline, target_radius(sm))
+    failures = failure_summary(sm.survey, cv.error, unit)
+    return FitResult(sm, cv, folds, failures, crossline, level)
 
 
 def record(table: Path, result: FitResult) -> dict:
