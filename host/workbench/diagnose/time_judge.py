@@ -220,7 +220,7 @@ def undecided(p: float, n: int, threshold: float) -> bool:
     """Whether a p-value from `n` permutations lies within RESOLVE of `threshold` (either way), where more
     permutations could move it to the other side. The forms' standardisation is estimated from the same
     permutations, so the p-value varies between draws more than a count of exceedances would: on the
-    fjord's level (bench/RESULTS.md), 0.002 to 0.018 over four seeds at 999, 0.0014 to 0.0033 at 9,999."""
+    fjord's level (bench/RESULTS.md), 0.002 to 0.018 over six seeds at 999, 0.0014 to 0.0044 at 9,999."""
     return n < MAX_PERMUTATIONS and threshold / RESOLVE < p < threshold * RESOLVE
 
 
