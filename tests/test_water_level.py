@@ -245,7 +245,7 @@ def test_the_level_is_estimated_from_the_crossings(tmp_path, seed):
     assert fit.model.primary.noise_std_ < 0.15
     # and held out where the lines are run again, the level makes the passes agree better than the map alone
     check = fit.level
-    assert check is not None and check.holds, check
+    assert check is not None and check.verdict == "water", check
     assert check.with_level < 0.5 * check.without_level, check
     assert abs(check.range_m - np.ptp(truth)) < 0.2 * np.ptp(truth), (check.range_m, np.ptp(truth))
 
@@ -310,3 +310,17 @@ def test_the_cli_fits_the_level_and_every_depth_map_says_its_datum(surveys, tmp_
 
     with rasterio.open(out) as f:
         assert "water_level.csv" in f.tags()["vertical_datum"]
+
+
+def test_the_level_checks_spread_counts_a_stretch_as_one_unit():
+    """With every sample its own stretch the sd of the mean is the sample sd over sqrt(n); with the samples
+    copied in blocks of ten (one stretch each) it is that of the blocks, not the samples, and one stretch
+    cannot say."""
+    from forcemap.host.workbench.level_check import clustered_sd
+
+    x = np.random.default_rng(0).normal(size=50)
+    assert clustered_sd(x, np.arange(50)) == pytest.approx(x.std(ddof=1) / np.sqrt(50))
+    blocks = np.repeat(x, 10)
+    assert clustered_sd(blocks, np.repeat(np.arange(50), 10)) == pytest.approx(x.std(ddof=1) / np.sqrt(50))
+    assert clustered_sd(blocks, np.arange(500)) < 0.4 * clustered_sd(blocks, np.repeat(np.arange(50), 10))
+    assert clustered_sd(x, np.zeros(50)) == np.inf

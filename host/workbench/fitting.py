@@ -181,7 +181,7 @@ def fit_target(
     crossline = crossline_rmse(sm, target_radius(sm))
     if crossline is not None and level_term(sm.primary) is not None:
         note("checking the level against the map alone where the track comes back ...", progress)
-    level = check_level(sm, crossline, target_radius(sm))
+    level = check_level(sm, target_radius(sm)) if crossline is not None else None
     failures = failure_summary(sm.survey, cv.error, unit)
     return FitResult(sm, cv, folds, failures, crossline, level)
 

@@ -5,43 +5,56 @@ and the level together. Only where the track comes back can a survey tell one fr
 pass a change of the level and a change of the bed look the same. Where the bed has more detail than the map
 resolves (a fjord's walls under a race track), the level can take that detail along the track and swing by
 metres. The soundings it was fitted to then agree as well as ever, so the check is made held out: the error
-where the track revisits itself, each time stretch predicted from the others (`crossline_rmse`), with the
-level and without it. A level the water has makes the passes agree better; one that took the bed's detail
-makes them agree worse. Both figures are reported; nothing is judged by a threshold.
+where the track revisits itself, each time stretch predicted from the others (`water_level.crossline_rmse`),
+with the level and without it. A level the water has makes the passes agree better; one that took the
+bed's detail makes them agree worse. The two are compared sample by sample, the time stretches of the
+crossline folds the independent units: a difference within twice its sd over them is no difference.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from forcemap.host.workbench.water_level import crossline_rmse, level_estimate, level_term
+from forcemap.host.workbench.water_level import level_estimate, level_term, revisit_folds
 
 LEVEL_KINDS = ("water_level", "tide")
 
 
 @dataclass
 class LevelCheck:
-    """The held-out error where the track comes back, with the model's level term and without it."""
+    """The held-out error where the track comes back, with the model's level term and without it, and
+    the sd of their difference in mean square, the time stretches its independent units."""
 
     term: str
     samples: int
-    with_level: float  # m
-    without_level: float  # m
+    with_level: float  # m, RMSE
+    without_level: float  # m, RMSE
+    sd_difference: float  # m^2: the sd of the difference of the two mean squares
     range_m: float  # the fitted level's range over the survey
 
     @property
-    def holds(self) -> bool:
-        """Whether the level makes the passes agree at least as well as the map alone."""
-        return self.with_level <= self.without_level
+    def verdict(self) -> str:
+        """"water" (the level makes the passes agree better), "bed" (worse), or "alike"."""
+        diff = self.without_level**2 - self.with_level**2
+        if abs(diff) <= 2.0 * self.sd_difference:
+            return "alike"
+        return "water" if diff > 0 else "bed"
 
     def line(self) -> str:
         where = (
             f"{self.term}: where the track comes back ({self.samples} samples, each time stretch held out) "
             f"the error is {self.with_level:.3g} m with the level, {self.without_level:.3g} m without"
         )
-        if self.holds:
+        if self.verdict == "water":
             return f"{where}: the level (range {self.range_m:.3g} m) is the water's"
+        if self.verdict == "alike":
+            return (
+                f"{where}, alike within twice the sd over the time stretches: the crossings cannot tell this "
+                f"level (range {self.range_m:.3g} m) from none; keep the map without it, or reduce the "
+                "soundings to a gauge (--water-level GAUGE.csv)"
+            )
         return (
             f"{where}: the level (range {self.range_m:.3g} m) makes the passes agree less, not more. It has "
             "taken the bed's detail along the track, and this survey cannot tell its level from its bed: "
@@ -49,29 +62,45 @@ class LevelCheck:
         )
 
     def to_json(self) -> dict:
-        return asdict(self) | {"holds": self.holds}
+        return asdict(self) | {"verdict": self.verdict}
 
 
-def check_level(sm, crossline: dict | None, radius_m: float) -> LevelCheck | None:
-    """The check of a fitted depth `SurveyModel` whose terms include a level, given its crossline error
-    (`crossline_rmse` at `radius_m`); None when it has no level or the track comes back too little. The
-    model without the level is fitted on the same survey."""
+def check_level(sm, radius_m: float) -> LevelCheck | None:
+    """The check of a fitted depth `SurveyModel` whose terms include a level, where the track comes back
+    within `radius_m`; None when it has no level or the track comes back too little. The model without the
+    level is fitted on the same survey."""
     from forcemap.host.workbench.table import family
     from forcemap.host.workbench.targets import SurveyModel
 
-    if crossline is None or family(sm.target) != "depth" or level_term(sm.primary) is None:
+    if family(sm.target) != "depth" or level_term(sm.primary) is None:
         return None
+    plan = revisit_folds(sm.survey.xy, sm.survey.trel, radius_m=radius_m)
+    if plan is None:
+        return None
+    folds, rows, stretch = plan
     level = [str(s) for s in sm.term_specs if s.kind in LEVEL_KINDS]
     rest = [str(s) for s in sm.term_specs if s.kind not in LEVEL_KINDS]
     without = SurveyModel(sm.survey, sm.target, rest, max_basis=sm.max_basis).fit()
-    other = crossline_rmse(without, radius_m)
-    if other is None:
-        return None
+    e1 = sm.cv(folds, interval=False).error[rows] ** 2
+    e0 = without.cv(folds, interval=False).error[rows] ** 2
+    sd = clustered_sd(e0 - e1, stretch)
     estimate, _ = level_estimate(sm.primary, sm.survey.trel)
     return LevelCheck(
         term=" + ".join(level),
-        samples=int(crossline["crossline_samples"]),
-        with_level=float(crossline["crossline_rmse"]),
-        without_level=float(other["crossline_rmse"]),
+        samples=len(rows),
+        with_level=float(np.sqrt(np.mean(e1))),
+        without_level=float(np.sqrt(np.mean(e0))),
+        sd_difference=sd,
         range_m=float(np.ptp(estimate)),
     )
+
+
+def clustered_sd(x: np.ndarray, cluster: np.ndarray) -> float:
+    """The sd of the mean of `x` when its values are correlated within each cluster and independent between
+    clusters (the sandwich estimator over the clusters' sums); infinite with fewer than two clusters."""
+    _, k = np.unique(cluster, return_inverse=True)
+    n_clusters = int(k.max()) + 1
+    if n_clusters < 2:
+        return math.inf
+    sums = np.bincount(k.ravel(), weights=x - x.mean())
+    return float(np.sqrt((sums * sums).sum() * n_clusters / (n_clusters - 1)) / len(x))
