@@ -50,6 +50,13 @@ class Candidate:
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
 
+    def take_time_verdict(self, verdict, held: int) -> None:
+        """`t` carries the revisits' verdict (`time_candidate.time_verdict`): its share, its p-value and
+        what they showed (`revisit_note`)."""
+        self.revisit, self.time = True, verdict
+        self.improvement, self.p_value = verdict.improvement, verdict.p_value
+        self.note = revisit_note(verdict, held)
+
     def to_json(self) -> dict:
         return {
             "covariate": self.covariate,

@@ -35,7 +35,6 @@ from forcemap.host.workbench.diagnose.result import (
     Diagnosis,
     Round,
     explain_candidate,
-    revisit_note,
 )
 from forcemap.host.workbench.diagnose.time_candidate import (
     fitted_seiche,
@@ -247,18 +246,11 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
     if found is None:
         return
     c.blocked_p = c.p_value
-    _take_verdict(c, *found)
+    c.take_time_verdict(*found)
     smooth = smooth_time_term(ev.target)
     if smooth != c.term:  # under depth, time is the water level
         cv, c.blocked_gain, c.blocked_p = ev.blocked(ev.with_term(smooth))
         c.term, c.cv_rmse = smooth, cv.rmse
-
-
-def _take_verdict(c: Candidate, verdict, held: int) -> None:
-    """The candidate `t` carries the revisits' verdict: its share, p-value and what they showed."""
-    c.revisit, c.time = True, verdict
-    c.improvement, c.p_value = verdict.improvement, verdict.p_value
-    c.note = revisit_note(verdict, held)
 
 
 def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
@@ -295,7 +287,8 @@ def _judge(
         if c.revisit:
             # judged at the revisits, where the place is the same and only the time differs: the null is
             # the exchange of whole stretches' times, the significance its p-value, with no floor
-            _take_verdict(c, *ev.time_verdict(threshold))
+            if (found := ev.time_verdict(threshold))[0] is not c.time:  # drawn again near the threshold
+                c.take_time_verdict(*found)
             if c.p_value <= threshold:
                 c.identifiable, c.significant = True, True
                 _advise_time_term(ev, c)
