@@ -220,6 +220,8 @@ def test_a_p_value_near_its_threshold_is_resolved_with_more_exchanges(track):
     assert undecided(0.018, 999, 0.05 / 24)  # the fjord level's p-value from one seed of 999
     assert not undecided(0.0022, MAX_PERMUTATIONS, 0.05 / 24)  # drawn in full already
     assert not undecided(0.4, 999, 0.05 / 24) and undecided(0.4, 999, 0.42)
+    # the band narrows as more are drawn: a p-value a quarter of the threshold is decided at 3,999
+    assert undecided(0.0005, 1999, 0.002) and not undecided(0.0005, 3999, 0.002)
     t, xy, heading = track
     values = noise(len(t), 4) + 0.1 * np.cos(np.radians(heading))
     stretch = stretch_length(t, values - np.median(values))

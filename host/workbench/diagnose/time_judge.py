@@ -44,10 +44,12 @@ from forcemap.host.workbench.revisits import RevisitPairs
 __all__ = ["M2_S", "Form", "TimeVerdict", "judge_time"]
 
 PERMUTATIONS = 999
-# and at most this many, drawn when the first PERMUTATIONS leave a threshold within the p-value's sampling
-# error (`undecided`): a Bonferroni threshold of 0.05 / 24 = 0.0021 is two exceedances in 999
+# and at most this many, drawn BATCH at a time while the p-value is too close to a threshold to decide
+# (`undecided`): a Bonferroni threshold of 0.05 / 24 = 0.0021 is two exceedances in 999
 MAX_PERMUTATIONS = 9999
-# a p-value this many times the threshold or less, either way, is drawn again with MAX_PERMUTATIONS
+BATCH = 1000
+# after PERMUTATIONS, a p-value within this factor of the threshold (either way) is undecided; the factor's
+# logarithm narrows as the square root of the permutations drawn, as the p-value's sampling error does
 RESOLVE = 10.0
 # resamples of the stretches for the period's sd
 BOOTSTRAP = 200
@@ -161,8 +163,8 @@ def judge_time(
     orders = np.array([rng.permutation(rp.n_stretches) for _ in range(permutations)])
     null = pt.null(d, orders)
     per_form, p = permutation_p(obs, null)
-    if threshold is not None and undecided(p, len(null), threshold):
-        more = MAX_PERMUTATIONS - len(null)
+    while threshold is not None and undecided(p, len(null), threshold):
+        more = min(BATCH, MAX_PERMUTATIONS - len(null))
         orders = np.array([rng.permutation(rp.n_stretches) for _ in range(more)])
         null = np.concatenate([null, pt.null(d, orders)])
         per_form, p = permutation_p(obs, null)
@@ -217,11 +219,13 @@ def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tup
 
 
 def undecided(p: float, n: int, threshold: float) -> bool:
-    """Whether a p-value from `n` permutations lies within RESOLVE of `threshold` (either way), where more
-    permutations could move it to the other side. The forms' standardisation is estimated from the same
+    """Whether a p-value from `n` permutations lies too close to `threshold` to say on which side the exact
+    one is: within RESOLVE ** sqrt(PERMUTATIONS / n) of it, either way (a factor of 10 at 999, 2.1 at
+    9,999), and fewer than MAX_PERMUTATIONS drawn. The forms' standardisation is estimated from the same
     permutations, so the p-value varies between draws more than a count of exceedances would: on the
     fjord's level (bench/RESULTS.md), 0.002 to 0.018 over six seeds at 999, 0.0014 to 0.0044 at 9,999."""
-    return n < MAX_PERMUTATIONS and threshold / RESOLVE < p < threshold * RESOLVE
+    factor = RESOLVE ** math.sqrt(PERMUTATIONS / max(n, 1))
+    return n < MAX_PERMUTATIONS and threshold / factor < p < threshold * factor
 
 
 def best_form(obs: np.ndarray, null: np.ndarray) -> int:
