@@ -7,8 +7,9 @@ of the terms a verdict may advise (bench/RESULTS.md, "Time judged where the boat
     python -m bench.bench_time_judge seeds CASE [--target T] [--seeds 4] [--threshold 0.0021]
 
 `seeds` prints the verdict's p-value on the baseline model's revisits for each seed of the exchanges: from
-999 of them, and as diagnose takes it against `--threshold` (0.05 over 24 candidates by default: more
-exchanges, up to 9,999, while the threshold lies within the p-value's sampling error).
+999 of them, and as diagnose takes it against `--threshold` (0.05 over 24 candidates by default: a
+thousand more at a time, up to 9,999, while the p-value is too close to the threshold to decide,
+`time_judge.undecided`).
 
 `cost` prints the CPU of `diagnose` on the case (and its first round's verdict on `t`), and of one permutation of the revisit judge's null on the
 baseline model's revisit pairs: from products over the stretches (`PermutedTimes.null`, what diagnose runs)
@@ -113,7 +114,7 @@ def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: 
 def seeds(case: str, cases: Path, target: str, n: int, threshold: float) -> None:
     """The verdict's p-value for seeds 0 .. n-1: from PERMUTATIONS exchanges, and resolved against
     `threshold` (`judge_time`'s `threshold`)."""
-    from forcemap.host.workbench.diagnose.time_candidate import revisits_of
+    from forcemap.host.workbench.diagnose.time_candidate import judged_pairs, revisits_of
     from forcemap.host.workbench.diagnose.time_judge import judge_time
 
     sm = SurveyModel(load_survey(table_of(case, cases)), target, None, max_basis=600).fit()
@@ -121,11 +122,7 @@ def seeds(case: str, cases: Path, target: str, n: int, threshold: float) -> None
     if found is None:
         print(f"{case} {target}: the track comes back too little", flush=True)
         return
-    rows, rp, _, values = found
-    v = rows[rp.pairs]
-    heading = sm.survey.columns.get("heading")
-    args = (values[v[:, 1]] - values[v[:, 0]], rp, sm.survey.xy[rows])
-    args += (None if heading is None else heading[rows],)
+    args = judged_pairs(sm, found)
     cells = []
     for seed in range(n):
         first = judge_time(*args, seed=seed)

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from forcemap.host.workbench.diagnose import time_forms as tf
-from forcemap.host.workbench.diagnose.time_candidate import revisits_of
+from forcemap.host.workbench.diagnose.time_candidate import judged_pairs, revisits_of
 from forcemap.host.workbench.diagnose.time_judge import judge_time
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.table import load_survey
@@ -110,13 +110,11 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     found = revisits_of(sm)
     if found is None:
         return f"gain {gain:g}: the track comes back too little"
-    rows, rp, _, values = found
-    v = rows[rp.pairs]
-    heading = s.columns.get("heading")
-    hd = None if heading is None else heading[rows]
-    ver = judge_time(values[v[:, 1]] - values[v[:, 0]], rp, s.xy[rows], hd)
-    proj = tf.Projector(tf.nuisance(rp, s.xy[rows], hd))
-    d = proj(tf.clipped(values[v[:, 1]] - values[v[:, 0]]))
+    d0, rp, xy, hd = judged_pairs(sm, found)
+    v = found.rows[rp.pairs]
+    ver = judge_time(d0, rp, xy, hd)
+    proj = tf.Projector(tf.nuisance(rp, xy, hd))
+    d = proj(tf.clipped(d0))
     u = s.trel / np.ptp(s.trel)
     F = np.column_stack(
         [f(2 * np.pi * s.trel / (60 * P)) for P in PERIODS_MIN for f in (np.cos, np.sin)]

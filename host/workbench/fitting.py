@@ -25,7 +25,7 @@ from forcemap.host.workbench.spec import BASELINE, read_spec_file, split_effects
 from forcemap.host.workbench.survey_fits import survey_fits
 from forcemap.host.workbench.table import Survey, unit_of
 from forcemap.host.workbench.targets import SurveyModel, hyper_rows
-from forcemap.host.workbench.water_level import crossline_rmse, level_term
+from forcemap.host.workbench.water_level import crossline_errors, crossline_rmse
 from forcemap.host.workbench.workspace import record_fit, workspace_dir
 
 # from this many rows on, the Gram tables' direct sums cost more than the rest of a fit (host/workbench/nufft.py)
@@ -178,10 +178,10 @@ def fit_target(
         sm.calibrate(fold_ids, cv)
     unit = f" {u}" if (u := unit_of(target)) else ""
     # depth is read from the moving surface: what blocked CV cannot see shows where the track crosses itself
-    crossline = crossline_rmse(sm, target_radius(sm))
-    if crossline is not None and level_term(sm.primary) is not None:
-        note("checking the level against the map alone where the track comes back ...", progress)
-    level = check_level(sm, target_radius(sm)) if crossline is not None else None
+    radius = target_radius(sm)
+    errors = crossline_errors(sm, radius)
+    crossline = crossline_rmse(sm, radius, errors)
+    level = check_level(sm, radius, errors, progress)
     failures = failure_summary(sm.survey, cv.error, unit)
     return FitResult(sm, cv, folds, failures, crossline, level)
 

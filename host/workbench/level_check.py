@@ -5,7 +5,7 @@ and the level together. Only where the track comes back can a survey tell one fr
 pass a change of the level and a change of the bed look the same. Where the bed has more detail than the map
 resolves (a fjord's walls under a race track), the level can take that detail along the track and swing by
 metres. The soundings it was fitted to then agree as well as ever, so the check is made held out: the error
-where the track revisits itself, each time stretch predicted from the others (`water_level.crossline_rmse`),
+where the track revisits itself, each time stretch predicted from the others (`water_level.crossline_errors`),
 with the level and without it. A level the water has makes the passes agree better; one that took the
 bed's detail makes them agree worse. The two are compared sample by sample, the time stretches of the
 crossline folds the independent units: a difference within twice its sd over them is no difference.
@@ -17,7 +17,10 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from forcemap.host.workbench.water_level import level_estimate, level_term, revisit_folds
+from forcemap.host.progress import note
+from forcemap.host.workbench.table import family
+from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.water_level import crossline_errors, level_estimate, level_term
 
 LEVEL_KINDS = ("water_level", "tide")
 
@@ -65,32 +68,25 @@ class LevelCheck:
         return asdict(self) | {"verdict": self.verdict}
 
 
-def check_level(sm, radius_m: float) -> LevelCheck | None:
-    """The check of a fitted depth `SurveyModel` whose terms include a level, where the track comes back
+def check_level(sm, radius_m: float, errors, progress: bool = False) -> LevelCheck | None:
+    """The check of a fitted depth `SurveyModel` whose terms include a level, given its `crossline_errors`
     within `radius_m`; None when it has no level or the track comes back too little. The model without the
     level is fitted on the same survey."""
-    from forcemap.host.workbench.table import family
-    from forcemap.host.workbench.targets import SurveyModel
-
-    if family(sm.target) != "depth" or level_term(sm.primary) is None:
+    if errors is None or family(sm.target) != "depth" or level_term(sm.primary) is None:
         return None
-    plan = revisit_folds(sm.survey.xy, sm.survey.trel, radius_m=radius_m)
-    if plan is None:
-        return None
-    folds, rows, stretch = plan
+    note("checking the level against the map alone where the track comes back ...", progress)
     level = [str(s) for s in sm.term_specs if s.kind in LEVEL_KINDS]
     rest = [str(s) for s in sm.term_specs if s.kind not in LEVEL_KINDS]
     without = SurveyModel(sm.survey, sm.target, rest, max_basis=sm.max_basis).fit()
-    e1 = sm.cv(folds, interval=False).error[rows] ** 2
-    e0 = without.cv(folds, interval=False).error[rows] ** 2
-    sd = clustered_sd(e0 - e1, stretch)
+    e1 = errors[0] ** 2
+    e0 = crossline_errors(without, radius_m)[0] ** 2  # the same survey: the same folds and rows
     estimate, _ = level_estimate(sm.primary, sm.survey.trel)
     return LevelCheck(
         term=" + ".join(level),
-        samples=len(rows),
+        samples=len(e1),
         with_level=float(np.sqrt(np.mean(e1))),
         without_level=float(np.sqrt(np.mean(e0))),
-        sd_difference=sd,
+        sd_difference=clustered_sd(e0 - e1, errors[1]),
         range_m=float(np.ptp(estimate)),
     )
 

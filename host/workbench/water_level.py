@@ -291,16 +291,25 @@ def revisited_rows(
     return np.flatnonzero(hit)
 
 
-def crossline_rmse(sm, radius_m: float = REVISIT_RADIUS_M) -> dict | None:
-    """A fitted `SurveyModel`'s held-out error where the track revisits itself (each time stretch predicted
-    from the others, scored where another pass comes within `radius_m`): the error a moving surface, a tide
-    or a seiche leaves, which blocked CV cannot see. None when the survey hardly revisits itself."""
+def crossline_errors(sm, radius_m: float = REVISIT_RADIUS_M) -> tuple[np.ndarray, np.ndarray] | None:
+    """A fitted `SurveyModel`'s held-out errors where the track revisits itself (each time stretch predicted
+    from the others, scored where another pass comes within `radius_m`), and each scored sample's stretch.
+    None when the survey hardly revisits itself."""
     plan = revisit_folds(sm.survey.xy, sm.survey.trel, radius_m=radius_m)
     if plan is None:
         return None
-    folds, rows, _ = plan
-    err = sm.cv(folds, interval=False).error[rows]
-    return {"crossline_rmse": float(np.sqrt(np.mean(err**2))), "crossline_samples": len(rows)}
+    folds, rows, stretch = plan
+    return sm.cv(folds, interval=False).error[rows], stretch
+
+
+def crossline_rmse(sm, radius_m: float = REVISIT_RADIUS_M, errors=None) -> dict | None:
+    """The RMS of `crossline_errors` (given, or computed): the error a moving surface, a tide or a seiche
+    leaves, which blocked CV cannot see. None when the survey hardly revisits itself."""
+    found = crossline_errors(sm, radius_m) if errors is None else errors
+    if found is None:
+        return None
+    err = found[0]
+    return {"crossline_rmse": float(np.sqrt(np.mean(err**2))), "crossline_samples": len(err)}
 
 
 def crossings(xy: np.ndarray, t: np.ndarray) -> int:

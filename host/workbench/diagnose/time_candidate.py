@@ -100,13 +100,17 @@ def time_verdict(
     found = revisits_of(sm, radius_m)
     if found is None:
         return None
-    rows, rp, held, values = found
+    return judge_time(*judged_pairs(sm, found), threshold=threshold), found.held
+
+
+def judged_pairs(sm, found: Revisits) -> tuple:
+    """What `judge_time` is given for the revisits `found` of the model `sm`: the pairs' differences (the
+    later sample's values minus the earlier's), the pairs, and the judged rows' positions and headings."""
+    rows, rp, _, values = found
     v = rows[rp.pairs]
-    d = values[v[:, 1]] - values[v[:, 0]]
     heading = sm.survey.columns.get("heading")
     hd = None if heading is None else heading[rows]
-    verdict = judge_time(d, rp, sm.survey.xy[rows], hd, threshold=threshold)
-    return verdict, held
+    return values[v[:, 1]] - values[v[:, 0]], rp, sm.survey.xy[rows], hd
 
 
 def time_term(verdict: TimeVerdict, target: str) -> str:
