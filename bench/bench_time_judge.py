@@ -69,7 +69,8 @@ def radius(case: str, cases: Path, target: str, shares: list[float]) -> None:
 
 
 def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
-    """`fit`'s crossline RMSE with the baseline plus each set of terms (`;` between terms of one set)."""
+    """`fit`'s crossline RMSE with the baseline plus each set of terms (`;` between terms of one set), and a
+    depth level's check where `fit` makes one."""
     survey = load_survey(table_of(case, cases))
     for extra in terms:
         ts = [*BASELINE, *[t for t in extra.split(";") if t]]
@@ -79,6 +80,10 @@ def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
         if r.model.axis is not None and r.model.axis.one_axis:
             toward = np.degrees(np.arctan2(r.model.ue[0], r.model.un[0])) % 360.0
             axis += f", along {toward:05.1f} deg"
+        if (lv := r.level) is not None:  # a depth level checked held out (level_check)
+            diff = lv.without_level**2 - lv.with_level**2
+            axis += f"; level {lv.verdict}: mean squares differ by {diff:.4g}, sd {lv.sd_difference:.4g}"
+            axis += f", range {lv.range_m:.4g} m"
         print(
             f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}{axis}",
             flush=True,
