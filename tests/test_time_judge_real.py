@@ -116,19 +116,27 @@ def test_an_injected_level_is_seen_at_the_harbour_it_was_passed_at_the_start_and
     """The fjord's 0.6 m rise under a real sounder (`fjord_level`, soundings read deeper by the level): its
     revisits see a rise, and the finding says where: on a handful of the race's crossings, most of all the
     harbour passed in its first and its last minutes (one comparison: bench/RESULTS.md, "The injected level
-    seen at the revisits")."""
+    seen at the revisits"). Found or not at the round's threshold, diagnose tells the user of it: as the
+    finding, or as the closest candidate, with the form the change would take and the gauge that settles it."""
     from forcemap.host.workbench.diagnose.result import revisit_note
-    from forcemap.host.workbench.diagnose.time_candidate import time_verdict
-    from forcemap.host.workbench.targets import SurveyModel
 
-    survey = load_survey(real_case("fjord_level").csv)
-    v, held = time_verdict(SurveyModel(survey, "depth", None, max_basis=600).fit())
-    assert v.best.name == "drift" and v.p_value <= 0.01, v.best
+    d = diagnose(load_survey(real_case("fjord_level").csv), "depth", rounds=1, progress=False)
+    t = next(c for c in d.candidates if c.covariate == "t")
+    v = t.time
+    assert v is not None and v.best.name == "drift" and v.p_value <= 0.01, v.best
     assert v.evidence_crossings <= v.crossings / 3, (v.evidence_crossings, v.crossings)
     first, last = v.evidence_at_s
     assert first < 0.1 * v.span_s and last > 0.9 * v.span_s, v.evidence_at_s
-    note = revisit_note(v, held)
+    note = revisit_note(v, 0)
     assert f"rests on about {v.evidence_crossings:.0f} of the {v.crossings} crossings" in note, note
+    r = d.rounds[0]
+    if r.missing_effect_found:
+        assert r.added is t, d.summary()
+    else:
+        assert r.closest is t and t.p_value > r.threshold and not t.significant, d.summary()
+        line = r.closest_line()
+        assert "a steady rise or fall" in line and "--water-level" in line, line
+        assert line in d.summary()
 
 
 def test_a_level_the_revisits_cannot_pin_is_not_taken_for_the_waters(real_case):

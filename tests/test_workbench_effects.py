@@ -72,6 +72,14 @@ def test_no_effect_reports_no_missing_effect(tmp_path_factory, target, seed):
     table = simulated(tmp_path_factory, "river", [], seed, DURATION_S)  # one per seed and run
     d = diagnose(load_survey(table), target, progress=False)
     assert not d.missing_effect_found, d.summary()
+    # the candidate with the smallest p-value is named with the threshold (0.05 over the candidates)
+    first = d.rounds[0]
+    near = first.closest
+    assert near is not None and first.threshold == pytest.approx(0.05 / len(first.candidates))
+    assert near.p_value == min(c.p_value for c in first.candidates) and not near.significant
+    assert f"closest: {near.covariate}, the smallest p-value ({near.p_value:.1e}" in d.summary()
+    assert f"the threshold is {first.threshold:.1e}" in d.summary()
+    assert first.to_json()["threshold"] == first.threshold
     # consequences of the flow (sog, cog, crab) must not be credited with their blocked-CV "gain"
     for c in d.candidates:
         if c.covariate in ("sog", "cog", "crab"):

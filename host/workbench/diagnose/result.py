@@ -84,10 +84,40 @@ class Round:
     advice: str | None = None
     time_proxies: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
+    threshold: float | None = None  # the p-value a finding needs: alpha over the candidates (Bonferroni)
 
     @property
     def added(self) -> Candidate | None:
         return self.candidates[0] if self.missing_effect_found else None
+
+    @property
+    def closest(self) -> Candidate | None:
+        """The candidate with the smallest p-value, when none was found (its p-value above the threshold, or
+        below it with the rest of the rule failed: the floor, its nulls, identifiability)."""
+        judged = [c for c in self.candidates if math.isfinite(c.p_value)]
+        if self.missing_effect_found or not judged or self.threshold is None:
+            return None
+        return min(judged, key=lambda c: c.p_value)
+
+    def closest_line(self) -> str | None:
+        """What the candidate with the smallest p-value showed, when nothing was found, and for a change in
+        time the form it would take: a change the data almost show (a level seen at one harbour passed
+        twice) is worth a look, and worth a survey, or a gauge, that would settle it."""
+        from forcemap.host.workbench.diagnose.time_candidate import short_for_a_tide
+        from forcemap.host.workbench.table import family as family_of
+
+        c = self.closest
+        if c is None:
+            return None
+        alpha = self.threshold * len(self.candidates)
+        line = (
+            f"  closest: {c.covariate}, the smallest p-value ({c.p_value:.1e}; the threshold is "
+            f"{self.threshold:.1e}, {alpha:g} over the {len(self.candidates)} candidates): {c.explanation}"
+        )
+        if c.time is not None and c.time.share > 0:
+            fam = family_of(self.target) or "field"
+            line += f" If it is real: {time_form_cause(c.time, fam, short_for_a_tide(c.time))}."
+        return line
 
     def to_json(self) -> dict:
         return {
@@ -96,6 +126,7 @@ class Round:
             "added": self.added.term if self.added else None,
             "cv_rmse_after": self.added.cv_rmse if self.added else self.cv_rmse,
             "advice": self.advice,
+            "threshold": self.threshold,
             "candidates": [c.to_json() for c in self.candidates],
         }
 
@@ -118,6 +149,8 @@ class Round:
             out.append(
                 "no missing effect found: no identifiable covariate beats its null significantly"
             )
+            if line := self.closest_line():
+                out.append(line)
         if self.advice:
             out.append(f"  survey advice: {self.advice}")
         out += [

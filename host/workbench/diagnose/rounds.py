@@ -187,7 +187,7 @@ def diagnose_round(
     if results and results[0].identifiable is False:
         advice = identify.advice(results[0].covariate, proxies, results[0].one_pass)
     return Round(
-        target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds
+        target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds, threshold
     )
 
 
