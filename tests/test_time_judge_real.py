@@ -12,6 +12,8 @@ not support: whenever `t` is credited, its revisit p-value is the one that passe
 
 from __future__ import annotations
 
+import numpy as np
+import pandas as pd
 import pytest
 from forcemap.host.workbench.diagnose.rounds import diagnose
 from forcemap.host.workbench.fitting import fit_target
@@ -58,6 +60,11 @@ def test_an_injected_change_in_time_is_found_and_its_term_cuts_the_crossline_err
     assert first.p_value == v.p_value <= 0.05 / 20
     assert v.share > 0.05
     assert f"{v.pairs} revisit pairs" in first.note
+    if name == "fjord_tide":  # the stream's change from the race's start to its end, as the truth has it
+        truth = pd.read_csv(real_case(name).truth)
+        ends = truth[["current_east", "current_north"]].iloc[[-1, 0]].to_numpy()
+        step = float(np.hypot(*(ends.T @ [1, -1])))
+        assert abs(v.change - step) < 0.25 * step, (v.change, step)
     # a speed's own direction, and the heading relative to it, follow the change: never credited before it
     assert d.rounds[0].added.covariate == "t", d.summary()
     assert crossline(survey, [first.term]) < 0.95 * crossline(survey, []), first.term
@@ -129,6 +136,11 @@ def test_an_injected_level_is_seen_at_the_harbour_it_was_passed_at_the_start_and
     assert first < 0.1 * v.span_s and last > 0.9 * v.span_s, v.evidence_at_s
     note = revisit_note(v, 0)
     assert f"rests on about {v.evidence_crossings:.0f} of the {v.crossings} crossings" in note, note
+    # the size of the rise, from the start to the end, as the truth has it
+    truth = pd.read_csv(real_case("fjord_level").truth)
+    rise = float(truth.level.iloc[-1] - truth.level.iloc[0])
+    assert abs(v.change - rise) < 0.25 * rise, (v.change, rise)
+    assert f"the change it fits is {v.change:+.3g}" in note, note
     r = d.rounds[0]
     if r.missing_effect_found:
         assert r.added is t, d.summary()

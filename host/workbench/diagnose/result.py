@@ -354,8 +354,18 @@ def revisit_note(verdict, held_rows: int) -> str:
             if verdict.share > 0
             else "nothing (cross-validated)"
         )
+        + change_note(verdict)
         + evidence_note(verdict)
     )
+
+
+def change_note(verdict) -> str:
+    """The size of the fitted change: a drift's from the survey's start to its end, a period's amplitude."""
+    if verdict.share <= 0 or verdict.change == 0:
+        return ""
+    if verdict.best.name == "drift":
+        return f"; from the survey's start to its end the change it fits is {verdict.change:+.3g}"
+    return f"; the change it fits has an amplitude of {verdict.change:.3g}"
 
 
 def evidence_note(verdict) -> str:

@@ -93,6 +93,9 @@ class TimeVerdict:
     # carries most of it (`evidence`)
     evidence_crossings: float = 0.0
     evidence_at_s: tuple[float, float] = (0.0, 0.0)
+    # the fitted change's size in the target's unit (`fitted_change`): a drift's from start to end, a
+    # period's amplitude
+    change: float = 0.0
 
     @property
     def improvement(self) -> float:
@@ -182,6 +185,7 @@ def judge_time(
         columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
     best = replace(best, name=kind_of(best, span, sd))
     n_evidence, at = evidence(d, rp, columns)
+    change = fitted_change(d, columns, best, rp.t)
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -198,7 +202,32 @@ def judge_time(
         indistinct=indistinct(forms, best, n_eff),
         evidence_crossings=n_evidence,
         evidence_at_s=at,
+        change=change,
     )
+
+
+def fitted_change(d: np.ndarray, A: np.ndarray, best: Form, t: np.ndarray) -> float:
+    """The size of the change the columns `A` fit to the differences `d`, over the survey's times `t` (the
+    same function undifferenced: the quadratic of a drift, the cosine and sine of a period). A drift's (a
+    period longer than the record included) is its change from the survey's start to its end, signed for
+    one component and a vector's length for two: the revisits pin it where the first passes meet the last,
+    and a quadratic's turn between them they may not. A period's is its amplitude (a vector's largest
+    component's). The differences fix the change up to a constant, and neither needs one."""
+    w, *_ = np.linalg.lstsq(A, d, rcond=None)
+    grid = np.linspace(float(np.min(t)), float(np.max(t)), 200)
+    if best.period_s is None:
+        u = grid / max(float(np.ptp(t)), 1e-9)
+        basis = np.column_stack([u, u * u])
+    else:
+        omega = 2.0 * np.pi / best.period_s
+        basis = np.column_stack([np.cos(omega * grid), np.sin(omega * grid)])
+    change = basis @ w.reshape(basis.shape[1], -1)
+    if not np.isfinite(change).all():
+        return 0.0
+    if best.name != "drift":
+        return float(np.ptp(change, axis=0).max() / 2.0)
+    step = change[-1] - change[0]
+    return float(step[0]) if len(step) == 1 else float(np.hypot(*step))
 
 
 def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tuple[float, float]]:
