@@ -140,7 +140,7 @@ def test_an_injected_level_is_seen_at_the_harbour_it_was_passed_at_the_start_and
     truth = pd.read_csv(real_case("fjord_level").truth)
     rise = float(truth.level.iloc[-1] - truth.level.iloc[0])
     assert abs(v.change - rise) < 0.25 * rise, (v.change, rise)
-    assert f"the change it fits is {v.change:+.3g}" in note, note
+    assert f"the change it fits is {v.change:.3g}" in note, note
     r = d.rounds[0]
     if r.missing_effect_found:
         assert r.added is t, d.summary()

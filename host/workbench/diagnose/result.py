@@ -364,7 +364,7 @@ def change_note(verdict) -> str:
     if verdict.share <= 0 or verdict.change == 0:
         return ""
     if verdict.best.name == "drift":
-        return f"; from the survey's start to its end the change it fits is {verdict.change:+.3g}"
+        return f"; from the survey's start to its end the change it fits is {verdict.change:.3g}"
     return f"; the change it fits has an amplitude of {verdict.change:.3g}"
 
 
