@@ -14,6 +14,8 @@ components), a level on `depth`.
 Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagnose judges them:
 - the verdict (`judge_time`): p-value, form, period, and how many crossings the change it fits rests on
   (`time_judge.evidence`);
+- the size of the change it fits (`TimeVerdict.change`: a drift's from the survey's start to its end, a
+  period's amplitude) beside the truth's change from the survey's start to its end;
 - `kept`: the share of the injected current's sd the maps leave in their residuals (the same component models
   with their hyperparameters fixed, fitted to the injected current alone: the map is a linear smoother there);
 - `truth explains`: the share of the revisit differences' sum of squares that the injected current's own
@@ -136,11 +138,18 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     best = int(np.argmax(shares))
     b = ver.best
     period = "" if b.period_s is None else f" {b.period_s / 60:.0f} min"
+    ends = s.t0 + np.array([s.trel.min(), s.trel.max()])
+    if is_level(truth):
+        step = gain * float(np.diff(np.interp(ends, truth.t, truth.level))[0])
+    else:
+        e, n = (np.diff(np.interp(ends, truth.t, truth[f"current_{c}"]))[0] for c in ("east", "north"))
+        step = gain * float(np.hypot(e, n))
     mapped = f"{PERIODS_MIN[best]:.0f} min ({shares[best]:.3f}; drift {drift:.3f})"
     return (
         f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period} "
         f"(resting on {ver.evidence_crossings:.1f} crossings, most at {ver.evidence_at_s[0] / 60:.0f} and "
-        f"{ver.evidence_at_s[1] / 60:.0f} min); "
+        f"{ver.evidence_at_s[1] / 60:.0f} min; its change {ver.change:.3g}, the truth's from start to "
+        f"end {step:.3g}); "
         f"kept {np.mean(kept):.2f}; truth explains {share_by_component(d, truth_cols):.3f} "
         f"(coefficients {', '.join(f'{c:.2f}' for c in coef)}); through the maps {mapped}"
     )
