@@ -125,7 +125,7 @@ def test_an_injected_level_is_seen_at_the_harbour_it_was_passed_at_the_start_and
     harbour passed in its first and its last minutes (one comparison: bench/RESULTS.md, "The injected level
     seen at the revisits"). Found or not at the round's threshold, diagnose tells the user of it: as the
     finding, or as the closest candidate, with the form the change would take and the gauge that settles it."""
-    from forcemap.host.workbench.diagnose.result import revisit_note
+    from forcemap.host.workbench.diagnose.time_notes import revisit_note
 
     d = diagnose(load_survey(real_case("fjord_level").csv), "depth", rounds=1, progress=False)
     t = next(c for c in d.candidates if c.covariate == "t")

@@ -11,6 +11,7 @@ from forcemap.host.workbench.data_quality import DataFinding
 from forcemap.host.workbench.diagnose.catalogue import explain, time_form_cause
 from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, REPEATS
 from forcemap.host.workbench.diagnose.null import NULL_MARGIN
+from forcemap.host.workbench.diagnose.time_notes import revisit_note
 from forcemap.host.workbench.instruments import Instruments
 from forcemap.host.workbench.table import unit_of
 
@@ -335,48 +336,6 @@ def round_steps(diagnosis_json: dict) -> list[str]:
             )
         out.append(step)
     return out
-
-
-def revisit_note(verdict, held_rows: int) -> str:
-    """How many revisit pairs judged time, and what they showed."""
-    held = (
-        f"; {held_rows} {'row' if held_rows == 1 else 'rows'} where the boat stayed in one place "
-        f"{'is no revisit' if held_rows == 1 else 'are no revisits'}"
-        if held_rows
-        else ""
-    )
-    return (
-        f"judged on {verdict.pairs} revisit pairs ({verdict.crossings} crossings within "
-        f"{verdict.radius_m:.0f} m, stretches of {verdict.stretch_s:.0f} s or more apart){held}: their "
-        f"differences have an RMS of {verdict.rms_difference:.3g}, of which a change in time explains "
-        + (
-            f"{verdict.rms_time:.3g} RMS ({verdict.share:.0%} of their mean square, cross-validated)"
-            if verdict.share > 0
-            else "nothing (cross-validated)"
-        )
-        + change_note(verdict)
-        + evidence_note(verdict)
-    )
-
-
-def change_note(verdict) -> str:
-    """The size of the fitted change: a drift's from the survey's start to its end, a period's amplitude."""
-    if verdict.share <= 0 or verdict.change == 0:
-        return ""
-    if verdict.best.name == "drift":
-        return f"; from the survey's start to its end the change it fits is {verdict.change:.3g}"
-    return f"; the change it fits has an amplitude of {verdict.change:.3g}"
-
-
-def evidence_note(verdict) -> str:
-    """Where the fitted change is seen: how many crossings it rests on, and the passes that carry most."""
-    if verdict.evidence_crossings <= 0 or verdict.share <= 0:
-        return ""
-    a, b = (x / 60.0 for x in verdict.evidence_at_s)
-    return (
-        f"; the change it fits rests on about {verdict.evidence_crossings:.0f} of the "
-        f"{verdict.crossings} crossings, most on the passes {a:.0f} and {b:.0f} min into the survey"
-    )
 
 
 def explain_time(c: Candidate, family: str) -> str:
