@@ -81,8 +81,8 @@ def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
             toward = np.degrees(np.arctan2(r.model.ue[0], r.model.un[0])) % 360.0
             axis += f", along {toward:05.1f} deg"
         if (lv := r.level) is not None:  # a depth level checked held out (level_check)
-            diff = lv.without_level**2 - lv.with_level**2
-            axis += f"; level {lv.verdict}: mean squares differ by {diff:.4g}, sd {lv.sd_difference:.4g}"
+            axis += f"; level {lv.verdict}: mean squares differ by {lv.difference:.4g}"
+            axis += f", sd {lv.sd_difference:.4g}"
             axis += f", range {lv.range_m:.4g} m"
         print(
             f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}{axis}",

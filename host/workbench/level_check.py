@@ -38,12 +38,16 @@ class LevelCheck:
     range_m: float  # the fitted level's range over the survey
 
     @property
+    def difference(self) -> float:
+        """The mean square without the level less the one with it (m^2): positive where the level helps."""
+        return self.without_level**2 - self.with_level**2
+
+    @property
     def verdict(self) -> str:
         """"water" (the level makes the passes agree better), "bed" (worse), or "alike"."""
-        diff = self.without_level**2 - self.with_level**2
-        if abs(diff) <= 2.0 * self.sd_difference:
+        if abs(self.difference) <= 2.0 * self.sd_difference:
             return "alike"
-        return "water" if diff > 0 else "bed"
+        return "water" if self.difference > 0 else "bed"
 
     def line(self) -> str:
         where = (

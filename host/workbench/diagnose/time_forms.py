@@ -78,10 +78,19 @@ def periodic_columns(ta, tb, omega: np.ndarray, proj: Projector) -> tuple[np.nda
     return proj(C), proj(S)
 
 
+def form_basis(t: np.ndarray, span: float, period_s: float | None = None) -> np.ndarray:
+    """A form's functions of time, undifferenced: a drift's quadratic in t / span, or the cosine and sine
+    of a period."""
+    if period_s is None:
+        u = t / span
+        return np.column_stack([u, u**2])
+    omega = 2.0 * np.pi / period_s
+    return np.column_stack([np.cos(omega * t), np.sin(omega * t)])
+
+
 def drift_columns(ta, tb, span: float, proj: Projector) -> np.ndarray:
     """A quadratic in time, differenced over each pair, the nuisance taken out."""
-    u, v = ta / span, tb / span
-    return proj(np.column_stack([v - u, v**2 - u**2]))
+    return proj(form_basis(tb, span) - form_basis(ta, span))
 
 
 def share_of(d: np.ndarray, A: np.ndarray) -> float:

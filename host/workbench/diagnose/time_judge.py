@@ -35,6 +35,7 @@ from forcemap.host.workbench.diagnose.time_forms import (
     PermutedTimes,
     Projector,
     clipped,
+    form_basis,
     nuisance,
     pair_shares,
     periodic_columns,
@@ -215,13 +216,7 @@ def fitted_change(d: np.ndarray, A: np.ndarray, best: Form, t: np.ndarray) -> fl
     component's). The differences fix the change up to a constant, and neither needs one."""
     w, *_ = np.linalg.lstsq(A, d, rcond=None)
     grid = np.linspace(float(np.min(t)), float(np.max(t)), 200)
-    if best.period_s is None:
-        u = grid / max(float(np.ptp(t)), 1e-9)
-        basis = np.column_stack([u, u * u])
-    else:
-        omega = 2.0 * np.pi / best.period_s
-        basis = np.column_stack([np.cos(omega * grid), np.sin(omega * grid)])
-    change = basis @ w.reshape(basis.shape[1], -1)
+    change = form_basis(grid, max(float(np.ptp(t)), 1e-9), best.period_s) @ w
     if not np.isfinite(change).all():
         return 0.0
     if best.name != "drift":
