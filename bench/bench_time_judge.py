@@ -11,7 +11,8 @@ of the terms a verdict may advise (bench/RESULTS.md, "Time judged where the boat
 thousand more at a time, up to 9,999, while the p-value is too close to the threshold to decide,
 `time_judge.undecided`).
 
-`cost` prints the CPU of `diagnose` on the case (and its first round's verdict on `t`), and of one permutation of the revisit judge's null on the
+`cost` prints the CPU of `diagnose` on the case (and its first round's verdict on `t`, and its `closest:` line
+when that round credits nothing), and of one permutation of the revisit judge's null on the
 baseline model's revisit pairs: from products over the stretches (`PermutedTimes.null`, what diagnose runs)
 and from the pairs' columns formed in full (`FormLadder.shares`), with the largest difference between them.
 
@@ -100,6 +101,8 @@ def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: 
     d = diagnose(survey, target, progress=False)
     line = f"{case} {target}: {survey.n} rows, diagnose {time.process_time() - c0:.1f} s CPU"
     line += time_finding(d)
+    if near := d.rounds[0].closest_line():  # nothing credited: the candidate of the smallest p-value
+        line += "\n" + near.strip()
     if diagnose_only:
         print(line, flush=True)
         return
