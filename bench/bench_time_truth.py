@@ -57,10 +57,11 @@ def scaled_table(case: str, cases: Path, gain: float) -> tuple[Path, pd.DataFram
         df = pd.read_csv(built.csv)
         if is_level(truth):
             df["depth"] += (gain - 1.0) * np.interp(df.t, truth.t, truth.level)
-        for c in ("east", "north"):
-            df[f"current_{c}"] += (gain - 1.0) * np.interp(df.t, truth.t, truth[f"current_{c}"])
-        df["current_speed"] = np.hypot(df.current_east, df.current_north)
-        df["current_dir"] = np.degrees(np.arctan2(df.current_east, df.current_north)) % 360.0
+        if "current_east" in df:  # a log without a heading has no current
+            for c in ("east", "north"):
+                df[f"current_{c}"] += (gain - 1.0) * np.interp(df.t, truth.t, truth[f"current_{c}"])
+            df["current_speed"] = np.hypot(df.current_east, df.current_north)
+            df["current_dir"] = np.degrees(np.arctan2(df.current_east, df.current_north)) % 360.0
         out.parent.mkdir(parents=True, exist_ok=True)
         df.to_csv(out.with_suffix(".tmp"), index=False)
         out.with_suffix(".tmp").rename(out)
