@@ -144,7 +144,8 @@ def seeds(case: str, cases: Path, target: str, n: int, threshold: float) -> None
 
 
 def time_finding(d) -> str:
-    """The first round's verdict on `t` at the revisits, if it was judged there: form, period, advice."""
+    """The first round's verdict on `t` at the revisits, if it was judged there: form, period, advice, and
+    the advised term's blocked-CV error beside the next round's model's (the same model, refitted)."""
     t = next((c for c in d.rounds[0].candidates if c.covariate == "t"), None)
     v = None if t is None else t.time
     if v is None:
@@ -155,7 +156,12 @@ def time_finding(d) -> str:
         out += f" {v.best.period_s:.0f}{sd} s"
     if v.fitted_period_s is not None:
         out += f", the fit's {v.fitted_period_s:.0f} +- {v.fitted_period_sd_s:.0f} s"
-    return out + f", advised {t.term}" if t.significant else out
+    if not t.significant:
+        return out
+    out += f", advised {t.term} (blocked CV {d.rounds[0].cv_rmse:.4f} -> {t.cv_rmse:.4f}, {t.blocked_gain:+.0%}"
+    if len(d.rounds) > 1 and d.rounds[0].added is t:
+        out += f"; the next round's model {d.rounds[1].cv_rmse:.4f}"
+    return out + ")"
 
 
 def null_cost(d, rp, xy, heading, permutations: int) -> str:

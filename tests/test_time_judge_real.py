@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from forcemap.host.workbench.cv import DEFAULT_FOLDS
+from forcemap.host.workbench.diagnose.evaluate import Evaluator
 from forcemap.host.workbench.diagnose.rounds import diagnose
 from forcemap.host.workbench.fitting import fit_target
 from forcemap.host.workbench.spec import BASELINE
@@ -68,6 +70,10 @@ def test_an_injected_change_in_time_is_found_and_its_term_cuts_the_crossline_err
     # a speed's own direction, and the heading relative to it, follow the change: never credited before it
     assert d.rounds[0].added.covariate == "t", d.summary()
     assert crossline(survey, [first.term]) < 0.95 * crossline(survey, []), first.term
+    # the finding's blocked-CV error is the one the model that takes its term has, as the next round fits it
+    nxt = Evaluator(survey, "current_speed", [*d.rounds[0].terms, first.term], DEFAULT_FOLDS, 0)
+    assert first.cv_rmse == pytest.approx(nxt.base_b.rmse, rel=1e-6), (first.cv_rmse, nxt.base_b.rmse)
+    assert f"adding {first.term} gains {first.blocked_gain:+.0%}" in first.explanation
 
 
 def test_an_injected_seiche_is_named_by_its_period(real_case):

@@ -177,6 +177,19 @@ class Evaluator:
                 X.update(survey_inputs(self.survey, {name}))
         return self.sm.primary.extended(build_term(spec, is_circular), X, self.sm.y_primary)
 
+    def as_next_round(self, term: str) -> tuple[CVResult, float, float]:
+        """`blocked` for the current model with `term`, fitted as the next round fits the model that takes
+        it (every hyperparameter searched, a basis grown where its lengthscale needs more): what a finding's
+        advice gives. `extended` starts from this model's values with the new term's default basis, which a
+        GP in time over hours can leave at a lengthscale its basis barely resolves, with the largest variance
+        allowed (on the Geneva seiche: -49 % where the next round's model gains +15 %)."""
+        survey, terms, folds, seed = self.given
+        nxt = Evaluator(survey, self.target, [*terms, term], folds, seed)
+        if nxt.survey.n != self.survey.n:  # other rows (a candidate's): compare on this model's own
+            return self.blocked(self.with_term(term))
+        gain, p = paired_test(self.base_b.error**2, nxt.base_b.error**2, self.groups)
+        return nxt.base_b, gain, p
+
     def time_verdict(self, threshold: float | None = None):
         """What the revisits say about time (`time_candidate.time_verdict`), computed once; again with more
         permutations when a `threshold` lies within its p-value's sampling error."""

@@ -254,15 +254,16 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
 
 
 def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
-    """The term a significant verdict's form advises (a tide, a seiche, a drift), with its blocked-CV RMSE."""
+    """The term a significant verdict's form advises (a tide, a seiche, a drift), with its blocked-CV RMSE
+    and gain as the next round will fit it."""
     term = time_term(c.time, ev.target)
     if term.startswith("seiche("):
         est = fitted_seiche(ev.sm, c.time)
         if est is not None:
             c.time.fitted_period_s, c.time.fitted_period_sd_s = est.period_s, est.period_sd_s
             term = time_term(c.time, ev.target)
-    if term != c.term:
-        c.term, c.cv_rmse = term, ev.blocked(ev.with_term(term))[0].rmse
+    cv, c.blocked_gain, c.blocked_p = ev.as_next_round(term)
+    c.term, c.cv_rmse = term, cv.rmse
 
 
 def _judged_on_blocks(c: Candidate) -> None:
