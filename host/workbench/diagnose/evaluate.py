@@ -72,6 +72,8 @@ class Evaluator:
         self.base_b = self.blocked_cv(self.sm)
         self._base_r: CVResult | None = None
         self._time: tuple | None = None
+        # models with one more term, fitted as the next round fits them (`as_next_round`), by that term
+        self.refits: dict[str, Evaluator] = {}
         self.consequences = consequences_of(target)
 
     def on_rows_with(self, *names: str) -> Evaluator:
@@ -187,6 +189,7 @@ class Evaluator:
         nxt = Evaluator(survey, self.target, [*terms, term], folds, seed)
         if nxt.survey.n != self.survey.n:  # other rows (a candidate's): compare on this model's own
             return self.blocked(self.with_term(term))
+        self.refits[term] = nxt  # the next round's model, if this term is the finding
         gain, p = paired_test(self.base_b.error**2, nxt.base_b.error**2, self.groups)
         return nxt.base_b, gain, p
 

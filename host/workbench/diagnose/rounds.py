@@ -117,13 +117,15 @@ def diagnose(
         raise WorkbenchError(f"--rounds must be at least 1, not {rounds}")
     terms = list(terms or ["const", "gp(position, matern32)"])
     done: list[Round] = []
+    ev = Evaluator(survey, target, terms, folds, seed)
     for i in range(rounds):
         label = f"diagnose {target}" + (f" (round {i + 1})" if i else "")
-        r = diagnose_round(survey, target, terms, folds, seed, alpha, progress, label)
+        r, refit = diagnose_round(survey, ev, alpha, progress, label)
         done.append(r)
         if r.added is None:
             break
         terms = terms + [r.added.term]
+        ev = refit or Evaluator(survey, target, terms, folds, seed)
     return Diagnosis(target, done, consistent(data_quality.findings(survey, [target]), done[0]))
 
 
@@ -147,18 +149,13 @@ def consistent(data: list, first: Round) -> list:
 
 
 def diagnose_round(
-    survey: Survey,
-    target: str,
-    terms: list[str],
-    folds: int,
-    seed: int,
-    alpha: float,
-    progress: bool,
-    label: str,
-) -> Round:
-    """One diagnosis of the model with `terms`: every candidate's gain, ranked, judged."""
+    survey: Survey, ev: Evaluator, alpha: float, progress: bool, label: str
+) -> tuple[Round, Evaluator | None]:
+    """One diagnosis of the model `ev` evaluates: every candidate's gain, ranked, judged; with the
+    evaluator of the model that takes the finding's term, where the finding already built it (a time
+    finding's figure is the next round's: `Evaluator.as_next_round`)."""
     clock = time.perf_counter()
-    ev = Evaluator(survey, target, terms, folds, seed)
+    target = ev.target
     names = candidate_covariates(survey, ev.sm)
     proxies = identify.time_proxies(survey, [n for n in names if n != "t"])
     names = [n for n in names if n not in proxies]
@@ -186,9 +183,10 @@ def diagnose_round(
     advice = None
     if results and results[0].identifiable is False:
         advice = identify.advice(results[0].covariate, proxies, results[0].one_pass)
-    return Round(
+    r = Round(
         target, ev.sm.terms, ev.base_b.rmse, results, found, skipped, advice, proxies, seconds, threshold
     )
+    return r, evs[results[0].covariate].refits.get(results[0].term) if found else None
 
 
 def _evaluate_all(
