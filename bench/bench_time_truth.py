@@ -4,7 +4,7 @@ verdict on each (bench/RESULTS.md, "What the revisits see of an injected current
     python -m bench.bench_time_truth CASE [CASE ...] [--gains 0,1,2,3]
 
 A CASE is an injected case of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`,
-`fjord_seiche`, `fjord_level`). Gain 1 is the case's table as built; gain g adds (g - 1) times the injected
+`fjord_seiche`, `fjord_level`, `plaka_level`). Gain 1 is the case's table as built; gain g adds (g - 1) times the injected
 current to its east and north columns and recomputes the speed and direction, or (g - 1) times the injected
 level to its depth (the table level, not the NMEA: the pipeline keeps an injected current with slopes
 0.96-1.01 and a level with 1.001, bench/RESULTS.md "Known effects injected into real NMEA logs"); gain 0 is
@@ -14,8 +14,8 @@ components), a level on `depth`.
 Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagnose judges them:
 - the verdict (`judge_time`): p-value, form, period, and how many crossings the change it fits rests on
   (`time_judge.evidence`);
-- the size of the change it fits (`TimeVerdict.change`: a drift's from the survey's start to its end, a
-  period's amplitude) beside the truth's change from the survey's start to its end;
+- the size of the change it fits and its sd (`TimeVerdict.change`: a drift's from the first pass the revisits
+  compare to the last, a period's amplitude) beside the truth's change over the same span;
 - `kept`: the share of the injected current's sd the maps leave in their residuals (the same component models
   with their hyperparameters fixed, fitted to the injected current alone: the map is a linear smoother there);
 - `truth explains`: the share of the revisit differences' sum of squares that the injected current's own
@@ -139,7 +139,7 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     best = int(np.argmax(shares))
     b = ver.best
     period = "" if b.period_s is None else f" {b.period_s / 60:.0f} min"
-    ends = s.t0 + np.array([s.trel.min(), s.trel.max()])
+    ends = s.t0 + s.trel[found.rows].min() + np.array(ver.change_span_s)
     if is_level(truth):
         step = gain * float(np.diff(np.interp(ends, truth.t, truth.level))[0])
     else:
@@ -149,8 +149,9 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     return (
         f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period} "
         f"(resting on {ver.evidence_crossings:.1f} crossings, most at {ver.evidence_at_s[0] / 60:.0f} and "
-        f"{ver.evidence_at_s[1] / 60:.0f} min; its change {ver.change:.3g}, the truth's from start to "
-        f"end {step:.3g}); "
+        f"{ver.evidence_at_s[1] / 60:.0f} min; its change {ver.change:.3g} ± {ver.change_sd:.2g} from "
+        f"{ver.change_span_s[0] / 60:.0f} to {ver.change_span_s[1] / 60:.0f} min, the truth's "
+        f"{step:.3g}); "
         f"kept {np.mean(kept):.2f}; truth explains {share_by_component(d, truth_cols):.3f} "
         f"(coefficients {', '.join(f'{c:.2f}' for c in coef)}); through the maps {mapped}"
     )

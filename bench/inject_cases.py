@@ -13,6 +13,10 @@ plausible for the place (and are issue 36's):
   m/s along the fjord's axis there (050/230 deg), phase 30 deg so that it turns mid-race;
 - ``fjord_level``: the same race, the water rising 0.6 m (a smooth step, 45 min wide, mid-race: a
   Baltic wind set-up);
+- ``plaka_level``: the western Gulf of Finland (Plaka, 60 05 N 23 32 E, 4.1 h, a sounder in 5-20 m of
+  water, no heading), the water rising 0.6 m as in ``fjord_level`` (the Gulf's wind set-ups are the
+  Baltic's largest). The fjord's rise is seen at one harbour passed at the start and at the end; this
+  boat comes back over the same water while the water rises, where revisits can show a level;
 - ``fjord_seiche``: the same race, a seiche of the inner fjord (Merian for a basin open at one end, 12 km
   long and 12 m deep: 4 L / sqrt(g h), about 74 min) as a current of +-0.25 m/s along its axis (050/230
   deg). Stronger than the lake's: on Geneva's 85 crossings the revisits cannot see a +-0.15 m/s seiche
@@ -33,6 +37,7 @@ GENEVA = "nmea/irene/irene_2014-06-27_geneva.nmea"
 GENEVA_2008 = "nmea/irene/irene_2008-08-20_geneva.nmea"
 FJORD = "nmea/irene/irene_2013-08-03_flensburg.nmea"
 SFBAY = "nmea/sfbay/swift-day1.nmea.gz"
+PLAKA = "nmea/plaka.log"
 # the one log whose bus computes its checksums over the address only (its PROVENANCE.md)
 LENIENT = ("nmea/irene/irene_2013-07-31_flensburg_checksums.nmea",)
 
@@ -62,6 +67,7 @@ INJECTED = {
     "lake_drift": Case(GENEVA_2008, Effect(Current(Shape("ramp", 0.2), 250.0))),
     "fjord_tide": Case(FJORD, Effect(Current(Shape("tidal", 0.26, phase_deg=30.0), 50.0))),
     "fjord_level": Case(FJORD, Effect(level=Shape("step", 0.6, width_s=2700.0))),
+    "plaka_level": Case(PLAKA, Effect(level=Shape("step", 0.6, width_s=2700.0))),
     "fjord_seiche": Case(FJORD, Effect(Current(Shape("periodic", 0.25, period_s=4440.0), 50.0))),
 }
 

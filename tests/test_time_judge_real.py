@@ -173,3 +173,44 @@ def test_a_level_the_revisits_cannot_pin_is_not_taken_for_the_waters(real_case):
     assert f"range {check.range_m:.3g} m" in summary and "--water-level GAUGE.csv" in summary, summary
     assert fitted.to_json()["level_check"]["verdict"] == check.verdict
     assert fit_target(survey, "depth", BASELINE, progress=False).level is None
+
+
+def test_a_level_the_track_comes_back_through_is_named_and_fit_follows_it(real_case):
+    """The water rising 0.6 m in the Gulf of Finland (`plaka_level`, a real race without a heading, its
+    soundings read deeper by the level): the boat comes back over the same water while the water rises, and
+    diagnose's first round names the level, a rise, with `water_level` as its term; the change it fits is the
+    truth's over the passes the revisits compare. `fit` with that term then makes the passes agree better
+    where the track comes back, and the level it estimates follows the injected one within its own band.
+    The log as recorded gains no time term."""
+    from forcemap.host.workbench.targets import SurveyModel
+    from forcemap.host.workbench.water_level import level_estimate
+
+    case = real_case("plaka_level")
+    survey = load_survey(case.csv)
+    d = diagnose(survey, "depth", rounds=1, progress=False)
+    r = d.rounds[0]
+    assert r.added is not None and r.added.covariate == "t", d.summary()
+    v = r.added.time
+    assert v is not None and r.added.p_value == v.p_value <= threshold(r), d.summary()
+    assert v.best.name == "drift" and r.added.term == "water_level", v.best
+    cause = d.summary().split("Likely cause:")[1]
+    assert "the water level changes" in cause and "a steady rise or fall" in cause, cause
+    truth = pd.read_csv(case.truth)
+    a, b = np.interp(survey.t0 + np.array(v.change_span_s), truth.t, truth.level)
+    assert b - a > 0.2 and abs(v.change - (b - a)) <= 2 * v.change_sd, (v.change, v.change_sd, a, b)
+    assert f"the change it fits is {v.change:.3g} ± {v.change_sd:.2g}" in r.added.note, r.added.note
+    # fit with the advised term: the passes agree better, and the level is the injected one
+    with_level = fit_target(survey, "depth", [*BASELINE, "water_level"], progress=False)
+    check = with_level.level
+    assert check is not None and check.with_level < check.without_level, check
+    sm = SurveyModel(survey, "depth", [*BASELINE, "water_level"]).fit()
+    est, sd = level_estimate(sm.primary, survey.trel)
+    level = np.interp(survey.columns["t"], truth.t, truth.level)
+    est, level = est - est.mean(), level - level.mean()
+    assert np.corrcoef(est, level)[0, 1] > 0.95
+    assert np.mean(np.abs(est - level) <= 2 * sd) > 0.9, np.mean(np.abs(est - level) <= 2 * sd)
+    # the log as recorded: no time term its revisits do not support
+    clean = diagnose(load_survey(real_case(case.case.clean).csv), "depth", rounds=1, progress=False)
+    t = next(c for c in clean.candidates if c.covariate == "t")
+    assert t.time is not None and t.time.p_value > threshold(clean.rounds[0]), clean.summary()
+    assert clean.rounds[0].added is None or clean.rounds[0].added.covariate != "t", clean.summary()

@@ -105,7 +105,8 @@ class RevisitPairs:
     n_stretches: int
     stretch_s: float
     radius_m: float
-    t: np.ndarray  # (n,) s since the survey's start
+    t: np.ndarray  # (n,) s since the first row's time
+    start_s: float = 0.0  # the first row's time in the times given (s since the survey's start)
 
     @property
     def crossings(self) -> int:
@@ -144,7 +145,8 @@ def revisit_pairs(
     `stretch_s`, at least `stretch_s` apart in time; at most MAX_PAIRS of them."""
     from scipy.spatial import cKDTree
 
-    t = np.asarray(t, float) - float(np.min(t))
+    start = float(np.min(t))
+    t = np.asarray(t, float) - start
     n_st = max(2, int(np.ceil(np.ptp(t) / stretch_s)))
     stretch = np.minimum((t / stretch_s).astype(int), n_st - 1)
     rows = np.arange(0, len(t), max(1, int(np.ceil(len(t) / MAX_PAIR_ROWS))))
@@ -153,7 +155,7 @@ def revisit_pairs(
     later = t[p[:, 0]] > t[p[:, 1]]
     p[later] = p[later][:, ::-1]
     p = balanced(p, stretch, n_st, seed)
-    return RevisitPairs(p.reshape(-1, 2), stretch, n_st, float(stretch_s), float(radius_m), t)
+    return RevisitPairs(p.reshape(-1, 2), stretch, n_st, float(stretch_s), float(radius_m), t, start)
 
 
 def crossing_keys(pairs: np.ndarray, stretch: np.ndarray, n_stretches: int) -> np.ndarray:

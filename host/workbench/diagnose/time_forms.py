@@ -175,3 +175,49 @@ class PermutedTimes:
             cc, ss, cs = (X * HX).sum(0), (Y * HY).sum(0), (X * HY).sum(0)
             out[:, 1 + i] = quadratic_shares(cc, ss, cs, g.T @ X, g.T @ Y) / dd
         return out
+
+
+class FittedChange:
+    """The size of a form's change in time, in the target's unit, over the times `span` (s) that the revisits
+    compare, their first pass to their last: a drift's (a period longer than the record included) from the
+    span's start to its end, signed for one component and a vector's length for two; a period's amplitude
+    (a vector's largest component's). The differences fix the change up to a constant, and neither needs
+    one. A drift is judged over the span, not the survey: the revisits pin it where their first passes meet
+    their last, and neither a quadratic's turn between them nor its course outside the passes they compare.
+    `kind` is the form's ("drift", "tide", "periodic"); `scale_s` the one the ladder formed the drift's columns
+    with (the survey's duration)."""
+
+    def __init__(
+        self, kind: str, period_s: float | None, scale_s: float, span: tuple[float, float]
+    ) -> None:
+        self.amplitude = kind != "drift"
+        grid = np.linspace(span[0], span[1], 200)
+        self.basis = form_basis(grid, max(scale_s, 1e-9), period_s)
+
+    def __call__(self, d: np.ndarray, A: np.ndarray) -> float:
+        """The change the columns `A` fit to the differences `d` (least squares)."""
+        w, *_ = np.linalg.lstsq(A, d, rcond=None)
+        return self.of(w)
+
+    def of(self, w: np.ndarray) -> float:
+        """The change of the form with coefficients `w` (columns x components)."""
+        change = self.basis @ w
+        if not np.isfinite(change).all():
+            return 0.0
+        if self.amplitude:
+            return float(np.ptp(change, axis=0).max() / 2.0)
+        step = change[-1] - change[0]
+        return float(step[0]) if len(step) == 1 else float(np.hypot(*step))
+
+    def sd(self, d: np.ndarray, A: np.ndarray, rp: RevisitPairs, seed: int = 0, n: int = 200) -> float:
+        """The change's sd over the stretches resampled with replacement, a pair weighted by the product of
+        its two stretches' counts (as the period's: time_judge.bootstrap_period_sd)."""
+        sa, sb = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
+        rng, ns = np.random.default_rng(seed), rp.n_stretches
+        out = np.empty(n)
+        for i in range(n):
+            counts = np.bincount(rng.integers(0, ns, ns), minlength=ns)
+            wt = np.sqrt(counts[sa] * counts[sb])[:, None]
+            coef, *_ = np.linalg.lstsq(A * wt, d * wt, rcond=None)
+            out[i] = self.of(coef)
+        return float(np.std(out))

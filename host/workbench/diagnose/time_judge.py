@@ -31,11 +31,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from forcemap.host.workbench.diagnose.time_forms import (
     M2_S,
+    FittedChange,
     FormLadder,
     PermutedTimes,
     Projector,
     clipped,
-    form_basis,
     nuisance,
     pair_shares,
     periodic_columns,
@@ -76,7 +76,7 @@ class TimeVerdict:
 
     pairs: int
     crossings: int
-    span_s: float  # the survey's duration
+    span_s: float  # the judged rows' duration
     stretch_s: float
     radius_m: float
     rms_difference: float  # RMS of the pairs' differences, in the target's unit
@@ -94,9 +94,12 @@ class TimeVerdict:
     # carries most of it (`evidence`)
     evidence_crossings: float = 0.0
     evidence_at_s: tuple[float, float] = (0.0, 0.0)
-    # the fitted change's size in the target's unit (`fitted_change`): a drift's from start to end, a
-    # period's amplitude
+    # the fitted change's size in the target's unit (`fitted_change`): a drift's from the first pass the
+    # revisits compare to the last (the times, s, in `change_span_s`), a period's amplitude
     change: float = 0.0
+    change_sd: float = 0.0  # over the stretches resampled
+    change_span_s: tuple[float, float] = (0.0, 0.0)
+    start_s: float = 0.0  # the first judged row's time (every time here is in s since the survey's start)
 
     @property
     def improvement(self) -> float:
@@ -186,7 +189,9 @@ def judge_time(
         columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
     best = replace(best, name=kind_of(best, span, sd))
     n_evidence, at = evidence(d, rp, columns)
-    change = fitted_change(d, columns, best, rp.t)
+    covered = (float(min(ta.min(), tb.min())), float(max(ta.max(), tb.max())))
+    fitted = FittedChange(best.name, best.period_s, span, covered)
+    change = fitted(d, columns)
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -202,27 +207,12 @@ def judge_time(
         period_sd_s=sd,
         indistinct=indistinct(forms, best, n_eff),
         evidence_crossings=n_evidence,
-        evidence_at_s=at,
+        evidence_at_s=(at[0] + rp.start_s, at[1] + rp.start_s),
         change=change,
+        change_sd=fitted.sd(d, columns, rp, seed) if change else 0.0,
+        change_span_s=(covered[0] + rp.start_s, covered[1] + rp.start_s),
+        start_s=rp.start_s,
     )
-
-
-def fitted_change(d: np.ndarray, A: np.ndarray, best: Form, t: np.ndarray) -> float:
-    """The size of the change the columns `A` fit to the differences `d`, over the survey's times `t` (the
-    same function undifferenced: the quadratic of a drift, the cosine and sine of a period). A drift's (a
-    period longer than the record included) is its change from the survey's start to its end, signed for
-    one component and a vector's length for two: the revisits pin it where the first passes meet the last,
-    and a quadratic's turn between them they may not. A period's is its amplitude (a vector's largest
-    component's). The differences fix the change up to a constant, and neither needs one."""
-    w, *_ = np.linalg.lstsq(A, d, rcond=None)
-    grid = np.linspace(float(np.min(t)), float(np.max(t)), 200)
-    change = form_basis(grid, max(float(np.ptp(t)), 1e-9), best.period_s) @ w
-    if not np.isfinite(change).all():
-        return 0.0
-    if best.name != "drift":
-        return float(np.ptp(change, axis=0).max() / 2.0)
-    step = change[-1] - change[0]
-    return float(step[0]) if len(step) == 1 else float(np.hypot(*step))
 
 
 def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tuple[float, float]]:

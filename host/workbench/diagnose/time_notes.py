@@ -27,12 +27,20 @@ def revisit_note(verdict, held_rows: int) -> str:
 
 
 def change_note(verdict) -> str:
-    """The size of the fitted change: a drift's from the survey's start to its end, a period's amplitude."""
+    """The size of the fitted change: a drift's from the first pass the revisits compare to the last (the
+    survey's start and end when they span it), a period's amplitude."""
     if verdict.share <= 0 or verdict.change == 0:
         return ""
-    if verdict.best.name == "drift":
-        return f"; from the survey's start to its end the change it fits is {verdict.change:.3g}"
-    return f"; the change it fits has an amplitude of {verdict.change:.3g}"
+    size = f"{verdict.change:.3g}" + (f" ± {verdict.change_sd:.2g}" if verdict.change_sd > 0 else "")
+    if verdict.best.name != "drift":
+        return f"; the change it fits has an amplitude of {size}"
+    a, b = (x / 60.0 for x in verdict.change_span_s)
+    if a < 0.5 and b > (verdict.start_s + verdict.span_s) / 60.0 - 0.5:
+        return f"; from the survey's start to its end the change it fits is {size}"
+    return (
+        f"; from the first pass the revisits compare to the last ({a:.0f} and {b:.0f} min into the "
+        f"survey) the change it fits is {size}"
+    )
 
 
 def evidence_note(verdict) -> str:
