@@ -85,10 +85,36 @@ def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
             axis += f"; level {lv.verdict}: mean squares differ by {lv.difference:.4g}"
             axis += f", sd {lv.sd_difference:.4g}"
             axis += f", range {lv.range_m:.4g} m"
+            axis += level_against_truth(case, cases, survey, r.model)
         print(
             f"{case} {target} + [{extra}]: crossline RMSE {xl}, blocked CV {r.cv.rmse:.4f}{axis}",
             flush=True,
         )
+
+
+def level_against_truth(case: str, cases: Path, survey, sm) -> str:  # type: ignore[no-untyped-def]
+    """An injected case's fitted level against its truth's (both centred): correlation, slope, and the
+    share of rows where the truth lies within the level's own 2 sd."""
+    import pandas as pd
+    from forcemap.host.workbench.water_level import level_estimate
+
+    if case.endswith((".csv", ".parquet")):
+        return ""
+    from tests.real_cases import Cases
+
+    truth_file = Cases(cases)(case).truth
+    if truth_file is None:
+        return ""
+    truth = pd.read_csv(truth_file)
+    est, sd = level_estimate(sm.primary, survey.trel)
+    level = np.interp(survey.columns["t"], truth.t, truth.level)
+    est, level = est - est.mean(), level - level.mean()
+    slope = float(np.dot(level, est) / np.dot(level, level))
+    inside = float(np.mean(np.abs(est - level) <= 2 * sd))
+    return (
+        f"; against the truth: r {np.corrcoef(est, level)[0, 1]:.3f}, slope {slope:.2f}, "
+        f"{inside:.0%} of rows within 2 sd"
+    )
 
 
 def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: bool) -> None:
