@@ -17,7 +17,7 @@ baseline model's revisit pairs: from products over the stretches (`PermutedTimes
 and from the pairs' columns formed in full (`FormLadder.shares`), with the largest difference between them.
 
 A CASE is an injected real case of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`,
-`fjord_level`), a real log's path under the real data (`nmea/irene/irene_2014-06-27_geneva.nmea`), or a
+`fjord_seiche`, `fjord_level`, `plaka_level`), a real log's path under the real data (`nmea/irene/irene_2014-06-27_geneva.nmea`), or a
 samples table (a simulated survey's `samples.csv`). Cases are built once into --cases (default
 /tmp/forcemap-cases) and reused.
 """

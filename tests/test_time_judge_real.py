@@ -1,8 +1,8 @@
 """Diagnose on real logs with a known change in time put into their NMEA (tests/real_cases.py, issue 36).
 
 Each case is a real race with everything as recorded (speed log, compass, wind, their noise, faults and
-latencies) plus a known current: a tidal stream and a 74-minute seiche in the Flensburg fjord, a 74-minute
-seiche on Lake Geneva. On Geneva the revisits credit time as strongly with the injection taken out again:
+latencies) plus a known current or level: a tidal stream, a 74-minute seiche and a 0.6 m rise in the
+Flensburg fjord, a 74-minute seiche on Lake Geneva, the same rise in the Gulf of Finland. On Geneva the revisits credit time as strongly with the injection taken out again:
 what they find there is the race's own change (bench/RESULTS.md, "What the revisits see of an injected
 current"); the test holds that time is credited on the revisits' evidence and its term cuts the error.
 Diagnose must find time where the boat comes back, say how many revisit pairs judged it, and the advised
