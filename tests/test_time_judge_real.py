@@ -203,6 +203,8 @@ def test_a_level_the_track_comes_back_through_is_named_and_fit_follows_it(real_c
     with_level = fit_target(survey, "depth", [*BASELINE, "water_level"], progress=False)
     check = with_level.level
     assert check is not None and check.with_level < check.without_level, check
+    if check.verdict == "alike":  # better, by less than 2 sd over the time stretches: `fit` says by how much
+        assert f"better by {check.difference / check.sd_difference:.1f} sd" in with_level.summary()
     sm = SurveyModel(survey, "depth", [*BASELINE, "water_level"]).fit()
     est, sd = level_estimate(sm.primary, survey.trel)
     level = np.interp(survey.columns["t"], truth.t, truth.level)

@@ -56,6 +56,13 @@ class LevelCheck:
         )
         if self.verdict == "water":
             return f"{where}: the level (range {self.range_m:.3g} m) is the water's"
+        if self.verdict == "alike" and self.difference > 0:
+            return (
+                f"{where}, better by {self.difference / self.sd_difference:.1f} sd of the difference over "
+                f"the time stretches, short of the 2 that would settle it: the level (range "
+                f"{self.range_m:.3g} m) makes the passes agree better, but the crossings cannot yet tell it "
+                "from none; a gauge settles it (--water-level GAUGE.csv)"
+            )
         if self.verdict == "alike":
             return (
                 f"{where}, alike within twice the sd over the time stretches: the crossings cannot tell this "
