@@ -94,8 +94,8 @@ class TimeVerdict:
     # carries most of it (`evidence`)
     evidence_crossings: float = 0.0
     evidence_at_s: tuple[float, float] = (0.0, 0.0)
-    # the fitted change's size in the target's unit (`fitted_change`): a drift's from the first pass the
-    # revisits compare to the last (the times, s, in `change_span_s`), a period's amplitude
+    # the fitted change's size in the target's unit (`time_forms.FittedChange`): a drift's from the first
+    # pass the revisits compare to the last (the times, s, in `change_span_s`), a period's amplitude
     change: float = 0.0
     change_sd: float = 0.0  # over the stretches resampled
     change_span_s: tuple[float, float] = (0.0, 0.0)
