@@ -124,6 +124,7 @@ def test_diagnose_of_a_real_log_with_gaps_says_what_it_left_out(fjord, capsys, t
     v = next(c for c in d["candidates"] if c["covariate"] == "t")["time"]
     assert v["pairs"] > 50 and 1.0 <= v["evidence_crossings"] <= v["crossings"], v
     assert all(v["start_s"] <= s <= v["start_s"] + v["span_s"] for s in v["evidence_at_s"]), v
+    assert v["unit"] == "m/s", v  # a current's east and north components
 
 
 @pytest.mark.slow

@@ -21,7 +21,7 @@ from forcemap.host.workbench.revisits import (
     stretch_length,
     target_radius,
 )
-from forcemap.host.workbench.table import family
+from forcemap.host.workbench.table import family, unit_of
 
 # fewer revisits than these cannot judge time (a permutation of fewer stretches cannot be significant)
 MIN_PAIRS = 50
@@ -100,7 +100,10 @@ def time_verdict(
     found = revisits_of(sm, radius_m)
     if found is None:
         return None
-    return judge_time(*judged_pairs(sm, found), threshold=threshold), found.held
+    verdict = judge_time(*judged_pairs(sm, found), threshold=threshold)
+    # a vector is judged on its east and north components
+    verdict.unit = "m/s" if sm.vector is not None else unit_of(sm.target)
+    return verdict, found.held
 
 
 def judged_pairs(sm, found: Revisits) -> tuple:

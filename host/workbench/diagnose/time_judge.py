@@ -100,6 +100,7 @@ class TimeVerdict:
     change_sd: float = 0.0  # over the stretches resampled
     change_span_s: tuple[float, float] = (0.0, 0.0)
     start_s: float = 0.0  # the first judged row's time (every time here is in s since the survey's start)
+    unit: str = ""  # of the differences and the change (time_candidate.time_verdict sets it)
 
     @property
     def improvement(self) -> float:

@@ -12,12 +12,13 @@ def revisit_note(verdict, held_rows: int) -> str:
         if held_rows
         else ""
     )
+    u = f" {verdict.unit}" if verdict.unit else ""
     return (
         f"judged on {verdict.pairs} revisit pairs ({verdict.crossings} crossings within "
         f"{verdict.radius_m:.0f} m, stretches of {verdict.stretch_s:.0f} s or more apart){held}: their "
-        f"differences have an RMS of {verdict.rms_difference:.3g}, of which a change in time explains "
+        f"differences have an RMS of {verdict.rms_difference:.3g}{u}, of which a change in time explains "
         + (
-            f"{verdict.rms_time:.3g} RMS ({verdict.share:.0%} of their mean square, cross-validated)"
+            f"{verdict.rms_time:.3g}{u} RMS ({verdict.share:.0%} of their mean square, cross-validated)"
             if verdict.share > 0
             else "nothing (cross-validated)"
         )
@@ -32,6 +33,7 @@ def change_note(verdict) -> str:
     if verdict.share <= 0 or verdict.change == 0:
         return ""
     size = f"{verdict.change:.3g}" + (f" ± {verdict.change_sd:.2g}" if verdict.change_sd > 0 else "")
+    size += f" {verdict.unit}" if verdict.unit else ""
     if verdict.best.name != "drift":
         return f"; the change it fits has an amplitude of {size}"
     a, b = (x / 60.0 for x in verdict.change_span_s)
