@@ -17,9 +17,9 @@ baseline model's revisit pairs: from products over the stretches (`PermutedTimes
 and from the pairs' columns formed in full (`FormLadder.shares`), with the largest difference between them.
 
 A CASE is an injected real case of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`,
-`fjord_seiche`, `fjord_level`, `plaka_level`), a real log's path under the real data (`nmea/irene/irene_2014-06-27_geneva.nmea`), or a
-samples table (a simulated survey's `samples.csv`). Cases are built once into --cases (default
-/tmp/forcemap-cases) and reused.
+`fjord_seiche`, `fjord_level`, `plaka_level`), a real log's path under the real data
+(`nmea/irene/irene_2014-06-27_geneva.nmea`), or a samples table (a simulated survey's `samples.csv`). Cases
+are built once into --cases (default /tmp/forcemap-cases) and reused.
 """
 
 from __future__ import annotations
@@ -93,10 +93,10 @@ def crossline(case: str, cases: Path, target: str, terms: list[str]) -> None:
 
 
 def level_against_truth(case: str, cases: Path, survey, sm) -> str:  # type: ignore[no-untyped-def]
-    """An injected case's fitted level against its truth's (both centred): correlation, slope, and the
-    share of rows where the truth lies within the level's own 2 sd."""
+    """An injected case's fitted level against its truth's (`inject_verify.level_match`)."""
     import pandas as pd
-    from forcemap.host.workbench.water_level import level_estimate
+
+    from bench.inject_verify import level_match
 
     if case.endswith((".csv", ".parquet")):
         return ""
@@ -105,16 +105,7 @@ def level_against_truth(case: str, cases: Path, survey, sm) -> str:  # type: ign
     truth_file = Cases(cases)(case).truth
     if truth_file is None:
         return ""
-    truth = pd.read_csv(truth_file)
-    est, sd = level_estimate(sm.primary, survey.trel)
-    level = np.interp(survey.columns["t"], truth.t, truth.level)
-    est, level = est - est.mean(), level - level.mean()
-    slope = float(np.dot(level, est) / np.dot(level, level))
-    inside = float(np.mean(np.abs(est - level) <= 2 * sd))
-    return (
-        f"; against the truth: r {np.corrcoef(est, level)[0, 1]:.3f}, slope {slope:.2f}, "
-        f"{inside:.0%} of rows within 2 sd"
-    )
+    return f"; against the truth: {level_match(sm, survey, pd.read_csv(truth_file)).line()}"
 
 
 def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: bool) -> None:

@@ -4,12 +4,12 @@ verdict on each (bench/RESULTS.md, "What the revisits see of an injected current
     python -m bench.bench_time_truth CASE [CASE ...] [--gains 0,1,2,3]
 
 A CASE is an injected case of tests/real_cases.py (`geneva_seiche`, `lake_drift`, `fjord_tide`,
-`fjord_seiche`, `fjord_level`, `plaka_level`). Gain 1 is the case's table as built; gain g adds (g - 1) times the injected
-current to its east and north columns and recomputes the speed and direction, or (g - 1) times the injected
-level to its depth (the table level, not the NMEA: the pipeline keeps an injected current with slopes
-0.96-1.01 and a level with 1.001, bench/RESULTS.md "Known effects injected into real NMEA logs"); gain 0 is
-the case with its injection taken out again. A current is judged on `current_speed` (its east and north
-components), a level on `depth`.
+`fjord_seiche`, `fjord_level`, `plaka_level`). Gain 1 is the case's table as built; gain g adds (g - 1)
+times the injected current to its east and north columns and recomputes the speed and direction, or (g - 1)
+times the injected level to its depth (the table level, not the NMEA: the pipeline keeps an injected current
+with slopes 0.96-1.01 and a level with 1.001, bench/RESULTS.md "Known effects injected into real NMEA
+logs"); gain 0 is the case with its injection taken out again. A current is judged on `current_speed` (its
+east and north components), a level on `depth`.
 
 Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagnose judges them:
 - the verdict (`judge_time`): p-value, form, period, and how many crossings the change it fits rests on
@@ -139,7 +139,7 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     best = int(np.argmax(shares))
     b = ver.best
     period = "" if b.period_s is None else f" {b.period_s / 60:.0f} min"
-    ends = s.t0 + s.trel[found.rows].min() + np.array(ver.change_span_s)
+    ends = s.t0 + np.array(ver.change_span_s)
     if is_level(truth):
         step = gain * float(np.diff(np.interp(ends, truth.t, truth.level))[0])
     else:

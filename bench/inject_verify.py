@@ -93,6 +93,34 @@ def truth_at(truth: dict[str, np.ndarray], column: str, t: np.ndarray) -> np.nda
     return np.interp(t, truth["t"], truth[column], left=np.nan, right=np.nan)
 
 
+@dataclass(frozen=True)
+class LevelMatch:
+    """A fitted water level against an injected one, both centred: their correlation, the fitted level's
+    slope on the truth, and the share of rows where the truth lies within the level's own 2 sd."""
+
+    r: float
+    slope: float
+    inside: float
+
+    def line(self) -> str:
+        return f"r {self.r:.3f}, slope {self.slope:.2f}, {self.inside:.0%} of rows within 2 sd"
+
+
+def level_match(sm, survey, truth) -> LevelMatch:  # type: ignore[no-untyped-def]
+    """The level of a fitted depth model `sm` (`water_level.level_estimate`) on `survey`'s rows against
+    the truth's `level` column (a table with `t` and `level`, times as the survey's)."""
+    from forcemap.host.workbench.water_level import level_estimate
+
+    est, sd = level_estimate(sm.primary, survey.trel)
+    level = np.interp(survey.columns["t"], np.asarray(truth["t"]), np.asarray(truth["level"]))
+    est, level = est - est.mean(), level - level.mean()
+    return LevelMatch(
+        r=float(np.corrcoef(est, level)[0, 1]),
+        slope=float(np.dot(level, est) / np.dot(level, level)),
+        inside=float(np.mean(np.abs(est - level) <= 2 * sd)),
+    )
+
+
 def along(cols: dict[str, np.ndarray], unit: tuple[float, float], prefix: str) -> np.ndarray:
     return cols[prefix + "_east"] * unit[0] + cols[prefix + "_north"] * unit[1]
 

@@ -1,9 +1,9 @@
 """Real logs imported and exported once per test run, shared by every test module that asks.
 
-A case is a real NMEA log of tests/data/real as recorded (named by its path there), or one with a
-known effect injected (bench/inject_cases.py: ``geneva_seiche``, ``lake_drift``, ``fjord_tide``,
-``fjord_seiche``, ``fjord_level``, ``plaka_level``). Building one runs what a user runs: ``bench/inject_nmea.py`` (injected cases),
-``forcemap import`` (calibrated) and ``forcemap export`` to CSV; ``uncalibrated()`` adds, on demand,
+A case is a real NMEA log of tests/data/real as recorded (named by its path there), or one with a known
+effect injected (bench/inject_cases.py: ``geneva_seiche``, ``lake_drift``, ``fjord_tide``, ``fjord_seiche``,
+``fjord_level``, ``plaka_level``). Building one runs what a user runs: ``bench/inject_nmea.py`` (injected
+cases), ``forcemap import`` (calibrated) and ``forcemap export`` to CSV; ``uncalibrated()`` adds, on demand,
 the pipeline's rows as the instruments read them (``import_to_mcap`` with no calibration).
 
 The sfbay log takes about 100 s of CPU to import, a 4-hour race 35 s: each is built once per run,

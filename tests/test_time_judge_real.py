@@ -2,12 +2,13 @@
 
 Each case is a real race with everything as recorded (speed log, compass, wind, their noise, faults and
 latencies) plus a known current or level: a tidal stream, a 74-minute seiche and a 0.6 m rise in the
-Flensburg fjord, a 74-minute seiche on Lake Geneva, the same rise in the Gulf of Finland. On Geneva the revisits credit time as strongly with the injection taken out again:
-what they find there is the race's own change (bench/RESULTS.md, "What the revisits see of an injected
-current"); the test holds that time is credited on the revisits' evidence and its term cuts the error.
-Diagnose must find time where the boat comes back, say how many revisit pairs judged it, and the advised
-term must cut the error where the boat comes back. The clean logs gain no time term their revisits do
-not support: whenever `t` is credited, its revisit p-value is the one that passed.
+Flensburg fjord, a 74-minute seiche on Lake Geneva, the same rise in the Gulf of Finland. On Geneva the
+revisits credit time as strongly with the injection taken out again: what they find there is the race's own
+change (bench/RESULTS.md, "What the revisits see of an injected current"); the test holds that time is
+credited on the revisits' evidence and its term cuts the error. Diagnose must find time where the boat comes
+back, say how many revisit pairs judged it, and the advised term must cut the error where the boat comes
+back. The clean logs gain no time term their revisits do not support: whenever `t` is credited, its revisit
+p-value is the one that passed.
 """
 
 from __future__ import annotations
@@ -182,8 +183,7 @@ def test_a_level_the_track_comes_back_through_is_named_and_fit_follows_it(real_c
     truth's over the passes the revisits compare. `fit` with that term then makes the passes agree better
     where the track comes back, and the level it estimates follows the injected one within its own band.
     The log as recorded gains no time term."""
-    from forcemap.host.workbench.targets import SurveyModel
-    from forcemap.host.workbench.water_level import level_estimate
+    from bench.inject_verify import level_match
 
     case = real_case("plaka_level")
     survey = load_survey(case.csv)
@@ -205,12 +205,8 @@ def test_a_level_the_track_comes_back_through_is_named_and_fit_follows_it(real_c
     assert check is not None and check.with_level < check.without_level, check
     if check.verdict == "alike":  # better, by less than 2 sd over the time stretches: `fit` says by how much
         assert f"better by {check.difference / check.sd_difference:.1f} sd" in with_level.summary()
-    sm = SurveyModel(survey, "depth", [*BASELINE, "water_level"]).fit()
-    est, sd = level_estimate(sm.primary, survey.trel)
-    level = np.interp(survey.columns["t"], truth.t, truth.level)
-    est, level = est - est.mean(), level - level.mean()
-    assert np.corrcoef(est, level)[0, 1] > 0.95
-    assert np.mean(np.abs(est - level) <= 2 * sd) > 0.9, np.mean(np.abs(est - level) <= 2 * sd)
+    match = level_match(with_level.model, survey, truth)
+    assert match.r > 0.95 and match.inside > 0.9, match
     # the log as recorded: no time term its revisits do not support
     clean = diagnose(load_survey(real_case(case.case.clean).csv), "depth", rounds=1, progress=False)
     t = next(c for c in clean.candidates if c.covariate == "t")

@@ -184,8 +184,8 @@ class FittedChange:
     (a vector's largest component's). The differences fix the change up to a constant, and neither needs
     one. A drift is judged over the span, not the survey: the revisits pin it where their first passes meet
     their last, and neither a quadratic's turn between them nor its course outside the passes they compare.
-    `kind` is the form's ("drift", "tide", "periodic"); `scale_s` the one the ladder formed the drift's columns
-    with (the survey's duration)."""
+    `kind` is the form's ("drift", "tide", "periodic"); `scale_s` the one the ladder formed the drift's
+    columns with (the survey's duration)."""
 
     def __init__(
         self, kind: str, period_s: float | None, scale_s: float, span: tuple[float, float]
