@@ -13,7 +13,7 @@ plausible for the place (and are issue 36's):
   m/s along the fjord's axis there (050/230 deg), phase 30 deg so that it turns mid-race;
 - ``fjord_level``: the same race, the water rising 0.6 m (a smooth step, 45 min wide, mid-race: a
   Baltic wind set-up);
-- ``plaka_level``: the western Gulf of Finland (Plaka, 60 05 N 23 32 E, 4.1 h, a sounder in 5-20 m of
+- ``plaka_level``: the western Gulf of Finland (Plaka, 60 05 N 23 32 E, 4.1 h, a sounder in shallow
   water, no heading), the water rising 0.6 m as in ``fjord_level`` (the Gulf's wind set-ups are the
   Baltic's largest). The fjord's rise is seen at one harbour passed at the start and at the end; this
   boat comes back over the same water while the water rises, where revisits can show a level;
