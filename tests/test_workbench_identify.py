@@ -14,9 +14,12 @@ Every case on two seeds.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from forcemap.host.workbench.diagnose.rounds import diagnose
+from forcemap.host.workbench.diagnose.time_candidate import MIN_CROSSINGS
 from forcemap.host.workbench.table import load_survey
 from forcemap.sim_devices.offline import make_survey
 
@@ -61,6 +64,10 @@ def test_single_transect_time_ramp_is_confounded_with_advice(tmp_path, seed):
     assert "repeat" in out["advice"] and "later" in out["advice"]
     assert out["candidates"][0]["identifiable"] is False
     assert "confounded with position" in best.explanation
+    # and it says the revisits could not judge it, with how often the line came back
+    crossings = re.search(r"\((\d+) crossings and \d+ pairs within", best.note)
+    assert crossings and int(crossings.group(1)) < MIN_CROSSINGS, best.note
+    assert "judged on blocks" in best.note
 
 
 COUNTERS = {

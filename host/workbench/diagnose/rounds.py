@@ -40,6 +40,7 @@ from forcemap.host.workbench.diagnose.time_candidate import (
     fitted_seiche,
     smooth_time_term,
     time_term,
+    too_few_note,
 )
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.instruments import Instruments
@@ -242,6 +243,7 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
     plainly). Nothing changes when the track comes back too little."""
     found = ev.time_verdict()
     if found is None:
+        c.note = too_few_note(ev.sm)
         return
     c.blocked_p = c.p_value
     c.take_time_verdict(*found)

@@ -74,6 +74,18 @@ class Revisits(NamedTuple):
 
 def revisits_of(sm, radius_m: float | None = None) -> Revisits | None:
     """The revisits of the fitted model `sm`; None when the track comes back too little to judge time."""
+    found = every_revisit(sm, radius_m)
+    return found if found is not None and enough(found.rp) else None
+
+
+def enough(rp: RevisitPairs) -> bool:
+    """Whether revisits are enough to judge time: MIN_PAIRS pairs on MIN_CROSSINGS crossings."""
+    return len(rp.pairs) >= MIN_PAIRS and rp.crossings >= MIN_CROSSINGS
+
+
+def every_revisit(sm, radius_m: float | None = None) -> Revisits | None:
+    """Every revisit of the fitted model `sm`, however few; None when fewer than 2 MIN_PAIRS rows are
+    under way with finite values."""
     s = sm.survey
     t = s.trel
     resid = sm.y_primary - sm.primary.predict(sm.X)
@@ -86,9 +98,29 @@ def revisits_of(sm, radius_m: float | None = None) -> Revisits | None:
         return None
     rows = np.flatnonzero(keep)
     rp = revisit_pairs(s.xy[rows], t[rows], radius_m, stretch)
-    if len(rp.pairs) < MIN_PAIRS or rp.crossings < MIN_CROSSINGS:
-        return None
     return Revisits(rows, rp, int((~moving).sum()), values)
+
+
+def too_few_note(sm) -> str:
+    """Why the revisits could not judge time on the fitted model `sm`: how often the track comes back, and
+    how often it needs to."""
+    found = every_revisit(sm)
+    need = f"{MIN_CROSSINGS} crossings and {MIN_PAIRS} pairs are needed"
+    if found is None:
+        seen = f"fewer than {2 * MIN_PAIRS} rows under way with a value"
+    else:
+        rp = found.rp
+        seen = f"{rp.crossings} crossings and {len(rp.pairs)} pairs within {rp.radius_m:.0f} m"
+    level = (
+        "; nor can the crossings give a water level: a gauge can (--water-level)"
+        if family(sm.target) == "depth"
+        else ""
+    )
+    return (
+        f"the track comes back too little to judge time where it returns ({seen}; {need}): judged on "
+        "blocks, where along a track that does not come back a change in time cannot be told from a "
+        f"change along the track{level}"
+    )
 
 
 def time_verdict(
