@@ -10,7 +10,8 @@ prints:
 - with `--diagnose`, what `forcemap diagnose` says today on each case and on its clean log (the
   current's case with `--target current_speed`, the level's with `--target depth`).
 
-`--dir DIR` keeps the builds (and reuses them on a second run); by default they go to a temporary
+`--unseen` builds instead the cases on logs that no test case and no threshold was built on
+(bench/inject_cases.py's UNSEEN). `--dir DIR` keeps the builds (and reuses them on a second run); by default they go to a temporary
 folder.
 """
 
@@ -29,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from forcemap.host.cli import main as forcemap  # noqa: E402
 
-from bench.inject_cases import INJECTED  # noqa: E402
+from bench.inject_cases import INJECTED, UNSEEN, case  # noqa: E402
 from bench.inject_nmea import read_truth  # noqa: E402
 from bench.inject_verify import read_table, recovery  # noqa: E402
 from tests.real_cases import Cases  # noqa: E402
@@ -55,14 +56,18 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--dir", type=Path, help="keep the builds here (default: a temporary folder)")
     p.add_argument("--diagnose", action="store_true", help="also run forcemap diagnose on each")
-    p.add_argument("--only", nargs="*", default=sorted(INJECTED), help="cases (default: all)")
+    p.add_argument("--only", nargs="*", help="cases (default: every case of the tests)")
+    p.add_argument(
+        "--unseen", action="store_true", help="the cases on logs no test case was built on"
+    )
     args = p.parse_args()
+    args.only = args.only or sorted(UNSEEN if args.unseen else INJECTED)
     root = args.dir or Path(tempfile.mkdtemp(prefix="forcemap-inject-"))
     root.mkdir(parents=True, exist_ok=True)
     cases = Cases(root)
     print(f"builds in {root}")
     for name in args.only:
-        c = INJECTED[name]
+        c = case(name)
         cpu = build(cases, c.clean), build(cases, name)
         built, clean = cases(name), cases(c.clean)
         print(f"\n## {name}: {c.source}, CPU {cpu[1]:.1f} s (its clean log {cpu[0]:.1f} s)")

@@ -23,6 +23,18 @@ plausible for the place (and are issue 36's):
   beside the race's own changes (bench/RESULTS.md, "What the revisits see of an injected current"); the
   fjord race's 363 crossings at +-0.25 m/s test that the judge names a period where the track can show one.
 
+The ``UNSEEN`` cases put the same kinds of effect into the real logs that no test case and no threshold
+was built on (``python bench/bench_inject.py --unseen --diagnose``; bench/RESULTS.md, "On logs no case
+was built on"):
+
+- ``flensburg31_tide``, ``flensburg31_level``: Irene's other Flensburg day (2013-07-31, 1.1 h, the log
+  whose bus sums its checksums over the address only), the fjord's M2 stream as ``fjord_tide`` and the
+  water rising 0.6 m in a 15-min-wide step mid-log;
+- ``paccup_ebb``: the start of the 2008 Pacific Cup off San Francisco (37 min), an ebb building steadily
+  to 0.3 m/s toward 250 deg (out through the Golden Gate) over the log;
+- ``neuse_level``: Neutron Dance on the Neuse River, North Carolina (1.7 h, no heading), the water rising
+  0.6 m in a 20-min-wide step (a wind set-up of that estuary's size); its track comes back at two places.
+
 A current is uniform in space (bench/inject_effects.py). The ``clean`` cases are the repository's
 real NMEA logs as they are (the null cases); ``sfbay`` is a real flood tide, not injected.
 """
@@ -71,9 +83,19 @@ INJECTED = {
     "fjord_seiche": Case(FJORD, Effect(Current(Shape("periodic", 0.25, period_s=4440.0), 50.0))),
 }
 
+FLENSBURG_31 = LENIENT[0]
+UNSEEN = {
+    "flensburg31_tide": Case(
+        FLENSBURG_31, Effect(Current(Shape("tidal", 0.26, phase_deg=30.0), 50.0)), "lenient"
+    ),
+    "flensburg31_level": Case(FLENSBURG_31, Effect(level=Shape("step", 0.6, width_s=900.0)), "lenient"),
+    "paccup_ebb": Case("nmea/PacCupStartNMEA.txt", Effect(Current(Shape("ramp", 0.3), 250.0))),
+    "neuse_level": Case("nmea/NeutronDance.log", Effect(level=Shape("step", 0.6, width_s=1200.0))),
+}
+
 
 def case(name: str) -> Case:
     """An injected case by name, or a real log as recorded by its path under tests/data/real."""
-    if name in INJECTED:
-        return INJECTED[name]
+    if name in INJECTED or name in UNSEEN:
+        return INJECTED.get(name) or UNSEEN[name]
     return Case(name, None, "lenient" if name in LENIENT else "strict")
