@@ -15,7 +15,8 @@ Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagn
 - the verdict (`judge_time`): p-value, form, period, and how many crossings the change it fits rests on
   (`time_judge.evidence`);
 - the size of the change it fits and its sd (`TimeVerdict.change`: a drift's from the first pass the revisits
-  compare to the last, a period's amplitude) beside the truth's change over the same span;
+  compare to the last, a period's amplitude) beside the truth's change over the same span; for a drift that
+  turns between them, its largest departure from its start (`TimeVerdict.departure`) beside the truth's;
 - `kept`: the share of the injected current's sd the maps leave in their residuals (the same component models
   with their hyperparameters fixed, fitted to the injected current alone: the map is a linear smoother there);
 - `truth explains`: the share of the revisit differences' sum of squares that the injected current's own
@@ -139,22 +140,29 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     best = int(np.argmax(shares))
     b = ver.best
     period = "" if b.period_s is None else f" {b.period_s / 60:.0f} min"
-    ends = s.t0 + np.array(ver.change_span_s)
-    if is_level(truth):
-        step = gain * float(np.diff(np.interp(ends, truth.t, truth.level))[0])
-    else:
-        e, n = (np.diff(np.interp(ends, truth.t, truth[f"current_{c}"]))[0] for c in ("east", "north"))
-        step = gain * float(np.hypot(e, n))
+    step, away = truth_change(truth, s.t0 + np.array(ver.change_span_s), gain)
+    turns = f"; departs up to {ver.departure:.3g} ± {ver.departure_sd:.2g}" if ver.departure else ""
     mapped = f"{PERIODS_MIN[best]:.0f} min ({shares[best]:.3f}; drift {drift:.3f})"
     return (
         f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period} "
         f"(resting on {ver.evidence_crossings:.1f} crossings, most at {ver.evidence_at_s[0] / 60:.0f} and "
         f"{ver.evidence_at_s[1] / 60:.0f} min; its change {ver.change:.3g} ± {ver.change_sd:.2g} from "
         f"{ver.change_span_s[0] / 60:.0f} to {ver.change_span_s[1] / 60:.0f} min, the truth's "
-        f"{step:.3g}); "
+        f"{step:.3g}{turns}, the truth's largest departure {away:.3g}); "
         f"kept {np.mean(kept):.2f}; truth explains {share_by_component(d, truth_cols):.3f} "
         f"(coefficients {', '.join(f'{c:.2f}' for c in coef)}); through the maps {mapped}"
     )
+
+
+def truth_change(truth: pd.DataFrame, ends: np.ndarray, gain: float) -> tuple[float, float]:
+    """The injected part's change from the UNIX time ends[0] to ends[1] (a vector's length), and its
+    largest departure from its value at ends[0] between them."""
+    grid = np.linspace(ends[0], ends[1], 400)
+    cols = ["level"] if is_level(truth) else ["current_east", "current_north"]
+    path = gain * np.column_stack([np.interp(grid, truth.t, truth[c]) for c in cols])
+    dev = path - path[0]
+    step = float(dev[-1, 0]) if len(cols) == 1 else float(np.hypot(*dev[-1]))
+    return step, float(np.sqrt((dev**2).sum(axis=1)).max())
 
 
 def main() -> None:

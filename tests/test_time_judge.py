@@ -124,6 +124,24 @@ def test_a_drift_is_told_from_a_period_the_record_holds_or_not(track):
     assert "a steady rise or fall" in cause and "from a steady drift" not in cause, cause
 
 
+def test_a_rise_and_fall_the_record_holds_once_is_told_from_a_steady_one(track):
+    """A change that rises and falls back within the record (half a sine over the three hours) is a part
+    of a cycle the record does not repeat: a drift, whose start-to-end change is about nothing. The finding
+    says how far it departs from its start, as the truth does, and does not call it a steady rise. A steady
+    rise of the same size does not turn."""
+    t, xy, heading = track
+    bump = 0.3 * np.sin(np.pi * t / SPAN_S)
+    v = verdict(noise(len(t), 11) + bump, t, xy, heading)
+    assert v.p_value <= THRESHOLD + 1e-12 and v.best.name == "drift", v.best
+    assert v.best.period_s is not None and abs(v.change) < 0.1, (v.best, v.change)
+    assert v.departure_sd > 0 and abs(v.departure - 0.3) <= 2 * v.departure_sd, v
+    cause = time_form_cause(v, "current", short_for_tide=False)
+    assert "a rise and a fall within the survey" in cause and "steady" not in cause, cause
+    steady = verdict(noise(len(t), 11) + 0.3 * t / SPAN_S, t, xy, heading)
+    assert steady.departure == 0.0, steady
+    assert "a steady rise or fall" in time_form_cause(steady, "current", short_for_tide=False)
+
+
 def test_a_cause_names_the_period_it_cannot_tell_its_form_from():
     """A drift the revisits cannot tell from a periodic change: the cause names the period of the best
     periodic form (not of a weaker one), and never the drift's own kind."""

@@ -235,6 +235,11 @@ def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
                 f"; fitted with the map on every row, {verdict.fitted_period_s / 60:.1f} ± "
                 f"{verdict.fitted_period_sd_s / 60:.1f} min, which agrees"
             )
+    elif verdict.departure > 0:
+        cause = (
+            f"{what}: a rise and a fall within the survey that the record does not repeat (a tide "
+            "turning, a discharge or a wind set-up that builds and relaxes)"
+        )
     else:
         cause = (
             f"{what}: a steady rise or fall (a river's stage, a discharge changing, a slow drift)"

@@ -209,9 +209,36 @@ class FittedChange:
         step = change[-1] - change[0]
         return float(step[0]) if len(step) == 1 else float(np.hypot(*step))
 
-    def sd(self, d: np.ndarray, A: np.ndarray, rp: RevisitPairs, seed: int = 0, n: int = 200) -> float:
-        """The change's sd over the stretches resampled with replacement, a pair weighted by the product of
-        its two stretches' counts (as the period's: time_judge.bootstrap_period_sd)."""
+    def departure(self, d: np.ndarray, A: np.ndarray) -> float:
+        """The largest departure from its value at the span's start of the change the columns `A` fit."""
+        w, *_ = np.linalg.lstsq(A, d, rcond=None)
+        return self.departure_of(w)
+
+    def departure_of(self, w: np.ndarray) -> float:
+        """The largest departure of the form with coefficients `w` from its value at the span's start (a
+        vector's length): the start-to-end change where the form rises or falls steadily, more where it
+        turns between them."""
+        change = self.basis @ w
+        if not np.isfinite(change).all():
+            return 0.0
+        return float(np.sqrt(((change - change[0]) ** 2).sum(axis=1)).max())
+
+    def turns(self, d: np.ndarray, A: np.ndarray, rp: RevisitPairs, seed: int = 0) -> bool:
+        """Whether the change the columns `A` fit turns between the span's ends: its largest departure from
+        its start exceeds its start-to-end change by more than twice that excess's sd (the stretches
+        resampled). Meant for a part of a cycle; a quadratic fitted to a smooth step overshoots it by its
+        form alone (on the fjord's injected level, a departure of 0.99 m for a 0.59 m rise)."""
+        excess = float(self.departure(d, A) - abs(self(d, A)))
+        sd = self.sd(d, A, rp, seed, of=lambda w: self.departure_of(w) - abs(self.of(w)))
+        return excess > 2.0 * sd
+
+    def sd(
+        self, d: np.ndarray, A: np.ndarray, rp: RevisitPairs, seed: int = 0, n: int = 200, of=None
+    ) -> float:
+        """The change's sd (or that of the measure `of` of the coefficients: `departure_of`) over the
+        stretches resampled with replacement, a pair weighted by the product of its two stretches' counts
+        (as the period's: time_judge.bootstrap_period_sd)."""
+        of = of or self.of
         sa, sb = rp.stretch[rp.pairs[:, 0]], rp.stretch[rp.pairs[:, 1]]
         rng, ns = np.random.default_rng(seed), rp.n_stretches
         out = np.empty(n)
@@ -219,5 +246,5 @@ class FittedChange:
             counts = np.bincount(rng.integers(0, ns, ns), minlength=ns)
             wt = np.sqrt(counts[sa] * counts[sb])[:, None]
             coef, *_ = np.linalg.lstsq(A * wt, d * wt, rcond=None)
-            out[i] = self.of(coef)
+            out[i] = of(coef)
         return float(np.std(out))

@@ -98,6 +98,10 @@ class TimeVerdict:
     # pass the revisits compare to the last (the times, s, in `change_span_s`), a period's amplitude
     change: float = 0.0
     change_sd: float = 0.0  # over the stretches resampled
+    # a part of a cycle that turns between the first and last compared passes (`FittedChange.turns`): its
+    # largest departure from its value at the first, and its sd; else 0
+    departure: float = 0.0
+    departure_sd: float = 0.0
     change_span_s: tuple[float, float] = (0.0, 0.0)
     start_s: float = 0.0  # the first judged row's time (every time here is in s since the survey's start)
     unit: str = ""  # of the differences and the change (time_candidate.time_verdict sets it)
@@ -193,6 +197,8 @@ def judge_time(
     covered = (float(min(ta.min(), tb.min())), float(max(ta.max(), tb.max())))
     fitted = FittedChange(best.name, best.period_s, span, covered)
     change = fitted(d, columns)
+    change_sd = fitted.sd(d, columns, rp, seed) if change else 0.0
+    turns = best.name == "drift" and best.period_s is not None and fitted.turns(d, columns, rp, seed)
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -210,7 +216,9 @@ def judge_time(
         evidence_crossings=n_evidence,
         evidence_at_s=(at[0] + rp.start_s, at[1] + rp.start_s),
         change=change,
-        change_sd=fitted.sd(d, columns, rp, seed) if change else 0.0,
+        change_sd=change_sd,
+        departure=fitted.departure(d, columns) if turns else 0.0,
+        departure_sd=fitted.sd(d, columns, rp, seed, of=fitted.departure_of) if turns else 0.0,
         change_span_s=(covered[0] + rp.start_s, covered[1] + rp.start_s),
         start_s=rp.start_s,
     )

@@ -37,11 +37,18 @@ def change_note(verdict) -> str:
     if verdict.best.name != "drift":
         return f"; the change it fits has an amplitude of {size}"
     a, b = (x / 60.0 for x in verdict.change_span_s)
+    turn = ""
+    if verdict.departure > 0:
+        turn = (
+            f"; between them it turns: it departs from its value at the first by up to "
+            f"{verdict.departure:.3g} ± {verdict.departure_sd:.2g}"
+            + (f" {verdict.unit}" if verdict.unit else "")
+        )
     if a < 0.5 and b > (verdict.start_s + verdict.span_s) / 60.0 - 0.5:
-        return f"; from the survey's start to its end the change it fits is {size}"
+        return f"; from the survey's start to its end the change it fits is {size}{turn}"
     return (
         f"; from the first pass the revisits compare to the last ({a:.0f} and {b:.0f} min into the "
-        f"survey) the change it fits is {size}"
+        f"survey) the change it fits is {size}{turn}"
     )
 
 
