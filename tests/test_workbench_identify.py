@@ -2,7 +2,8 @@
 
 - One pass along one line (the simulator, a two-waypoint mission): time, the distance along the line and
   the heading are one variable. With no effect nothing is found; with a time ramp (a dam release over the
-  whole pass) time is flagged as confounded with position, and the advice is to repeat the line later.
+  whole pass) time is flagged as confounded with position, and the advice is to repeat the line later;
+  `t`'s line says the track came back too little to judge time where it returns.
 - Counters next to a time effect (bench/synth_survey.py with an ensemble number, a wrapping sequence
   counter and a second clock): they are folded into t, which is found; no counter is ever a candidate.
 - Two simultaneous effects (depth-driven current and a dam release): found in two rounds, the error falling.
