@@ -83,16 +83,17 @@ def enough(rp: RevisitPairs) -> bool:
     return len(rp.pairs) >= MIN_PAIRS and rp.crossings >= MIN_CROSSINGS
 
 
-def every_revisit(sm, radius_m: float | None = None) -> Revisits | None:
+def every_revisit(sm, radius_m: float | None = None, judged: bool = True) -> Revisits | None:
     """Every revisit of the fitted model `sm`, however few; None when fewer than 2 MIN_PAIRS rows are
-    under way with finite values."""
+    under way with finite values. Without `judged`, the values are the model's own residual (enough to
+    count the revisits, without fitting a vector's components)."""
     s = sm.survey
     t = s.trel
     resid = sm.y_primary - sm.primary.predict(sm.X)
     stretch = stretch_length(t, resid)
     radius_m = max(target_radius(sm) if radius_m is None else radius_m, MIN_RADIUS_M)
     moving = under_way(s.xy, t, radius_m, stretch)
-    values = judged_values(sm)
+    values = judged_values(sm) if judged else resid[:, None]
     keep = moving & np.isfinite(values).all(axis=1)
     if keep.sum() < 2 * MIN_PAIRS:
         return None
@@ -104,7 +105,7 @@ def every_revisit(sm, radius_m: float | None = None) -> Revisits | None:
 def too_few_note(sm) -> str:
     """Why the revisits could not judge time on the fitted model `sm`: how often the track comes back, and
     how often it needs to."""
-    found = every_revisit(sm)
+    found = every_revisit(sm, judged=False)
     need = f"{MIN_CROSSINGS} crossings and {MIN_PAIRS} pairs are needed"
     if found is None:
         seen = f"fewer than {2 * MIN_PAIRS} rows under way with a value"
