@@ -61,9 +61,8 @@ def test_a_client_speaking_only_the_spec_name_gets_the_track_and_the_maps(tmp_pa
             c.wait_ready()
             c.wait_for(lambda c: live.server.stats()["subscriptions"] >= 2 * len(c.channels), 60)
         _stream(live, [path], speed=1e6)
-        # a bound that holds on a loaded 2-core machine (a run beside a sweep of every real log and the
-        # demo had 370 of 400 fixes at 120 s); the map process runs at a low priority and may still be
-        # catching up
+        # bounds that hold on a loaded 2-core machine: the map process runs at a low priority and may
+        # still be catching up
         spec.wait_for(lambda c: c.topics().get("/fix", 0) == n, 600)
         spec.wait_for(lambda c: c.topics().get("/map/current", 0) >= 3, 600)
     finally:
