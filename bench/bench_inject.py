@@ -62,6 +62,9 @@ def main() -> None:
     )
     args = p.parse_args()
     args.only = args.only or sorted(UNSEEN if args.unseen else INJECTED)
+    unknown = sorted(set(args.only) - set(INJECTED) - set(UNSEEN))
+    if unknown:
+        p.error(f"no such case: {', '.join(unknown)} (cases: {', '.join(sorted({**INJECTED, **UNSEEN}))})")
     root = args.dir or Path(tempfile.mkdtemp(prefix="forcemap-inject-"))
     root.mkdir(parents=True, exist_ok=True)
     cases = Cases(root)

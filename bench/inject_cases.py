@@ -96,6 +96,7 @@ UNSEEN = {
 
 def case(name: str) -> Case:
     """An injected case by name, or a real log as recorded by its path under tests/data/real."""
-    if name in INJECTED or name in UNSEEN:
-        return INJECTED.get(name) or UNSEEN[name]
+    known = {**INJECTED, **UNSEEN}
+    if name in known:
+        return known[name]
     return Case(name, None, "lenient" if name in LENIENT else "strict")

@@ -228,9 +228,11 @@ class FittedChange:
         its start exceeds its start-to-end change by more than twice that excess's sd (the stretches
         resampled). Meant for a part of a cycle; a quadratic fitted to a smooth step overshoots it by its
         form alone (on the fjord's injected level, a departure of 0.99 m for a 0.59 m rise)."""
-        excess = float(self.departure(d, A) - abs(self(d, A)))
-        sd = self.sd(d, A, rp, seed, of=lambda w: self.departure_of(w) - abs(self.of(w)))
-        return excess > 2.0 * sd
+        def excess(w: np.ndarray) -> float:
+            return self.departure_of(w) - abs(self.of(w))
+
+        w, *_ = np.linalg.lstsq(A, d, rcond=None)
+        return excess(w) > 2.0 * self.sd(d, A, rp, seed, of=excess)
 
     def sd(
         self, d: np.ndarray, A: np.ndarray, rp: RevisitPairs, seed: int = 0, n: int = 200, of=None
