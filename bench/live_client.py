@@ -67,6 +67,7 @@ class LiveClient:
         self._stop = threading.Event()
         self._ready = threading.Event()
         self.error: BaseException | None = None
+        self.closed: str | None = None  # how the server ended the connection, when it did
         self.thread = threading.Thread(target=self._main, daemon=True)
         self.thread.start()
 
@@ -96,6 +97,7 @@ class LiveClient:
                     self._frames.append(raw)
                     topic = self._sub_topic[int.from_bytes(raw[1:5], "little")]
                     self._counts[topic] = self._counts.get(topic, 0) + 1
+            self.closed = f"code {ws.close_code} {ws.close_reason!r}"
             closer.cancel()
 
     async def _close_when_stopped(self, ws) -> None:
@@ -151,11 +153,15 @@ class LiveClient:
         if self.error is not None:
             raise self.error
 
-    def wait_for(self, pred, timeout: float = 120.0) -> None:
+    def wait_for(self, pred, timeout: float = 120.0, why=None) -> None:
+        """Wait until ``pred(self)``; fail at once if the connection has ended, else after ``timeout``
+        seconds, with what this client got and ``why()`` (the server's side, say) in the message."""
         deadline = time.monotonic() + timeout
         while not pred(self):
-            assert time.monotonic() < deadline, f"timed out; topics {self.topics()}"
-            assert self.error is None, self.error
+            state = f"topics {self.topics()}" + ("" if why is None else f"; {why()}")
+            assert self.error is None, f"{self.error!r}; {state}"
+            assert self.closed is None, f"the server closed the connection ({self.closed}); {state}"
+            assert time.monotonic() < deadline, f"timed out; {state}"
             time.sleep(0.05)
 
     def topics(self) -> dict[str, int]:

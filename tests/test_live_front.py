@@ -62,9 +62,12 @@ def test_a_client_speaking_only_the_spec_name_gets_the_track_and_the_maps(tmp_pa
             c.wait_for(lambda c: live.server.stats()["subscriptions"] >= 2 * len(c.channels), 60)
         _stream(live, [path], speed=1e6)
         # bounds that hold on a loaded 2-core machine: the map process runs at a low priority and may
-        # still be catching up
-        spec.wait_for(lambda c: c.topics().get("/fix", 0) == n, 600)
-        spec.wait_for(lambda c: c.topics().get("/map/current", 0) >= 3, 600)
+        # still be catching up; a wait that fails says what the server and the sdk's client saw
+        def why() -> str:
+            return f"server {live.server.stats()}; the sdk's client {sdk.topics()}"
+
+        spec.wait_for(lambda c: c.topics().get("/fix", 0) == n, 600, why)
+        spec.wait_for(lambda c: c.topics().get("/map/current", 0) >= 3, 600, why)
     finally:
         live.close(final_maps_s=120.0)
         spec.close()
