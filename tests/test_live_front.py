@@ -64,7 +64,11 @@ def test_a_client_speaking_only_the_spec_name_gets_the_track_and_the_maps(tmp_pa
         # bounds that hold on a loaded 2-core machine: the map process runs at a low priority and may
         # still be catching up; a wait that fails says what the server and the sdk's client saw
         def why() -> str:
-            return f"server {live.server.stats()}; the sdk's client {sdk.topics()}"
+            front = live.server.front
+            return (
+                f"server {live.server.stats()}; the sdk's client {sdk.topics()}; the front sent "
+                f"{front.sent}, ended {front.ended}"
+            )
 
         spec.wait_for(lambda c: c.topics().get("/fix", 0) == n, 600, why)
         spec.wait_for(lambda c: c.topics().get("/map/current", 0) >= 3, 600, why)

@@ -67,12 +67,12 @@ def response_for_client(head: bytes) -> bytes:
 async def _pipe(
     reader: asyncio.StreamReader,
     writer: asyncio.StreamWriter,
-    moved: Callable[[], None] | None = None,
+    moved: Callable[[int], None] | None = None,
 ) -> None:
     try:
         while data := await reader.read(BUFFER):
             if moved is not None:
-                moved()
+                moved(len(data))
             writer.write(data)
             await writer.drain()  # a slow reader on the other side holds this side back
     except (ConnectionError, OSError):
@@ -96,6 +96,9 @@ class SubprotocolFront:
         self._server: asyncio.base_events.Server | None = None
         self._tasks: set[asyncio.Task] = set()
         self.last_moved = time.monotonic()  # the last bytes from the sdk towards a viewer
+        # by viewer (its address): the bytes passed towards it, and how its connection ended
+        self.sent: dict[str, int] = {}
+        self.ended: dict[str, str] = {}
         started = threading.Event()
         failure: list[BaseException] = []
 
@@ -135,16 +138,24 @@ class SubprotocolFront:
                 "127.0.0.1", self.backend_port, limit=MAX_HEAD
             )
             seen, peer = up_writer.get_extra_info("sockname"), writer.get_extra_info("peername")
+            who = f"{peer[0]}:{peer[1]}" if peer else "?"
             if seen and peer:
-                self.peers[f"{seen[0]}:{seen[1]}"] = f"{peer[0]}:{peer[1]}"
+                self.peers[f"{seen[0]}:{seen[1]}"] = who
             up_writer.write(head)
             await up_writer.drain()
             answer = await up_reader.readuntil(b"\r\n\r\n")
             writer.write(response_for_client(answer) if spec else answer)
             await writer.drain()
-            await asyncio.gather(_pipe(reader, up_writer), _pipe(up_reader, writer, self._moved))
+            self.sent[who] = 0
+            await asyncio.gather(
+                _pipe(reader, up_writer), _pipe(up_reader, writer, lambda n: self._moved(who, n))
+            )
+            self.ended[who] = "closed"
         except (asyncio.IncompleteReadError, asyncio.LimitOverrunError, ConnectionError, OSError):
             pass  # not a WebSocket client, or it went away: nothing to serve
+        except Exception as exc:  # noqa: BLE001 - one viewer's failure must not stop the front
+            if peer := writer.get_extra_info("peername"):
+                self.ended[f"{peer[0]}:{peer[1]}"] = repr(exc)
         finally:
             for w in (writer, up_writer):
                 if w is not None:
@@ -153,8 +164,9 @@ class SubprotocolFront:
             if task is not None:
                 self._tasks.discard(task)
 
-    def _moved(self) -> None:
+    def _moved(self, who: str, n: int) -> None:
         self.last_moved = time.monotonic()
+        self.sent[who] = self.sent.get(who, 0) + n
 
     def settle(self, quiet_s: float = 1.0, timeout_s: float = 10.0) -> None:
         """Wait until no bytes have gone towards a viewer for ``quiet_s`` (at most ``timeout_s``), so
