@@ -134,7 +134,7 @@ def _gain_finding(
     pin = pinned.stw_gain is not None or pinned.stw_misalignment_deg is not None
     verdict = "green" if small else ("yellow" if plausible else "red")
     msg = (
-        f"speed log gain {fit.gain:.3f} ± {fit.gain_sd:.3f} (reads {100 * (1 - 1 / fit.gain):+.1f} % "
+        f"speed log gain {fit.gain:.3f} ± {fit.gain_sd:.3f} (reads {100 * abs(1 - 1 / fit.gain):.1f} % "
         f"{'low' if fit.gain > 1 else 'high'}), misalignment {fit.misalignment_deg:+.1f} ± "
         f"{fit.misalignment_sd:.1f}°"
     )
