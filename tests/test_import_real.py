@@ -338,6 +338,47 @@ def test_a_gzipped_capture_imports_as_the_file_it_holds(tmp_path):
     assert gz.counts["/samples"] > 100
 
 
+def _prefixed(src: Path, out: Path, prefix) -> Path:
+    """``src`` with ``prefix(i)`` put before each of its lines (a ``#`` comment kept as it is)."""
+    lines = src.read_bytes().splitlines()
+    out.write_bytes(
+        b"\n".join(ln if ln[:1] == b"#" else prefix(i) + ln for i, ln in enumerate(lines)) + b"\n"
+    )
+    return out
+
+
+@pytest.mark.parametrize(
+    "prefix",
+    [
+        lambda i: f"2011-05-21 14:{i // 600 % 60:02d}:{i // 10 % 60:02d}.{i % 10}00 ".encode(),
+        lambda i: f"{1305986400000 + 100 * i};N;".encode(),
+        lambda i: b"\\s:logger,c:%d*00\\" % (1305986400 + i // 10),  # an NMEA 4 TAG block
+    ],
+    ids=["time stamp", "time and source", "TAG block"],
+)
+def test_a_loggers_prefix_before_each_sentence_is_left_aside_and_counted(prefix, tmp_path, capsys):
+    """Loggers put their own time stamp, a source or an NMEA 4 TAG block before each sentence: the
+    capture imports as the plain file does (its lines, counts and rows), and the note says how many
+    lines had a prefix and what the first one was."""
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    plain, pre = CountingLog(), CountingLog()
+    a = import_file(src, plain)
+    path = _prefixed(src, tmp_path / "prefixed.log", prefix)
+    b = import_file(path, pre)
+    assert b.format == "nmea" and b.records == a.records == NMEA[src.name][0]
+    assert b.counters["nmea"] == a.counters["nmea"] and pre.counts == plain.counts
+    note = next(n for n in b.notes if "carry a prefix" in n)
+    lines = src.read_bytes().splitlines()
+    sentences = [i for i, ln in enumerate(lines) if ln[:1] != b"#"]
+    assert f"{len(sentences):,} of {len(lines):,} lines carry a prefix" in note, note
+    assert repr(prefix(sentences[0]).decode()[:40]) in note, note
+    # what is no NMEA before or after its prefix is still not taken for a capture
+    junk = tmp_path / "junk.txt"
+    junk.write_text("".join(f"{i};N;hello {i}\n" for i in range(50)))
+    assert main(["import", str(junk), "-o", str(tmp_path / "junk.mcap")]) == 2
+    assert "not a format forcemap recognises" in capsys.readouterr().err
+
+
 def test_a_gzipped_capture_cut_short_gives_what_it_holds_and_says_so(tmp_path, capsys):
     src = REAL / "nmea" / "bundg_zeus_9.log"
     cut = _gzip(src, tmp_path / "cut.log.gz", keep=0.6)

@@ -6,10 +6,16 @@ holds, with no temporary file.
 gzip is recognised by its first two bytes, whatever the file's name. A gzip stream cut short (a copy
 interrupted, a logger that lost power) gives the bytes it holds and says so in a note; a damaged one
 is refused in one line, as is a gzipped DataFlash or PD0 file (their readers take a plain file).
+
+Loggers often put something before each sentence: a time stamp of their own clock (`2013-07-31
+10:00:00.123 $GPRMC,...`), a time and a source (`1596816412123;N;$GPRMC,...`), an NMEA 4
+TAG block (`\\c:1596816412*5A\\$GPRMC,...`). A capture's lines are its sentences with any such
+prefix left aside (and counted in a note); the sentence's own checksum still judges it.
 """
 
 from __future__ import annotations
 
+import re
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,6 +26,9 @@ from forcemap.host.decode.nmea import LineSplitter
 GZIP_MAGIC = b"\x1f\x8b"
 GZIP_WBITS = 16 + zlib.MAX_WBITS  # a gzip header and trailer around deflate data
 CHUNK_BYTES = 1 << 20
+# a sentence's start: "$" or "!", its address (a talker and a type, or a proprietary one), a comma
+SENTENCE_START = re.compile(rb"[$!][A-Z][A-Z0-9]{3,8},")
+MAX_PREFIX = 120  # the bytes a logger may put before a sentence
 
 
 class ImportFailed(ValueError):
@@ -89,12 +98,44 @@ def capture_bytes(path: str | Path, notes: list[str] | None = None) -> bytes:
 
 
 def capture_lines(path: str | Path, notes: list[str] | None = None) -> list[bytes]:
-    """Every line of a text capture (without CR/LF), streamed through the splitter."""
+    """Every line of a text capture (without CR/LF), streamed through the splitter, each sentence
+    without a logger's prefix (`without_prefixes`)."""
     splitter = LineSplitter()
     lines: list[bytes] = []
     for chunk in capture_chunks(path, notes):
         lines += splitter.feed(chunk)
-    return lines + splitter.flush()
+    return without_prefixes(lines + splitter.flush(), Path(path).name, notes)
+
+
+def sentence_offset(line: bytes) -> int:
+    """Where the line's sentence starts: 0 for a sentence as a line, past a logger's prefix otherwise,
+    -1 when no sentence starts within MAX_PREFIX bytes."""
+    if line[:1] in (b"$", b"!"):
+        return 0
+    m = SENTENCE_START.search(line, 0, MAX_PREFIX + 12)
+    return m.start() if m and m.start() <= MAX_PREFIX else -1
+
+
+def without_prefixes(lines: list[bytes], name: str, notes: list[str] | None) -> list[bytes]:
+    """The lines with any prefix before their sentence left aside (a ``#`` comment stays as it is);
+    how many had one goes into ``notes``, with the first prefix as an example."""
+    out: list[bytes] = []
+    prefixed, example = 0, b""
+    for line in lines:
+        i = 0 if line[:1] in (b"$", b"!", b"#") else sentence_offset(line)
+        if i > 0:
+            prefixed += 1
+            example = example or line[:i]
+            line = line[i:]
+        out.append(line)
+    if prefixed and notes is not None:
+        shown = example[:40].decode("ascii", "replace")
+        notes.append(
+            f"{name}: {prefixed:,} of {len(lines):,} lines carry a prefix before their sentence (a "
+            f"logger's time stamp, a source or an NMEA 4 TAG block; the first: {shown!r}): the "
+            "sentences are read, their prefixes left aside"
+        )
+    return out
 
 
 def plain_file_format(path: Path, fmt: str) -> str:

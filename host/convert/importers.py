@@ -28,6 +28,7 @@ from forcemap.host.convert.capture_file import (
     capture_bytes,
     capture_head,
     plain_file_format,
+    sentence_offset,
 )
 from forcemap.host.convert.dataflash import DataflashDecoder
 from forcemap.host.convert.nav_findings import Collector
@@ -86,7 +87,7 @@ def detect_format(path: str | Path) -> str:
     if len(head) > 8 and head[8] in (0xFD, 0xFE):
         return "tlog"
     lines = [ln.strip() for ln in head.splitlines()]
-    if sum(ln[:1] in (b"$", b"!") for ln in lines) >= max(1, len(lines) // 10):
+    if sum(sentence_offset(ln) >= 0 for ln in lines) >= max(1, len(lines) // 10):
         return "nmea"
     raise ImportFailed(
         f"{p.name}: not a format forcemap recognises (NMEA 0183 text, a MAVLink tlog or an "
