@@ -68,6 +68,7 @@ class LiveClient:
         self._ready = threading.Event()
         self.error: BaseException | None = None
         self.closed: str | None = None  # how the server ended the connection, when it did
+        self.ops: dict[str, int] = {}  # the server's text messages, by op (advertise, status, ...)
         self.thread = threading.Thread(target=self._main, daemon=True)
         self.thread.start()
 
@@ -107,6 +108,7 @@ class LiveClient:
 
     async def _control(self, ws, msg: dict) -> None:
         op = msg.get("op")
+        self.ops[str(op)] = self.ops.get(str(op), 0) + 1
         if op == "serverInfo":
             self.server_info = msg
             self._ready.set()
@@ -158,7 +160,8 @@ class LiveClient:
         seconds, with what this client got and ``why()`` (the server's side, say) in the message."""
         deadline = time.monotonic() + timeout
         while not pred(self):
-            state = f"topics {self.topics()}" + ("" if why is None else f"; {why()}")
+            state = f"topics {self.topics()}, ops {self.ops}"
+            state += "" if why is None else f"; {why()}"
             assert self.error is None, f"{self.error!r}; {state}"
             assert self.closed is None, f"the server closed the connection ({self.closed}); {state}"
             assert time.monotonic() < deadline, f"timed out; {state}"
