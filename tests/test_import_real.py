@@ -379,6 +379,50 @@ def test_a_loggers_prefix_before_each_sentence_is_left_aside_and_counted(prefix,
     assert "not a format forcemap recognises" in capsys.readouterr().err
 
 
+class FixTimes(CountingLog):
+    """Counts messages per topic and keeps the times of the fixes."""
+
+    def __init__(self, out=".", **kw):
+        super().__init__(out, **kw)
+        self.fix_s: list[float] = []
+
+    def write(self, topic, log_time_ns, message):
+        super().write(topic, log_time_ns, message)
+        if topic == "/fix":
+            self.fix_s.append(log_time_ns / 1e9)
+
+
+def test_a_log_without_a_date_takes_its_day_from_date_and_says_so_without_it(tmp_path, capsys):
+    """GGA and GLL carry the time of day, not the day: a log without RMC or ZDA has no date. With
+    --date its fixes fall where the same log's own dates put them; without it they fall on
+    1970-01-01, and the import says so and names --date (the declination and tides need the day)."""
+    from forcemap.host.cli.common import log_day
+
+    src = REAL / "nmea" / "bundg_zeus_9.log"
+    lines = src.read_bytes().splitlines()
+    dateless = tmp_path / "dateless.log"
+    dateless.write_bytes(b"\n".join(ln for ln in lines if ln[3:6] not in (b"RMC", b"ZDA")))
+    plain, dated, undated = FixTimes(), FixTimes(), FixTimes()
+    import_file(src, plain)
+    b = import_file(dateless, dated, day=log_day("2018-08-20"))
+    c = import_file(dateless, undated)
+    assert dated.fix_s and len(dated.fix_s) == len(undated.fix_s)
+    assert abs(min(dated.fix_s) - min(plain.fix_s)) < 2.0
+    assert abs(max(dated.fix_s) - max(plain.fix_s)) < 2.0
+    assert max(undated.fix_s) < 86400.0
+    assert any("the day from --date, 2018-08-20" in n for n in b.notes), b.notes
+    assert any("1970-01-01" in n and "--date YYYY-MM-DD" in n for n in c.notes), c.notes
+    # a log's own date comes first; a --date that disagrees is named, not used
+    again = FixTimes()
+    d = import_file(src, again, day=log_day("2018-08-21"))
+    assert again.fix_s == plain.fix_s
+    assert any("the file's own date (2018-08-20) is used, not --date 2018-08-21" in n for n in d.notes)
+    with pytest.raises(SystemExit) as e:
+        main(["import", str(dateless), "--date", "20.8.2018", "-o", str(tmp_path / "x.mcap")])
+    assert e.value.code == 2 and not (tmp_path / "x.mcap").exists()
+    assert "'20.8.2018' is not a day (YYYY-MM-DD)" in capsys.readouterr().err
+
+
 def test_a_gzipped_capture_cut_short_gives_what_it_holds_and_says_so(tmp_path, capsys):
     src = REAL / "nmea" / "bundg_zeus_9.log"
     cut = _gzip(src, tmp_path / "cut.log.gz", keep=0.6)

@@ -7,7 +7,14 @@ import sys
 import textwrap
 from pathlib import Path
 
-from forcemap.host.cli.common import add_boat, add_force, add_json, add_nmea_checksum, write_json
+from forcemap.host.cli.common import (
+    add_boat,
+    add_force,
+    add_json,
+    add_log_date,
+    add_nmea_checksum,
+    write_json,
+)
 from forcemap.host.errors import CliError
 
 EPILOG = """\
@@ -37,6 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     add_boat(parser, "calibration for a raw capture (pinned values are used, not estimated)", False)
     add_nmea_checksum(parser)
+    add_log_date(parser)
     add_json(parser, "the report")
     add_force(parser)
 
@@ -57,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         check_output(args.json, [path], force=args.force)
     try:
         cal = load(args.boat)
-        rep = check_path(path, cal, args.nmea_checksum)
+        rep = check_path(path, cal, args.nmea_checksum, args.date)
     except (ConfigError, ImportFailed, WorkbenchError) as e:
         raise CliError(str(e)) from None
     out = sys.stderr if args.json == "-" else sys.stdout

@@ -14,6 +14,7 @@ which prints it on one line and exits 2.
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import math
 import re
@@ -381,6 +382,27 @@ def add_pipeline_options(parser: argparse.ArgumentParser) -> None:
     add_sync(parser)
     add_sample_rate(parser)
     add_nmea_checksum(parser)
+
+
+def add_log_date(parser: argparse.ArgumentParser) -> None:
+    """--date: the UTC day an NMEA log without a date (GGA or GLL, no RMC or ZDA) starts on."""
+    parser.add_argument(
+        "--date",
+        type=log_day,
+        metavar="YYYY-MM-DD",
+        help="the UTC day an NMEA log starts on, for a log whose sentences carry no date (GGA or "
+        "GLL without RMC or ZDA): the magnetic declination, tides and --at need it; a log's own "
+        "date is used before it",
+    )
+
+
+def log_day(text: str) -> float:
+    """``YYYY-MM-DD`` to the UNIX time of that day's UTC midnight (argparse: one line, exit 2)."""
+    try:
+        day = datetime.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a day (YYYY-MM-DD)") from None
+    return datetime.datetime(day.year, day.month, day.day, tzinfo=datetime.UTC).timestamp()
 
 
 def add_nmea_checksum(parser: argparse.ArgumentParser) -> None:

@@ -11,6 +11,7 @@ from typing import Any
 from forcemap.host.cli.common import (
     add_boat,
     add_deprecated,
+    add_log_date,
     add_output,
     add_pipeline_options,
     output_for,
@@ -80,6 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_boat(parser, "calibration (default: built-in; see host/data/boat.example.toml)")
     add_pipeline_options(parser)
+    add_log_date(parser)
 
 
 _UNITS = {"nmea": "lines", "tlog": "packets", "dataflash": "records", "adcp": "ensembles"}
@@ -163,6 +165,7 @@ def run(args: argparse.Namespace) -> int:
             check=check_found,
             sample_rate_hz=sample_rate(args),
             nmea_checksum=args.nmea_checksum,
+            day=args.date,
         )
     except ImportFailed as e:
         raise CliError(str(e)) from None

@@ -3,7 +3,8 @@ ArduPilot DataFlash logs (.BIN).
 
 NMEA captures carry no receive times. Each line gets one from the sentences' own UTC: every line
 where the UTC time of day (RMC, GGA, GLL, ZDA) moves forward is an anchor, and lines between
-anchors are spread evenly; the date comes from the first RMC or ZDA that has one (else 1970-01-01).
+anchors are spread evenly; the date comes from the first RMC or ZDA that has one, else from `--date`
+(else 1970-01-01, and the import says what that day gets wrong).
 A capture with no UTC at all is paced at 1 s per line. tlogs carry the ground station's receive
 time (8-byte big-endian UNIX microseconds) before each packet, used as the arrival time. DataFlash
 logs are read by ``forcemap.host.convert.dataflash``. A gzipped NMEA capture or tlog is read as the
@@ -140,10 +141,12 @@ def import_nmea(
     sync: str | None = None,
     sample_rate_hz: float | None = None,
     nmea_checksum: str = "strict",
+    day: float | None = None,
 ) -> ImportResult:
     """An NMEA 0183 capture through the pipeline's NMEA path (``nmea_checksum``: strict or
-    lenient, forcemap.host.decode.nmea_checksum)."""
-    pre = prepass(path, nmea_checksum)
+    lenient, forcemap.host.decode.nmea_checksum; ``day``: the UTC midnight a log without a date
+    starts on, `import --date`)."""
+    pre = prepass(path, nmea_checksum, day)
     if not pre.has_time:
         raise ImportFailed(why_no_time(pre.lines, Path(path).name, nmea_checksum))
     pipe = _pipeline(path, "nmea", pre.how, sink, calibration, sync, sample_rate_hz, nmea_checksum)
@@ -257,11 +260,12 @@ def import_file(
     sync: str | None = None,
     sample_rate_hz: float | None = None,
     nmea_checksum: str = "strict",
+    day: float | None = None,
 ) -> ImportResult:
-    """Import one file in the given or detected format."""
+    """Import one file in the given or detected format (``day``: for an NMEA log without a date)."""
     fmt = check_importable(path, fmt)
     if fmt == "nmea":
-        return import_nmea(path, sink, calibration, sync, sample_rate_hz, nmea_checksum)
+        return import_nmea(path, sink, calibration, sync, sample_rate_hz, nmea_checksum, day)
     readers = {"tlog": import_tlog, "dataflash": import_dataflash}
     if fmt in readers:
         return readers[fmt](path, sink, calibration, sync, sample_rate_hz)
@@ -301,6 +305,7 @@ def import_to_mcap(
     sample_rate_hz: float | None = None,
     nmea_checksum: str = "strict",
     metadata: dict[str, dict[str, str]] | None = None,
+    day: float | None = None,
 ) -> ImportResult:
     """Import ``path`` into the MCAP file ``out``, which appears whole or not at all.
 
@@ -315,7 +320,9 @@ def import_to_mcap(
         )
         try:
             tee = Collector(log)
-            res = import_file(path, tee, fmt, calibration, sync, sample_rate_hz, nmea_checksum)
+            res = import_file(
+                path, tee, fmt, calibration, sync, sample_rate_hz, nmea_checksum, day
+            )
             _navigation_findings(tee, calibration, res)
             for name, data in (metadata or {}).items():
                 log.metadata(name, data)

@@ -14,6 +14,7 @@ the second pass takes the first one's lines, times and track instead of reading 
 from __future__ import annotations
 
 import contextlib
+import time
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -45,7 +46,7 @@ class Prepass:
         return not self.how.startswith("no UTC")
 
 
-_kept: dict[tuple[str, str], Prepass] | None = None
+_kept: dict[tuple[str, str, float | None], Prepass] | None = None
 
 
 @contextlib.contextmanager
@@ -59,14 +60,15 @@ def kept() -> Iterator[None]:
         _kept = outer
 
 
-def prepass(path: str | Path, checksum: str = "strict") -> Prepass:
-    """Read ``path``'s lines, time them and find its track (once per ``kept()`` block)."""
-    key = (str(path), checksum)
+def prepass(path: str | Path, checksum: str = "strict", day: float | None = None) -> Prepass:
+    """Read ``path``'s lines, time them and find its track (once per ``kept()`` block). ``day``: the
+    UNIX time of the UTC midnight the log starts on, for a log whose sentences carry no date."""
+    key = (str(path), checksum, day)
     if _kept is not None and key in _kept:
         return _kept[key]
     notes: list[str] = []
     lines = capture_lines(path, notes)
-    times, how = nmea_line_times(lines, checksum)
+    times, how = nmea_line_times(lines, checksum, day)
     seed = position_seed(lines, checksum) if not how.startswith("no UTC") else None
     out = Prepass(lines, notes, times, how, seed)
     if _kept is not None:
@@ -74,8 +76,11 @@ def prepass(path: str | Path, checksum: str = "strict") -> Prepass:
     return out
 
 
-def nmea_line_times(lines: list[bytes], checksum: str = "strict") -> tuple[list[float], str]:
-    """A UNIX time for every line (see the module docstring) and how it was found."""
+def nmea_line_times(
+    lines: list[bytes], checksum: str = "strict", day: float | None = None
+) -> tuple[list[float], str]:
+    """A UNIX time for every line (see the module docstring) and how it was found; ``day`` (the UTC
+    midnight the log starts on, `import --date`) dates a log whose sentences carry no date."""
     parser = NmeaParser(checksum)
     tods: list[tuple[int, float]] = []
     date0: float | None = None
@@ -92,14 +97,14 @@ def nmea_line_times(lines: list[bytes], checksum: str = "strict") -> tuple[list[
     n = len(lines)
     if not tods:
         return [float(i) for i in range(n)], "no UTC in the file: 1 s per line from 1970-01-01"
-    base = date0 if date0 is not None else 0.0
+    base = date0 if date0 is not None else (day or 0.0)
     anchors: list[tuple[int, float]] = []
-    day = 0.0
+    past = 0.0  # the days gone by since the first time sentence
     prev_tod = None
     for i, tod in tods:
         if prev_tod is not None and tod < prev_tod - DAY / 2:
-            day += DAY  # past midnight
-        t = base + day + tod
+            past += DAY  # past midnight
+        t = base + past + tod
         prev_tod = tod
         if anchors and not (anchors[-1][1] < t <= anchors[-1][1] + 3600.0):
             continue  # not moving forward, or a corrupt stamp
@@ -121,10 +126,27 @@ def nmea_line_times(lines: list[bytes], checksum: str = "strict") -> tuple[list[
             times[i] = t0 + (t1 - t0) * (i - i0) / (i1 - i0)
         else:
             times[i] = t0 + (i - i0) * rate
-    how = "UTC anchors from RMC/GGA/GLL/ZDA" + (
-        "" if date0 is not None else ", no date in the file: 1970-01-01"
+    return times, "UTC anchors from RMC/GGA/GLL/ZDA" + date_note(date0, day)
+
+
+def iso(t: float) -> str:
+    """The UTC day of a UNIX time, YYYY-MM-DD."""
+    return time.strftime("%Y-%m-%d", time.gmtime(t))
+
+
+def date_note(date0: float | None, day: float | None) -> str:
+    """Where the log's day came from: its own RMC or ZDA (and a --date that disagrees, not used), the
+    user's --date, or nowhere (1970-01-01, and what that day gets wrong)."""
+    if date0 is not None:
+        if day is not None and iso(day) != iso(date0):
+            return f"; the file's own date ({iso(date0)}) is used, not --date {iso(day)}"
+        return ""
+    if day is not None:
+        return f", no date in the file: the day from --date, {iso(day)}"
+    return (
+        ", no date in the file: 1970-01-01 (the magnetic declination, tides and --at need the day: "
+        "give it with --date YYYY-MM-DD)"
     )
-    return times, how
 
 
 def position_seed(

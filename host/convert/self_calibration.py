@@ -260,13 +260,15 @@ def import_calibrated(
     check: Callable[[ImportResult], None] | None = None,
     sample_rate_hz: float | None = None,
     nmea_checksum: str = "strict",
+    day: float | None = None,
 ) -> tuple[ImportResult, list[QaFinding]]:
-    """Import ``path`` to ``out`` with the log's own calibration applied and its findings recorded."""
+    """Import ``path`` to ``out`` with the log's own calibration applied and its findings recorded
+    (``day``: the UTC midnight an NMEA log without a date starts on)."""
     pinned = calibration or Calibration()
     first = SamplesSink()
     with nmea_prepass.kept():  # the second pass reads the same lines at the same times
         raw = unpinned_first_pass(pinned)
-        import_file(path, first, fmt, raw, sync, sample_rate_hz, nmea_checksum)
+        import_file(path, first, fmt, raw, sync, sample_rate_hz, nmea_checksum, day)
         est = estimate(first.rows, first.columns, pinned, first)
         meta = {f.name: f.to_metadata() for f in est.findings}
         res = import_to_mcap(
@@ -279,6 +281,7 @@ def import_calibrated(
             sample_rate_hz,
             nmea_checksum,
             metadata=meta,
+            day=day,
         )
     # the calibration changes values, never which rows there are
     res.counters["self_calibration"] = {"first_pass_samples": len(first.rows)}

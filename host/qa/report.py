@@ -197,10 +197,10 @@ def is_mcap(path: str | Path) -> bool:
 
 
 def check_path(
-    path: str | Path, calibration: Any = None, nmea_checksum: str = "strict"
+    path: str | Path, calibration: Any = None, nmea_checksum: str = "strict", day: Any = None
 ) -> CheckReport:
     """``check``'s input: an MCAP log, a samples table, or a raw capture imported to a temporary log
-    (``nmea_checksum``: as `import --nmea-checksum`)."""
+    (``nmea_checksum``, ``day``: as `import --nmea-checksum` and `--date`)."""
     p = Path(path)
     if is_mcap(p) or p.suffix.lower() in (".csv", ".parquet", ".pq"):
         return check_table(p)
@@ -213,7 +213,9 @@ def check_path(
     with tempfile.TemporaryDirectory(prefix="forcemap-check-") as tmp:
         out = Path(tmp) / (p.stem + ".mcap")
         try:
-            res, _ = sc.import_calibrated(p, out, fmt, calibration, nmea_checksum=nmea_checksum)
+            res, _ = sc.import_calibrated(
+                p, out, fmt, calibration, nmea_checksum=nmea_checksum, day=day
+            )
         except ImportFailed as e:  # a log that gives no samples is graded, not refused
             why = QaFinding("time", "samples", "red", str(e), value=0.0,
                             fix="nothing to map from this log")  # fmt: skip
