@@ -396,7 +396,7 @@ def test_a_log_without_a_date_takes_its_day_from_date_and_says_so_without_it(tmp
     """GGA and GLL carry the time of day, not the day: a log without RMC or ZDA has no date. With
     --date its fixes fall where the same log's own dates put them; without it they fall on
     1970-01-01, and the import says so and names --date (the declination and tides need the day)."""
-    from forcemap.host.cli.common import log_day
+    from forcemap.host.cli.pipeline_options import log_day
 
     src = REAL / "nmea" / "bundg_zeus_9.log"
     lines = src.read_bytes().splitlines()

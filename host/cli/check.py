@@ -7,14 +7,8 @@ import sys
 import textwrap
 from pathlib import Path
 
-from forcemap.host.cli.common import (
-    add_boat,
-    add_force,
-    add_json,
-    add_log_date,
-    add_nmea_checksum,
-    write_json,
-)
+from forcemap.host.cli.common import add_boat, add_force, add_json, write_json
+from forcemap.host.cli.pipeline_options import add_log_date, add_nmea_checksum
 from forcemap.host.errors import CliError
 
 EPILOG = """\

@@ -14,7 +14,6 @@ which prints it on one line and exits 2.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
 import re
@@ -197,16 +196,6 @@ def add_quiet(
     parser.add_argument("--quiet", action="store_true", help=what)
 
 
-def add_sync(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--sync",
-        choices=("interpolate", "approximate"),
-        default=None,
-        help="boat-state matching: interpolate at each sample's time (default), or the paper's "
-        "nearest-neighbour ApproximateTime scheme; overrides the sync.mode of --boat",
-    )
-
-
 def add_target(parser: argparse.ArgumentParser, what: str = "column to model") -> None:
     """``--target``: the same rule everywhere, this option or else the ``--model`` spec's target."""
     parser.add_argument(
@@ -358,59 +347,3 @@ def positive(name: str, value: float) -> float:
     if not math.isfinite(value) or value <= 0:
         raise CliError(f"{name} must be a number above 0, not {value:g}")
     return value
-
-
-def add_sample_rate(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--sample-rate",
-        type=float,
-        default=None,
-        metavar="HZ",
-        help="samples per second in the table (default: one per reading of the fastest measurement "
-        "source; with a bridge, one per bridge SAMPLE)",
-    )
-
-
-def sample_rate(args: argparse.Namespace) -> float | None:
-    """The checked ``--sample-rate``, or None for the default pacing."""
-    rate = args.sample_rate
-    return None if rate is None else positive("--sample-rate", rate)
-
-
-def add_pipeline_options(parser: argparse.ArgumentParser) -> None:
-    """What `run` and `import` share of the pipeline's options: --sync, --sample-rate, --nmea-checksum."""
-    add_sync(parser)
-    add_sample_rate(parser)
-    add_nmea_checksum(parser)
-
-
-def add_log_date(parser: argparse.ArgumentParser) -> None:
-    """--date: the UTC day an NMEA log without a date (GGA or GLL, no RMC or ZDA) starts on."""
-    parser.add_argument(
-        "--date",
-        type=log_day,
-        metavar="YYYY-MM-DD",
-        help="the UTC day an NMEA log starts on, for a log whose sentences carry no date (GGA or "
-        "GLL without RMC or ZDA): the magnetic declination, tides and --at need it; a log's own "
-        "date is used before it",
-    )
-
-
-def log_day(text: str) -> float:
-    """``YYYY-MM-DD`` to the UNIX time of that day's UTC midnight (argparse: one line, exit 2)."""
-    try:
-        day = datetime.date.fromisoformat(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a day (YYYY-MM-DD)") from None
-    return datetime.datetime(day.year, day.month, day.day, tzinfo=datetime.UTC).timestamp()
-
-
-def add_nmea_checksum(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--nmea-checksum",
-        choices=("strict", "lenient"),
-        default="strict",
-        help="strict (default): an NMEA sentence whose checksum fails is rejected; lenient: one "
-        "whose checksum was computed by a known variant (over the address only, without the last "
-        "field, with the $) is accepted and counted (docs/DAEMON.md)",
-    )

@@ -8,15 +8,8 @@ import textwrap
 from pathlib import Path
 from typing import Any
 
-from forcemap.host.cli.common import (
-    add_boat,
-    add_deprecated,
-    add_log_date,
-    add_output,
-    add_pipeline_options,
-    output_for,
-    sample_rate,
-)
+from forcemap.host.cli.common import add_boat, add_deprecated, add_output, output_for
+from forcemap.host.cli.pipeline_options import add_log_date, add_pipeline_options, sample_rate
 from forcemap.host.errors import CliError
 from forcemap.host.outputs import check_output
 
@@ -27,6 +20,7 @@ examples:
   forcemap import flight.tlog -o logs/         # -> logs/flight.mcap
   forcemap import capture.txt --from nmea -o survey.mcap --boat boat.toml
   forcemap import transect.PD0 --reference gps # a moving-boat ADCP (the [adcp] extra)
+  forcemap import sounder.nmea --date 2024-06-12 # GGA without RMC: the log's own day
   forcemap export survey.mcap -o survey.csv    # then the samples table, as for `forcemap run`
 
 An existing output is replaced only with --force; a file that cannot be imported leaves nothing

@@ -28,13 +28,12 @@ from forcemap.host.cli.common import (
     add_deprecated,
     add_duration,
     add_output,
-    add_pipeline_options,
     add_quiet,
     format_duration,
     positive,
-    sample_rate,
 )
 from forcemap.host.cli.live_options import add_live_arguments, start_live
+from forcemap.host.cli.pipeline_options import add_pipeline_options, sample_rate
 from forcemap.host.cli.replan_options import SampleTee, add_replan_arguments, replan_service
 from forcemap.host.errors import CliError
 from forcemap.host.log.mcap import McapLog
