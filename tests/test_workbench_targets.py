@@ -35,6 +35,25 @@ def test_construction_validates_but_does_not_fit(table):
         SurveyModel(survey, "no_such_column")
 
 
+def test_a_current_or_wind_a_log_cannot_have_says_what_it_lacked(table, tmp_path):
+    """A log without a heading has no current and no wind over ground: asking for one says so (the
+    heading it lacked), not just that the name is unknown; a name of no family stays unknown."""
+    import pandas as pd
+
+    df = pd.read_csv(table)
+    gone = [c for c in df.columns if c.startswith(("current_", "wind_")) or c == "heading"]
+    df.drop(columns=gone).to_csv(tmp_path / "no_heading.csv", index=False)
+    survey = load_survey(tmp_path / "no_heading.csv")
+    for target, family in (("current_speed", "current"), ("wind_dir", "wind")):
+        with pytest.raises(WorkbenchError) as e:
+            SurveyModel(survey, target)
+        said = str(e.value)
+        assert said.startswith(f"no '{target}' in this table: a {family} needs the boat's heading")
+        assert "which this log lacks; try one of:" in said, said
+    with pytest.raises(WorkbenchError, match="unknown target 'salinity'"):
+        SurveyModel(survey, "salinity")
+
+
 def test_derived_covariates_are_not_added_to_the_table(table):
     survey = load_survey(table)
     before = list(survey.columns)

@@ -62,6 +62,24 @@ def unit_of(name: str) -> str:
     return ""
 
 
+# what a log needs for a family's vectors beyond a fix: a heading turns the water's or the air's
+# velocity past the boat into the earth's frame, a speed through the water gives the water's
+NEEDS = {
+    "current": (("heading", "the boat's heading (a compass)"), ("stw", "its speed through the water")),
+    "wind": (("heading", "the boat's heading (a compass)"),),
+}
+
+
+def why_absent(columns, name: str) -> str:
+    """Why the table (its ``columns``) has no ``name`` of the wind or current family: what the log
+    lacked; '' when it lacked none of that, or ``name`` is not of those families."""
+    fam = family(name)
+    lacking = [words for column, words in NEEDS.get(fam or "", ()) if column not in columns]
+    if not lacking:
+        return ""
+    return f"a {fam} needs {' and '.join(lacking)}, which this log lacks"
+
+
 def family(name: str) -> str | None:
     """The column family of CONVENTIONS.md: wind, current, depth, or None."""
     if name.startswith("wind_") or name.startswith("app_wind_"):

@@ -27,7 +27,7 @@ from forcemap.host.workbench.survey_fits import (
     survey_inputs,
     terms_with_basis,
 )
-from forcemap.host.workbench.table import NOT_COVARIATES, Survey, is_circular
+from forcemap.host.workbench.table import NOT_COVARIATES, Survey, is_circular, why_absent
 from forcemap.host.workbench.target_rows import target_rows
 
 N_DRAWS = 128
@@ -78,9 +78,10 @@ class SurveyModel:
             if target in survey.non_numeric:
                 raise WorkbenchError(f"target '{target}' is not numeric")
             if target not in survey.columns or target in NOT_COVARIATES:
-                raise WorkbenchError(
-                    f"unknown target '{target}'; try one of: {', '.join(sorted(survey.numeric_columns()))}"
-                )
+                why = why_absent(survey.columns, target)
+                what = f"no '{target}' in this table: {why}" if why else f"unknown target '{target}'"
+                names = ", ".join(sorted(survey.numeric_columns()))
+                raise WorkbenchError(f"{what}; try one of: {names}")
             if is_circular(target):
                 raise WorkbenchError(
                     f"'{target}' is an angle; angles are never regressed as scalars. "
