@@ -197,7 +197,10 @@ def is_mcap(path: str | Path) -> bool:
 
 
 def check_path(
-    path: str | Path, calibration: Any = None, nmea_checksum: str = "strict", day: Any = None
+    path: str | Path,
+    calibration: Any = None,
+    nmea_checksum: str = "strict",
+    day: float | None = None,
 ) -> CheckReport:
     """``check``'s input: an MCAP log, a samples table, or a raw capture imported to a temporary log
     (``nmea_checksum``, ``day``: as `import --nmea-checksum` and `--date`)."""
