@@ -160,12 +160,17 @@ class LiveClient:
         seconds, with what this client got and ``why()`` (the server's side, say) in the message."""
         deadline = time.monotonic() + timeout
         while not pred(self):
-            state = f"topics {self.topics()}, ops {self.ops}"
-            state += "" if why is None else f"; {why()}"
-            assert self.error is None, f"{self.error!r}; {state}"
-            assert self.closed is None, f"the server closed the connection ({self.closed}); {state}"
-            assert time.monotonic() < deadline, f"timed out; {state}"
-            time.sleep(0.05)
+            if self.error is not None:
+                failed = repr(self.error)
+            elif self.closed is not None:
+                failed = f"the server closed the connection ({self.closed})"
+            elif time.monotonic() >= deadline:
+                failed = "timed out"
+            else:
+                time.sleep(0.05)
+                continue
+            extra = "" if why is None else f"; {why()}"
+            raise AssertionError(f"{failed}; topics {self.topics()}, ops {self.ops}{extra}")
 
     def topics(self) -> dict[str, int]:
         """Messages received so far, by topic."""
