@@ -51,6 +51,7 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--sync": (VALUE, "how samples are matched to the boat's state"),
     "--sample-rate": (VALUE, "samples per second in the table"),
     "--nmea-checksum": (VALUE, "strict or lenient: whether NMEA checksum variants are accepted"),
+    "--date": (VALUE, "the UTC day an NMEA log whose sentences carry no date starts on"),
     "--bridge": (VALUE, "the bridge's port"),
     "--nmea": (VALUE, "an NMEA 0183 instrument's port"),
     "--depth": (VALUE, "an NMEA 0183 port named depth"),
