@@ -122,7 +122,7 @@ def without_prefixes(lines: list[bytes], name: str, notes: list[str] | None) -> 
     out: list[bytes] = []
     prefixed, example = 0, b""
     for line in lines:
-        i = 0 if line[:1] in (b"$", b"!", b"#") else sentence_offset(line)
+        i = 0 if line[:1] == b"#" else sentence_offset(line)
         if i > 0:
             prefixed += 1
             example = example or line[:i]

@@ -130,6 +130,8 @@ class SubprotocolFront:
         if task is not None:
             self._tasks.add(task)
         up_writer = None
+        peer = writer.get_extra_info("peername")
+        who = f"{peer[0]}:{peer[1]}" if peer else "?"  # the viewer's address
         try:
             head = await reader.readuntil(b"\r\n\r\n")
             head, spec = request_for_sdk(head)
@@ -137,8 +139,7 @@ class SubprotocolFront:
             up_reader, up_writer = await asyncio.open_connection(
                 "127.0.0.1", self.backend_port, limit=MAX_HEAD
             )
-            seen, peer = up_writer.get_extra_info("sockname"), writer.get_extra_info("peername")
-            who = f"{peer[0]}:{peer[1]}" if peer else "?"
+            seen = up_writer.get_extra_info("sockname")
             if seen and peer:
                 self.peers[f"{seen[0]}:{seen[1]}"] = who
             up_writer.write(head)
@@ -154,8 +155,7 @@ class SubprotocolFront:
         except (asyncio.IncompleteReadError, asyncio.LimitOverrunError, ConnectionError, OSError):
             pass  # not a WebSocket client, or it went away: nothing to serve
         except Exception as exc:  # noqa: BLE001 - one viewer's failure must not stop the front
-            if peer := writer.get_extra_info("peername"):
-                self.ended[f"{peer[0]}:{peer[1]}"] = repr(exc)
+            self.ended[who] = repr(exc)
         finally:
             for w in (writer, up_writer):
                 if w is not None:
