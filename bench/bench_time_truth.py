@@ -24,7 +24,10 @@ Per gain, the baseline model's revisits (`time_candidate.revisits_of`), as diagn
   (1 where the revisits see it as it is; at gain 0 the truth of gain 1, which is not in the table);
 - `through the maps`: the period whose columns, passed through the same maps before they are differenced,
   explain the most of the differences (Frisch-Waugh-Lovell with the map as a nuisance; the judge itself
-  differences the bare columns).
+  differences the bare columns);
+- `oracle p`: the best any judge of these revisits could do, one that knew the injected part's shape in
+  time (its amplitude per component free): the share its own bare differences explain, against the same
+  exchanges of whole stretches' times the judge draws (999). At gain 0, the shape of gain 1 (a null).
 """
 
 from __future__ import annotations
@@ -143,6 +146,7 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
     step, away = truth_change(truth, s.t0 + np.array(ver.change_span_s), gain)
     turns = f"; departs up to {ver.departure:.3g} ± {ver.departure_sd:.2g}" if ver.departure else ""
     mapped = f"{PERIODS_MIN[best]:.0f} min ({shares[best]:.3f}; drift {drift:.3f})"
+    oracle = oracle_p(d, rp, proj, truth, s.t0)
     return (
         f"gain {gain:g} ({amplitude}): {ver.crossings} crossings, p {ver.p_value:.3f}, {b.name}{period} "
         f"(resting on {ver.evidence_crossings:.1f} crossings, most at {ver.evidence_at_s[0] / 60:.0f} and "
@@ -150,8 +154,34 @@ def judge_gain(table: Path, truth: pd.DataFrame, gain: float, amplitude: str) ->
         f"{ver.change_span_s[0] / 60:.0f} to {ver.change_span_s[1] / 60:.0f} min, the truth's "
         f"{step:.3g}{turns}, the truth's largest departure {away:.3g}); "
         f"kept {np.mean(kept):.2f}; truth explains {share_by_component(d, truth_cols):.3f} "
-        f"(coefficients {', '.join(f'{c:.2f}' for c in coef)}); through the maps {mapped}"
+        f"(coefficients {', '.join(f'{c:.2f}' for c in coef)}); through the maps {mapped}; oracle p {oracle:.3f}"
     )
+
+
+def oracle_of(sm: SurveyModel, truth: pd.DataFrame) -> float | None:
+    """`oracle_p` on the revisits of the fitted model `sm` as diagnose judges them (None: too few)."""
+    found = revisits_of(sm)
+    if found is None:
+        return None
+    d0, rp, xy, hd = judged_pairs(sm, found)
+    proj = tf.Projector(tf.nuisance(rp, xy, hd))
+    return oracle_p(proj(tf.clipped(d0)), rp, proj, truth, sm.survey.t0)
+
+
+def oracle_p(d: np.ndarray, rp, proj, truth: pd.DataFrame, t0: float, permutations: int = 999) -> float:
+    """The permutation p-value of the injected part's own shape in time (one free coefficient per
+    component) explaining the projected differences `d`, under the judge's exchanges of stretches."""
+    cols = ["level"] if is_level(truth) else ["current_east", "current_north"]
+    at = t0 + rp.start_s
+
+    def share(ta: np.ndarray, tb: np.ndarray) -> float:
+        g = [np.interp(at + tb, truth.t, truth[c]) - np.interp(at + ta, truth.t, truth[c]) for c in cols]
+        return share_by_component(d, [proj(x[:, None]) for x in g])
+
+    obs = share(*rp.times())
+    rng = np.random.default_rng(0)
+    null = [share(*rp.times(rng.permutation(rp.n_stretches))) for _ in range(permutations)]
+    return float((1 + np.sum(np.array(null) >= obs)) / (1 + permutations))
 
 
 def truth_change(truth: pd.DataFrame, ends: np.ndarray, gain: float) -> tuple[float, float]:
