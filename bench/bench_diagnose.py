@@ -22,9 +22,9 @@ import time
 from pathlib import Path
 
 from forcemap.host.workbench.diagnose.rounds import DIAGNOSE_MAX_BASIS, diagnose
-from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.engine.model import small_blas
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
 from forcemap.sim_devices.offline import make_survey
 
 CASES = [

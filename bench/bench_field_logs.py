@@ -60,9 +60,9 @@ def filled(table: Path) -> tuple[int, dict[str, float]]:
 def data_figures(capture: Path, out: Path) -> None:
     """Spikes flagged per target, and the data-quality findings, of one capture (import, then the MCAP
     read by the workbench, provenance and all)."""
-    from forcemap.host.workbench import data_quality
-    from forcemap.host.workbench.spikes import target_spikes
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.survey import data_quality
+    from forcemap.host.workbench.survey.spikes import target_spikes
+    from forcemap.host.workbench.survey.table import load_survey
 
     mcap = out / (capture.stem + ".mcap")
     step("import", str(capture), "-o", str(mcap))

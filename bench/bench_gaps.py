@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.season.stats import chunk_stats, masked_stats
-from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.terms import HilbertGPTerm
+from forcemap.host.workbench.engine.model import small_blas
+from forcemap.host.workbench.terms.base import HilbertGPTerm
 
 REPO = Path(__file__).resolve().parents[1]
 FJORD = REPO / "tests/data/real/nmea/irene/irene_2013-08-03_flensburg.nmea"
@@ -64,9 +64,9 @@ def season_statistics(n: int = 54000, basis: int = 400) -> None:
 def real_fjord(out: Path) -> None:
     from forcemap.host.cli import main
     from forcemap.host.workbench.diagnose.rounds import diagnose
-    from forcemap.host.workbench.fitting import fit_target
-    from forcemap.host.workbench.spec import BASELINE
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.fits.fit import fit_target
+    from forcemap.host.workbench.survey.table import load_survey
+    from forcemap.host.workbench.terms.spec import BASELINE
 
     out.mkdir(parents=True, exist_ok=True)
     log, table = out / "fjord.mcap", out / "fjord.csv"

@@ -33,8 +33,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # `bench.*` when run as a script
 
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.cv import blocked_folds
-from forcemap.host.workbench.model import Model, small_blas
+from forcemap.host.workbench.engine.model import Model, small_blas
+from forcemap.host.workbench.validation.cv import blocked_folds
 
 from bench.synth_survey import simulate
 

@@ -70,7 +70,7 @@ def stages(table: Path, resolution: float, work: Path) -> tuple[list, object]:
     from forcemap.host.gis.contours import write_contours
     from forcemap.host.gis.geotiff import write_geotiff
     from forcemap.host.gis.netcdf import write_netcdf
-    from forcemap.host.workbench.model import small_blas
+    from forcemap.host.workbench.engine.model import small_blas
 
     out, rows = work / "maps", []
     out.mkdir(exist_ok=True)
@@ -110,9 +110,9 @@ def stages(table: Path, resolution: float, work: Path) -> tuple[list, object]:
 def features_formed():
     """Predictions as they were made before the sine tables, kept here as the baseline: the n x M features
     formed, the mean and the slow blocks' covariances as products with them, cosines by np.cos."""
-    from forcemap.host.workbench import fourier
-    from forcemap.host.workbench.hypersearch import term_inputs
-    from forcemap.host.workbench.model import Model
+    from forcemap.host.workbench.engine import fourier
+    from forcemap.host.workbench.engine.hypersearch import term_inputs
+    from forcemap.host.workbench.engine.model import Model
 
     def formed(self, Xc, mean_part, post, return_std):
         Phi = np.hstack(self.features(Xc))
@@ -141,7 +141,7 @@ def features_formed():
 
 def baseline(table: Path, resolution: float, grid) -> list[tuple[str, float, float]]:
     """The grid stage again with the features formed; the ratio, and how far its bands are from `grid`'s."""
-    from forcemap.host.workbench.model import small_blas
+    from forcemap.host.workbench.engine.model import small_blas
 
     survey = forcemap.read_survey(table)
     with small_blas():

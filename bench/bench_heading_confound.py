@@ -19,13 +19,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.diagnose import time_candidate
-from forcemap.host.workbench.diagnose import time_forms as tf
 from forcemap.host.workbench.diagnose.catalogue import kind_named
-from forcemap.host.workbench.diagnose.time_judge import judge_time
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.timejudge import candidate as time_candidate
+from forcemap.host.workbench.timejudge import forms as tf
+from forcemap.host.workbench.timejudge.judge import judge_time
 from scipy.linalg import solveh_banded
 
 from bench.bench_time_judge import table_of

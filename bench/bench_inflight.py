@@ -105,7 +105,7 @@ def cost(out: list, work: Path) -> None:
     from forcemap.host.plan.inflight import MapSnapshot, Replanner
     from forcemap.host.plan.maps import survey_maps
     from forcemap.host.vessel.geodesy import LocalFrame
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.survey.table import load_survey
     from forcemap.sim_devices.engine import Simulation
 
     from bench.closed_loop import survey

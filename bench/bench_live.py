@@ -118,7 +118,7 @@ def _drift(g, sofar, comp) -> tuple[float, float, float]:
     from forcemap.host.live.growing import Component, live_survey
     from forcemap.host.live.layers import to_lonlat
     from forcemap.host.vessel.geodesy import LocalFrame
-    from forcemap.host.workbench.spec import BASELINE
+    from forcemap.host.workbench.terms.spec import BASELINE
     from scipy.spatial import cKDTree
 
     ny, nx = g.shape

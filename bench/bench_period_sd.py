@@ -15,14 +15,14 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from forcemap.host.workbench.diagnose import time_forms as tf
-from forcemap.host.workbench.diagnose.time_judge import (
+from forcemap.host.workbench.timejudge import forms as tf
+from forcemap.host.workbench.timejudge.judge import (
     BOOTSTRAP,
     bootstrap_period_sd,
     judge_time,
     refined_period,
 )
-from forcemap.host.workbench.revisits import revisit_pairs, stretch_length
+from forcemap.host.workbench.timejudge.revisits import revisit_pairs, stretch_length
 
 from tests.test_time_judge import lap_track, noise
 

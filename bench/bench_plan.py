@@ -89,7 +89,7 @@ def speed(work: Path) -> None:
     from forcemap.host.plan.mission_io import read_mission
     from forcemap.host.plan.planner import plan_mission
     from forcemap.host.vessel.geodesy import LocalFrame
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.survey.table import load_survey
 
     table = survey("river", SEED_A, work / "survey-river")
     m = read_mission("lawnmower", "river")

@@ -25,7 +25,7 @@ from forcemap.host.convert.importers import ImportFailed, import_to_mcap  # noqa
 from forcemap.host.convert.self_calibration import import_calibrated  # noqa: E402
 from forcemap.host.fuse import redundancy as rd  # noqa: E402
 from forcemap.host.qa.report import arrays, check_table  # noqa: E402
-from forcemap.host.workbench.table_files import read_raw  # noqa: E402
+from forcemap.host.workbench.survey.table_files import read_raw  # noqa: E402
 
 REAL = ROOT / "tests" / "data" / "real"
 GLOBS = ("nmea/*.log", "nmea/*.txt", "nmea/irene/*.nmea", "mavlink/*.tlog", "mavlink/*.BIN")

@@ -43,8 +43,8 @@ def timing(logs: list[Path], repeat: int) -> None:
 def figures() -> None:
     """The simulator's figures, as tests/test_soundings_sim.py sets them up, and the real logs'."""
     import numpy as np
-    from forcemap.host.workbench.spikes import target_spikes
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.survey.spikes import target_spikes
+    from forcemap.host.workbench.survey.table import load_survey
 
     sys.path.insert(0, str(ROOT))
     from tests import test_soundings_sim as t
@@ -73,10 +73,10 @@ def figures() -> None:
 
 def _kept_rmse(table: Path) -> float:
     """The blocked-CV RMSE with every sounding kept (--keep-outliers): what the stretch would cost."""
-    from forcemap.host.workbench.fitting import fit_target
-    from forcemap.host.workbench.model import small_blas
-    from forcemap.host.workbench.spec import BASELINE
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.engine.model import small_blas
+    from forcemap.host.workbench.fits.fit import fit_target
+    from forcemap.host.workbench.survey.table import load_survey
+    from forcemap.host.workbench.terms.spec import BASELINE
 
     with small_blas():
         return fit_target(load_survey(table, keep_outliers=True), "depth", list(BASELINE), progress=False).cv.rmse
@@ -87,8 +87,8 @@ def _heel(d: Path, t) -> dict:
     from forcemap.host.fuse.calibration import Calibration
     from forcemap.host.vessel import scenario as sc
     from forcemap.host.workbench.diagnose.rounds import diagnose
-    from forcemap.host.workbench.model import small_blas
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.engine.model import small_blas
+    from forcemap.host.workbench.survey.table import load_survey
 
     lake = Path(sc.load("lake").path).read_text()
     scenario = d / "windy_lake.toml"

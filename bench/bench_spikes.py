@@ -28,9 +28,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.engine.model import small_blas
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
 
 from bench.synth_survey import DEPTH_NOISE, LAT0, LON0, depth_field, make_survey
 
@@ -53,7 +53,7 @@ def student_t(survey, nu: float) -> tuple[np.ndarray, float]:
     X, y = sm.X, sm.y_primary
     # start from a robust line: the running median along the track (a Gaussian fit is 20 m off)
     from forcemap.host.fuse.bottom_lost import running
-    from forcemap.host.workbench.spikes import WINDOW
+    from forcemap.host.workbench.survey.spikes import WINDOW
 
     f = running(y, WINDOW, np.nanmedian)
     model = sm.primary

@@ -5,7 +5,7 @@ forcemap chooses (bench/RESULTS.md, "A tide on a speed target and its frame").
 
 `fit`'s crossline RMSE (each time stretch held out, scored where the boat comes back) and blocked-CV RMSE
 with the baseline plus each set of terms, three times: in the frame forcemap chooses when the terms hold a
-tide or a seiche (host/workbench/axis_choice.py: the held-out vector's error decides), then with each frame
+tide or a seiche (host/workbench/targets/axis_choice.py: the held-out vector's error decides), then with each frame
 forced (the choice's numbers are still printed, its verdict replaced); with `--chosen`, only the first. A uniform tide is one signed
 sinusoid along any fixed axis; projected on axes that follow a noisy mean flow from place to place, its
 amplitude changes with the place, which a uniform tide term cannot fit. CASEs as in bench/bench_time_judge.py.
@@ -18,9 +18,9 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from forcemap.host.workbench import survey_fits
-from forcemap.host.workbench.axis_choice import choose_axis
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.targets import survey_fits
+from forcemap.host.workbench.targets.axis_choice import choose_axis
 
 from bench.bench_time_judge import crossline
 

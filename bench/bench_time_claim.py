@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from forcemap.host.workbench.diagnose import time_forms as tf
 from forcemap.host.workbench.diagnose.rounds import diagnose
-from forcemap.host.workbench.diagnose.time_candidate import revisits_of
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms.spec import BASELINE
+from forcemap.host.workbench.timejudge import forms as tf
+from forcemap.host.workbench.timejudge.candidate import revisits_of
 from forcemap.sim_devices.offline import make_survey
 
 # (effects, seed, duration s): surveys without an effect, and weak or combined releases

@@ -30,13 +30,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.diagnose.time_candidate import time_verdict
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.fitting import fit_target
-from forcemap.host.workbench.revisits import MIN_RADIUS_M, map_lengthscale
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.fits.fit import fit_target
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms.spec import BASELINE
+from forcemap.host.workbench.timejudge.candidate import time_verdict
+from forcemap.host.workbench.timejudge.revisits import MIN_RADIUS_M, map_lengthscale
 
 
 def table_of(case: str, cases: Path) -> Path:
@@ -110,8 +110,8 @@ def level_against_truth(case: str, cases: Path, survey, sm) -> str:  # type: ign
 
 def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: bool) -> None:
     """CPU of `diagnose` on the case, and of one permutation of the judge's null, both ways."""
-    from forcemap.host.workbench.diagnose import time_candidate
     from forcemap.host.workbench.diagnose.rounds import diagnose
+    from forcemap.host.workbench.timejudge import candidate as time_candidate
 
     survey = load_survey(table_of(case, cases))
     c0 = time.process_time()
@@ -139,8 +139,8 @@ def cost(case: str, cases: Path, target: str, permutations: int, diagnose_only: 
 def seeds(case: str, cases: Path, target: str, n: int, threshold: float) -> None:
     """The verdict's p-value for seeds 0 .. n-1: from PERMUTATIONS exchanges, and resolved against
     `threshold` (`judge_time`'s `threshold`)."""
-    from forcemap.host.workbench.diagnose.time_candidate import judged_pairs, revisits_of
-    from forcemap.host.workbench.diagnose.time_judge import judge_time
+    from forcemap.host.workbench.timejudge.candidate import judged_pairs, revisits_of
+    from forcemap.host.workbench.timejudge.judge import judge_time
 
     sm = SurveyModel(load_survey(table_of(case, cases)), target, None, max_basis=600).fit()
     found = revisits_of(sm)
@@ -183,8 +183,7 @@ def time_finding(d) -> str:
 
 def null_cost(d, rp, xy, heading, permutations: int) -> str:
     """One permutation's CPU (ms) from products over the stretches and from the columns formed in full."""
-    from forcemap.host.workbench.diagnose import time_forms as tf
-
+    from forcemap.host.workbench.timejudge import forms as tf
     proj = tf.Projector(tf.nuisance(rp, xy, heading))
     d = proj(tf.clipped(np.asarray(d, float).reshape(len(rp.pairs), -1)))
     ladder = tf.FormLadder(float(np.ptp(rp.t)), rp.stretch_s)

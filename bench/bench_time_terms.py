@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from forcemap.host.api import read_survey  # noqa: E402
 from forcemap.host.vessel import scenario as sc  # noqa: E402
-from forcemap.host.workbench.tide_term import constituents  # noqa: E402
+from forcemap.host.workbench.terms.tide import constituents  # noqa: E402
 
 from bench.tidal_survey import truth_survey  # noqa: E402
 

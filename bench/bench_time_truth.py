@@ -38,12 +38,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from forcemap.host.workbench.diagnose import time_forms as tf
-from forcemap.host.workbench.diagnose.time_candidate import judged_pairs, revisits_of
-from forcemap.host.workbench.diagnose.time_judge import judge_time
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.timejudge import forms as tf
+from forcemap.host.workbench.timejudge.candidate import judged_pairs, revisits_of
+from forcemap.host.workbench.timejudge.judge import judge_time
 
 PERIODS_MIN = np.geomspace(20.0, 300.0, 40)
 

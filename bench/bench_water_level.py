@@ -21,16 +21,16 @@ import time
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.diagnose.rounds import DIAGNOSE_MAX_BASIS, diagnose
-from forcemap.host.workbench.fitting import fit_target
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.water_level import (
+from forcemap.host.workbench.depth.water_level import (
     crossings,
     level_estimate,
     read_gauge,
     reduce_to_gauge,
 )
+from forcemap.host.workbench.diagnose.rounds import DIAGNOSE_MAX_BASIS, diagnose
+from forcemap.host.workbench.fits.fit import fit_target
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.terms.spec import BASELINE
 from forcemap.sim_devices.offline import make_survey
 
 

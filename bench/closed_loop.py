@@ -48,7 +48,7 @@ def plan_files(
     table: Path, mission: str, out: Path, scenario: str, boat: BoatModel | None = None
 ) -> tuple[PlanResult, Path, Path]:
     """Plan ``mission`` on ``table``; returns the result, the original and the planned waypoint files."""
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.survey.table import load_survey
 
     boat = boat or BoatModel()
     m = read_mission(mission, scenario)

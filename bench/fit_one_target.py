@@ -25,7 +25,7 @@ def gram_product_s(n: int, m: int) -> float:
     """CPU seconds of one plain Gram product F'F of an n x m matrix on one BLAS thread, in chunks of 4,096
     rows (a million rows of 1,600 features would be 12.8 GB), timed on GRAM_ROWS rows (one chunk over and over:
     a small n is timed as long as a large one) and scaled by n / GRAM_ROWS."""
-    from forcemap.host.workbench.evidence import small_blas
+    from forcemap.host.workbench.engine.evidence import small_blas
 
     F = np.random.default_rng(0).standard_normal((4096, m))
     G = np.zeros((m, m))
@@ -62,13 +62,12 @@ def main() -> None:
     args = ap.parse_args()
     import contextlib
 
-    from forcemap.host.workbench import fitting
-    from forcemap.host.workbench.model import small_blas
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.engine.model import small_blas
+    from forcemap.host.workbench.fits import fit as fitting
+    from forcemap.host.workbench.survey.table import load_survey
 
     try:
-        from forcemap.host.workbench import nufft
-
+        from forcemap.host.workbench.engine import nufft
         direct = nufft.direct() if args.direct else contextlib.nullcontext()
     except ImportError:  # a checkout before the NUFFT
         direct = contextlib.nullcontext()

@@ -109,7 +109,7 @@ class LevelMatch:
 def level_match(sm, survey, truth) -> LevelMatch:  # type: ignore[no-untyped-def]
     """The level of a fitted depth model `sm` (`water_level.level_estimate`) on `survey`'s rows against
     the truth's `level` column (a table with `t` and `level`, times as the survey's)."""
-    from forcemap.host.workbench.water_level import level_estimate
+    from forcemap.host.workbench.depth.water_level import level_estimate
 
     est, sd = level_estimate(sm.primary, survey.trel)
     level = np.interp(survey.columns["t"], np.asarray(truth["t"]), np.asarray(truth["level"]))

@@ -14,11 +14,11 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from forcemap.host.workbench.at_time import parse_at
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.spec import BASELINE, check_terms, split_effects
-from forcemap.host.workbench.table import Survey as _Table
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.at_time import parse_at
+from forcemap.host.workbench.survey.table import Survey as _Table
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.terms.spec import BASELINE, check_terms, split_effects
 
 DEFAULT_RESOLUTION_M = 5.0
 
@@ -31,7 +31,7 @@ def read_survey(
     `water_level` (a gauge's CSV), the depth is reduced to the gauge's datum (`--water-level`)."""
     table = load_survey(path, keep_outliers=keep_outliers)
     if water_level is not None:
-        from forcemap.host.workbench.water_level import read_gauge, reduce_to_gauge
+        from forcemap.host.workbench.depth.water_level import read_gauge, reduce_to_gauge
 
         table = reduce_to_gauge(table, read_gauge(water_level))
     return Survey(table)
@@ -78,8 +78,8 @@ class Survey:
     def latest_fit(self, target: str, progress: bool = False) -> Fit:
         """The workspace's latest fit of `target` (the rule of `report` and `plan`): its terms, rebuilt
         from its saved hyperparameters when they fit this table; the baseline if there is no fit."""
-        from forcemap.host.workbench.fitting import calibrated, map_terms, refit_or_restore
-        from forcemap.host.workbench.workspace import load_history, workspace_dir
+        from forcemap.host.workbench.fits.fit import calibrated, map_terms, refit_or_restore
+        from forcemap.host.workbench.fits.workspace import load_history, workspace_dir
 
         ws = workspace_dir(self.path, create=False)
         history = load_history(ws) if ws.is_dir() else []
@@ -146,8 +146,8 @@ class Fit:
 
     def fit(self, survey: Survey, record: bool = False, progress: bool = False) -> Fit:
         """Fit and cross-validate (spatially blocked folds) on `survey`; returns self."""
-        from forcemap.host.workbench import fitting
-        from forcemap.host.workbench.model import small_blas
+        from forcemap.host.workbench.engine.model import small_blas
+        from forcemap.host.workbench.fits import fit as fitting
 
         terms = self._terms()
         check_terms(terms)
@@ -161,7 +161,7 @@ class Fit:
 
     def _fitted(self):
         if not hasattr(self, "model_"):
-            from forcemap.host.workbench.model import NotFittedError
+            from forcemap.host.workbench.engine.model import NotFittedError
 
             raise NotFittedError("this Fit is not fitted yet: call fit(survey) first")
         return self.model_
@@ -169,7 +169,7 @@ class Fit:
     def _cv(self):
         self._fitted()
         if self.result_ is None:  # restored from the workspace: cross-validate on first use, once
-            from forcemap.host.workbench.fitting import make_folds
+            from forcemap.host.workbench.fits.fit import make_folds
 
             if getattr(self, "cv_", None) is None:
                 done = self.model_.cv_ if self.folds == "blocked" else None  # its calibration's CV
@@ -207,7 +207,7 @@ class Fit:
     def calibration(self):
         """The predictive band's `Calibration`: its held-out coverage once scaled (`coverage`), the factor on
         the maps' sd (`sd_scale`), the model's own coverage, and how far from the track the CV reached."""
-        from forcemap.host.workbench.fitting import calibrated
+        from forcemap.host.workbench.fits.fit import calibrated
 
         return calibrated(self._fitted()).calibration
 
@@ -234,7 +234,7 @@ class Fit:
     def notes_at(self, at) -> list[str]:
         """What the model's time terms do at `at`: a tide predicts, a GP in time reverts to its mean
         beyond its lengthscale from the survey (empty inside the survey's span)."""
-        from forcemap.host.workbench.time_terms import notes_at
+        from forcemap.host.workbench.terms.time_terms import notes_at
 
         model = self._fitted()
         return notes_at(model.primary, model.survey, parse_at(at))
@@ -242,15 +242,15 @@ class Fit:
     def tide(self) -> dict:
         """The fitted tide and seiche: each constituent's amplitude and Greenwich phase with their sd
         (`constituents`), a vector's tidal ellipses (`ellipses`) and the axis its components are modelled
-        along (`axis`, host/workbench/axis_choice.py), a seiche's estimated period (`seiche`)."""
-        from forcemap.host.workbench.time_terms import tide_summary
+        along (`axis`, host/workbench/targets/axis_choice.py), a seiche's estimated period (`seiche`)."""
+        from forcemap.host.workbench.terms.time_terms import tide_summary
 
         return tide_summary(self._fitted())
 
     def diagnose(self, rounds: int = 1, progress: bool = False):
         """Which physical effect this model is missing (`forcemap diagnose`): a `Diagnosis`."""
         from forcemap.host.workbench.diagnose.rounds import diagnose
-        from forcemap.host.workbench.model import small_blas
+        from forcemap.host.workbench.engine.model import small_blas
 
         model = self._fitted()
         with small_blas():

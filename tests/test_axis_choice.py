@@ -1,9 +1,9 @@
-"""The spread of the axis choice's error difference over spatial blocks (host/workbench/axis_choice.py)."""
+"""The spread of the axis choice's error difference over spatial blocks (host/workbench/targets/axis_choice.py)."""
 
 from __future__ import annotations
 
 import numpy as np
-from forcemap.host.workbench.axis_choice import AxisChoice, block_sd
+from forcemap.host.workbench.targets.axis_choice import AxisChoice, block_sd
 
 
 def test_independent_samples_give_the_sd_of_a_mean():

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.workspace import record_fit, workspace_dir
+from forcemap.host.workbench.fits.workspace import record_fit, workspace_dir
+from forcemap.host.workbench.survey.table import load_survey
 
 from bench.synth_survey import LAT0, LON0, make_survey
 from tests.tools import csv_rows, write_csv_rows

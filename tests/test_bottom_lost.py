@@ -8,11 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
-from forcemap.host.workbench.fitting import fit_target
-from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.spikes import LOST_WHY, find_spikes
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.engine.model import small_blas
+from forcemap.host.workbench.fits.fit import fit_target
+from forcemap.host.workbench.survey.spikes import LOST_WHY, find_spikes
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.terms.spec import BASELINE
 from forcemap.sim_devices.offline import make_survey
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from forcemap.host.cli import main
 from forcemap.host.errors import CliError
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 

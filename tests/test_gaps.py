@@ -18,9 +18,9 @@ import pytest
 from forcemap.host.cli import main
 from forcemap.host.season.engine import LocalRunner
 from forcemap.host.season.run import run_season
-from forcemap.host.workbench import fourier
-from forcemap.host.workbench.gaps import correlation_time
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.engine import fourier
+from forcemap.host.workbench.survey.gaps import correlation_time
+from forcemap.host.workbench.survey.table import load_survey
 from forcemap.sim_devices.season import make_season
 
 from bench.inject_cases import FJORD

@@ -18,7 +18,7 @@ from forcemap.host.cli import main
 from forcemap.host.extras import install_hint
 from forcemap.host.gis.grid import cell_of, make_grid, utm_epsg
 from forcemap.host.gis.surface import SURFACE_BANDS
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 from pyproj import Transformer
 
 from bench.synth_survey import LAT0, LON0, make_survey

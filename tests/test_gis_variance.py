@@ -11,9 +11,9 @@ import forcemap
 import numpy as np
 import pytest
 from forcemap.host.gis.grid import evaluate, make_grid
-from forcemap.host.workbench.hypersearch import term_inputs
-from forcemap.host.workbench.model import Model
-from forcemap.host.workbench.survey_fits import frame_direction, grid_inputs
+from forcemap.host.workbench.engine.hypersearch import term_inputs
+from forcemap.host.workbench.engine.model import Model
+from forcemap.host.workbench.targets.survey_fits import frame_direction, grid_inputs
 from scipy import linalg
 
 from bench.synth_survey import make_survey

@@ -10,10 +10,10 @@ import pytest
 from forcemap.host.live.growing import Component, live_survey
 from forcemap.host.live.health import HealthMonitor
 from forcemap.host.live.maps import TARGETS, LiveMaps
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.spikes import without_spikes
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.survey.spikes import without_spikes
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms.spec import BASELINE
 
 from bench.synth_survey import make_survey, simulate
 

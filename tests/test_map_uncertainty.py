@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 import rasterio
 from forcemap.host.cli import main
-from forcemap.host.workbench.data_quality import CLOCK_HINT, DataFinding
 from forcemap.host.workbench.diagnose.result import Candidate, Round, explain_candidate
 from forcemap.host.workbench.diagnose.rounds import consistent
-from forcemap.host.workbench.plots import history_figure
+from forcemap.host.workbench.fits.plots import history_figure
+from forcemap.host.workbench.survey.data_quality import CLOCK_HINT, DataFinding
 
 from bench.synth_survey import make_survey
 

@@ -19,8 +19,9 @@ from forcemap.host.convert.export import samples_table
 from forcemap.host.log.mcap import read_messages
 from forcemap.host.log.qa_records import QaFinding
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench import clock_offset, data_quality
-from forcemap.host.workbench.table import load_survey, survey_from_columns
+from forcemap.host.workbench.survey import data_quality
+from forcemap.host.workbench.survey.table import load_survey, survey_from_columns
+from forcemap.host.workbench.terms import clock_offset
 
 from tests import sim_sources
 
@@ -120,7 +121,7 @@ def test_who_is_late_says_when_nothing_tells(run):
     paths, _ = run
     survey = _survey(Path(paths[0]), samples_table(paths, navigation="logged"))
     assert survey.latencies == {}
-    from forcemap.host.workbench.instruments import Instruments
+    from forcemap.host.workbench.survey.instruments import Instruments
 
     text = data_quality._who_is_late(survey, Instruments.of(survey), "current", 5.0)
     assert "nothing in the log tells which" in text
@@ -209,7 +210,7 @@ def test_boat_file_sync_keys():
 def test_diagnose_explains_a_clock_offset_by_the_late_compass(run):
     """diagnose's clock-offset explanation names the source the measured latencies show late."""
     from forcemap.host.workbench.diagnose.result import Candidate, explain_candidate
-    from forcemap.host.workbench.instruments import Instruments
+    from forcemap.host.workbench.survey.instruments import Instruments
 
     paths, _ = run
     inst = Instruments.of(load_survey(paths[0]))

@@ -16,7 +16,7 @@ from forcemap.host.cli import main
 from forcemap.host.plan.planner import STRESS
 from forcemap.host.report.mission_section import mission_section
 from forcemap.host.vessel import waypoints as wp
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 
 from bench.closed_loop import fly, low_discharge_scenario, plan_files, survey
 

@@ -10,7 +10,7 @@ import pytest
 from forcemap.host.cli import main
 from forcemap.host.plan.maps import fit_field, plannable_terms, survey_maps
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 from scipy.spatial import cKDTree
 
 from bench.synth_survey import LAT0, LON0, current_field, make_survey

@@ -23,7 +23,7 @@ from forcemap.host.plan.mission_io import read_mission, write_outputs
 from forcemap.host.plan.planner import plan_mission
 from forcemap.host.vessel import scenario as sc
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 
 from bench.closed_loop import fly
 from bench.tidal_survey import truth_survey

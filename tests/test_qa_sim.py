@@ -9,7 +9,7 @@ import pytest
 from forcemap.host.convert.self_calibration import estimate
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.log.mcap import read_messages
-from forcemap.host.workbench.table_files import mcap_provenance
+from forcemap.host.workbench.survey.table_files import mcap_provenance
 from forcemap.sim_devices.engine import Simulation
 from forcemap.sim_devices.offline import run_to_mcap
 

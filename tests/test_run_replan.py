@@ -23,7 +23,7 @@ from forcemap.host.report.mission_section import mission_section
 from forcemap.host.vessel import scenario as sc
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.vessel.mission import save_waypoints
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 
 from bench.inflight_loop import mission
 from bench.live_client import LiveClient

@@ -11,9 +11,9 @@ import pytest
 from forcemap.host.decode.nmea import NmeaParser
 from forcemap.host.fuse import attitude, sounders, tvu
 from forcemap.host.fuse.calibration import ConfigError, loads
-from forcemap.host.workbench import depth_surface
+from forcemap.host.workbench.depth import surface as depth_surface
 from forcemap.host.workbench.diagnose.catalogue import explain
-from forcemap.host.workbench.instruments import Instruments
+from forcemap.host.workbench.survey.instruments import Instruments
 
 from tests.test_daemon_support import nmea_line
 

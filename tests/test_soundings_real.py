@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.fuse.bottom_lost import path_tolerance
-from forcemap.host.workbench.depth_surface import CAPTURE
-from forcemap.host.workbench.spikes import target_spikes
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.depth.surface import CAPTURE
+from forcemap.host.workbench.survey.spikes import target_spikes
+from forcemap.host.workbench.survey.table import load_survey
 
 from tests.tools import csv_rows
 

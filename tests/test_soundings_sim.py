@@ -23,14 +23,14 @@ import pytest
 from forcemap.host.convert.depth_findings import tilt_finding
 from forcemap.host.convert.export import export
 from forcemap.host.fuse.calibration import Calibration
+from forcemap.host.workbench.depth.water_level import crossline_rmse
 from forcemap.host.workbench.diagnose.catalogue import TILT
 from forcemap.host.workbench.diagnose.rounds import diagnose
-from forcemap.host.workbench.fitting import fit_target
-from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.spikes import target_spikes
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.water_level import crossline_rmse
+from forcemap.host.workbench.engine.model import small_blas
+from forcemap.host.workbench.fits.fit import fit_target
+from forcemap.host.workbench.survey.spikes import target_spikes
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.terms.spec import BASELINE
 from forcemap.sim_devices.engine import Simulation
 from forcemap.sim_devices.offline import run_to_mcap
 

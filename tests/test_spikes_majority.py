@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from forcemap.host.fuse.bottom_lost import running
 from forcemap.host.fuse.seabed import seabed_path
-from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.spikes import WINDOW, find_spikes
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.engine.model import small_blas
+from forcemap.host.workbench.survey.spikes import WINDOW, find_spikes
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
 
 from bench.synth_survey import DEPTH_NOISE, make_survey
 

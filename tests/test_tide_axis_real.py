@@ -1,4 +1,4 @@
-"""The axis a tide is modelled along, chosen by each real log (host/workbench/axis_choice.py, issue 36).
+"""The axis a tide is modelled along, chosen by each real log (host/workbench/targets/axis_choice.py, issue 36).
 
 A speed or direction with a tide is split along and across the oscillation's axis. On a yacht's log the
 place's "mean current" is mostly leeway and speed-log error, which follow the legs: an axis at each place
@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from forcemap.host.workbench import time_terms
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.survey_fits import frame_direction
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.survey_fits import frame_direction
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms import time_terms
+from forcemap.host.workbench.terms.spec import BASELINE
 
 from bench.inject_cases import INJECTED
 from tests.test_sfbay_real import SFBAY

@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 from forcemap.host.vessel import tides
-from forcemap.host.workbench.at_time import parse_at
+from forcemap.host.workbench.engine.periodogram import estimate_period
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.periodogram import estimate_period
-from forcemap.host.workbench.spec import build_term, parse_term
-from forcemap.host.workbench.table import is_circular
-from forcemap.host.workbench.tide_term import TideTerm
+from forcemap.host.workbench.survey.at_time import parse_at
+from forcemap.host.workbench.survey.table import is_circular
+from forcemap.host.workbench.terms.spec import build_term, parse_term
+from forcemap.host.workbench.terms.tide import TideTerm
 
 NAMES = [
     "M2",

@@ -1,4 +1,4 @@
-"""Time judged where the boat comes back (host/workbench/diagnose/time_judge.py), on tracks with a known truth.
+"""Time judged where the boat comes back (host/workbench/timejudge/judge.py), on tracks with a known truth.
 
 A boat laps a 400 m x 200 m rectangle at 2 m/s for three hours (one lap in 10 minutes), so it passes every
 place 18 times. Its readings carry correlated noise (an AR(1) of 30 s, sd 0.2), a heading-dependent error
@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from forcemap.host.workbench.diagnose.catalogue import time_form_cause
-from forcemap.host.workbench.diagnose.time_judge import Form, TimeVerdict, judge_time
-from forcemap.host.workbench.revisits import revisit_pairs, stretch_length
+from forcemap.host.workbench.timejudge.judge import Form, TimeVerdict, judge_time
+from forcemap.host.workbench.timejudge.revisits import revisit_pairs, stretch_length
 
 SPAN_S = 3 * 3600.0
 SPEED = 2.0
@@ -191,8 +191,7 @@ def test_a_heading_error_on_legs_sailed_at_set_times_is_not_time():
 def test_the_permutations_shares_are_those_of_the_columns_formed_in_full(track, with_heading):
     """The null's shares come from products over the stretches (time_forms.PermutedTimes); for any
     permutation they equal the least squares of the pairs' permuted columns formed in full."""
-    from forcemap.host.workbench.diagnose import time_forms as tf
-
+    from forcemap.host.workbench.timejudge import forms as tf
     t, xy, heading = track
     values = noise(len(t), 3) + 0.2 * np.cos(2 * np.pi * t / 4000.0)
     rp = revisit_pairs(xy, t, 20.0, stretch_length(t, values - np.median(values)))
@@ -212,8 +211,8 @@ def test_the_permutations_shares_are_those_of_the_columns_formed_in_full(track, 
 def test_the_evidence_counts_the_crossings_a_change_rests_on():
     """A change fitted at one crossing rests on one, whatever its number of pairs; a change seen alike at
     every crossing rests on all of them; and the crossing that carries most is named by its passes' times."""
-    from forcemap.host.workbench.diagnose.time_judge import evidence
-    from forcemap.host.workbench.revisits import RevisitPairs
+    from forcemap.host.workbench.timejudge.judge import evidence
+    from forcemap.host.workbench.timejudge.revisits import RevisitPairs
 
     t = np.array([0.0, 10.0, 100.0, 110.0, 200.0, 210.0, 300.0, 310.0])
     stretch = np.array([0, 0, 1, 1, 2, 2, 3, 3])
@@ -232,7 +231,7 @@ def test_a_p_value_near_its_threshold_is_resolved_with_more_exchanges(track):
     """999 exchanges cannot tell a p-value of 0.003 from a threshold of 0.05 / 24 = 0.0021 (two
     exceedances against one or none); a verdict asked for a threshold near its p-value draws exchanges up
     to MAX_PERMUTATIONS, the first ones the same. A threshold far from the p-value costs nothing more."""
-    from forcemap.host.workbench.diagnose.time_judge import MAX_PERMUTATIONS, undecided
+    from forcemap.host.workbench.timejudge.judge import MAX_PERMUTATIONS, undecided
 
     assert undecided(0.003, 999, 0.05 / 24) and undecided(0.001, 999, 0.05 / 24)
     assert undecided(0.018, 999, 0.05 / 24)  # the fjord level's p-value from one seed of 999

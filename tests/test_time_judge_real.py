@@ -17,13 +17,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.diagnose.evaluate import Evaluator
 from forcemap.host.workbench.diagnose.rounds import diagnose
-from forcemap.host.workbench.fitting import fit_target
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.fits.fit import fit_target
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms.spec import BASELINE
+from forcemap.host.workbench.validation.cv import DEFAULT_FOLDS
 
 from bench.bench_time_truth import is_level, oracle_of
 from bench.inject_cases import FJORD
@@ -135,7 +135,7 @@ def test_an_injected_level_is_seen_at_the_harbour_it_was_passed_at_the_start_and
     harbour passed in its first and its last minutes (one comparison: bench/RESULTS.md, "The injected level
     seen at the revisits"). Found or not at the round's threshold, diagnose tells the user of it: as the
     finding, or as the closest candidate, with the form the change would take and the gauge that settles it."""
-    from forcemap.host.workbench.diagnose.time_notes import revisit_note
+    from forcemap.host.workbench.timejudge.notes import revisit_note
 
     d = diagnose(load_survey(real_case("fjord_level").csv), "depth", rounds=1, progress=False)
     t = next(c for c in d.candidates if c.covariate == "t")

@@ -21,9 +21,9 @@ from forcemap.host.api import read_survey
 from forcemap.host.cli import main
 from forcemap.host.vessel import scenario as sc
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.at_time import parse_at
-from forcemap.host.workbench.targets import SurveyModel
-from forcemap.host.workbench.tide_term import constituents
+from forcemap.host.workbench.survey.at_time import parse_at
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms.tide import constituents
 from forcemap.sim_devices import effects as fx
 from forcemap.sim_devices.fields import World
 
@@ -217,7 +217,7 @@ def test_the_seiche_period_comes_back_within_its_sd(seiche: Path) -> None:
 def test_tide_on_depth_is_the_water_level(work: Path) -> None:
     """The simulator's tide moves the surface 0.7 m with M2's period: `tide` on depth is that level, and
     the depth map's datum says so."""
-    from forcemap.host.workbench.water_level import level_estimate, map_datum
+    from forcemap.host.workbench.depth.water_level import level_estimate, map_datum
 
     table = truth_survey("river", ["tide"], 1, 3 * 3600.0, work / "level")
     survey = read_survey(table)

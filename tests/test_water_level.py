@@ -17,15 +17,15 @@ from datetime import UTC, datetime
 import numpy as np
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.water_level import (
+from forcemap.host.workbench.depth.water_level import (
     FEET,
     crossings,
     level_estimate,
     read_gauge,
     reduce_to_gauge,
 )
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.survey.table import load_survey
 from forcemap.sim_devices.offline import make_survey
 
 from tests.sim_surveys import simulated
@@ -231,7 +231,7 @@ LONG_TIDE, LONG_S = "tide:amplitude_m=0.35:period_s=4800", 2400.0
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2])
 def test_the_level_is_estimated_from_the_crossings(tmp_path, seed):
-    from forcemap.host.workbench.fitting import fit_target
+    from forcemap.host.workbench.fits.fit import fit_target
 
     table = make_survey("river", [LONG_TIDE], seed, LONG_S, tmp_path)
     s = load_survey(table)
@@ -252,7 +252,7 @@ def test_the_level_is_estimated_from_the_crossings(tmp_path, seed):
 
 @pytest.mark.slow
 def test_with_the_gauge_the_depth_is_as_good_as_without_a_tide(surveys):
-    from forcemap.host.workbench.fitting import fit_target
+    from forcemap.host.workbench.fits.fit import fit_target
 
     still = fit_target(load_survey(surveys("", 1)), "depth", ["const", "gp(position, matern32)"])
     table = surveys(TIDE, 1)
@@ -316,7 +316,7 @@ def test_the_level_checks_spread_counts_a_stretch_as_one_unit():
     """With every sample its own stretch the sd of the mean is the sample sd over sqrt(n); with the samples
     copied in blocks of ten (one stretch each) it is that of the blocks, not the samples, and one stretch
     cannot say."""
-    from forcemap.host.workbench.level_check import clustered_sd
+    from forcemap.host.workbench.timejudge.level_check import clustered_sd
 
     x = np.random.default_rng(0).normal(size=50)
     assert clustered_sd(x, np.arange(50)) == pytest.approx(x.std(ddof=1) / np.sqrt(50))

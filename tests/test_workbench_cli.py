@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 from pyproj import Geod
 
 from bench.synth_survey import make_survey
@@ -198,7 +198,7 @@ def test_fit_history_report(survey_csv, tmp_path, capsys):
 
 
 def test_direction_target_is_modelled_through_components(survey_csv):
-    from forcemap.host.workbench.fitting import fit_target
+    from forcemap.host.workbench.fits.fit import fit_target
 
     s = load_survey(survey_csv)
     r = fit_target(s, "current_dir", ["const", "gp(position, matern32)"], progress=False)

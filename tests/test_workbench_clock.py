@@ -1,4 +1,4 @@
-"""Finding and undoing a clock offset between the autopilot and the bridge (host.workbench.clock_offset).
+"""Finding and undoing a clock offset between the autopilot and the bridge (host.workbench.terms.clock_offset).
 
 The table here is built from first principles: a steady wind, a boat that runs straight legs and turns at
 25 deg/s between them, the anemometer's reading in the boat frame, and the daemon's true-wind sum made with
@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 from forcemap.host.cli import main
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench import clock_offset
-from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms import clock_offset
+from forcemap.host.workbench.validation.cv import blocked_folds
 
 RATE_HZ = 4.0
 WIND = np.array([-4.0, -3.0])  # air velocity (east, north), m/s: a 5 m/s wind from 53 deg

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import pytest
 from forcemap.host.workbench.diagnose.rounds import DIAGNOSE_MAX_BASIS, diagnose
-from forcemap.host.workbench.fitting import fit_target
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.fits.fit import fit_target
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.terms.spec import BASELINE
 from forcemap.sim_devices.offline import make_survey
 
 from tests.sim_surveys import simulated
@@ -35,7 +35,7 @@ EFFECTS = [
     ("wheel_misalignment", "current_speed", HEADING),
     ("anemometer_upwash", "wind_speed", {"stw"}),
     ("compass_deviation", "current_dir", HEADING),
-    # the offset turns the wind in every turn; diagnose scans for it directly (host.workbench.clock_offset)
+    # the offset turns the wind in every turn; diagnose scans for it directly (host.workbench.terms.clock_offset)
     ("clock_offset", "wind_dir", {"clock_offset"}),
 ]
 SEEDS = (1, 2)

@@ -20,8 +20,8 @@ import re
 import numpy as np
 import pytest
 from forcemap.host.workbench.diagnose.rounds import diagnose
-from forcemap.host.workbench.diagnose.time_candidate import MIN_CROSSINGS
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.timejudge.candidate import MIN_CROSSINGS
 from forcemap.sim_devices.offline import make_survey
 
 from bench import synth_survey as synth

@@ -6,7 +6,7 @@ import pytest
 from forcemap.host.convert.export import samples_table
 from forcemap.host.log.mcap import McapLog
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey.table import load_survey
 from mcap.reader import make_reader
 
 from tests.test_export import T0, _log, _row

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from forcemap.host.workbench import fourier, nufft
-from forcemap.host.workbench.cv import blocked_folds
-from forcemap.host.workbench.model import Model
-from forcemap.host.workbench.terms import HilbertGPTerm
+from forcemap.host.workbench.engine import fourier, nufft
+from forcemap.host.workbench.engine.model import Model
+from forcemap.host.workbench.terms.base import HilbertGPTerm
+from forcemap.host.workbench.validation.cv import blocked_folds
 
 
 @pytest.fixture(scope="module")

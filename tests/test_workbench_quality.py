@@ -18,15 +18,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 from forcemap.host.cli import main
-from forcemap.host.workbench import clock_offset, data_quality
 from forcemap.host.workbench.diagnose.catalogue import CATALOGUE
 from forcemap.host.workbench.diagnose.result import Candidate, explain_candidate
 from forcemap.host.workbench.diagnose.rounds import FLOOR, diagnose
-from forcemap.host.workbench.instruments import Instruments
-from forcemap.host.workbench.model import small_blas
-from forcemap.host.workbench.spikes import target_spikes
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.engine.model import small_blas
+from forcemap.host.workbench.survey import data_quality
+from forcemap.host.workbench.survey.instruments import Instruments
+from forcemap.host.workbench.survey.spikes import target_spikes
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms import clock_offset
 
 from bench.synth_survey import DEPTH_NOISE, make_survey, simulate
 from tests.test_workbench_clock import make_table
@@ -332,7 +333,7 @@ def test_the_report_lists_data_problems_before_the_maps_and_the_physics(tmp_path
 
 
 def test_a_vectors_spikes_are_one_set_for_its_speed_direction_and_components(tmp_path):
-    from forcemap.host.workbench.spikes import without_spikes
+    from forcemap.host.workbench.survey.spikes import without_spikes
 
     path = make_survey("river", [], 8, 900.0, tmp_path / "s")
     rows = list(csv.DictReader(path.open()))

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from forcemap.host.gis.grid import make_grid
 from forcemap.host.report import build as report
-from forcemap.host.workbench.fitting import fit_target, record, refit_or_restore, saved_model
-from forcemap.host.workbench.model import Model
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.workspace import load_history, workspace_dir
+from forcemap.host.workbench.engine.model import Model
+from forcemap.host.workbench.fits.fit import fit_target, record, refit_or_restore, saved_model
+from forcemap.host.workbench.fits.workspace import load_history, workspace_dir
+from forcemap.host.workbench.survey.table import load_survey
 
 from bench.synth_survey import make_survey
 

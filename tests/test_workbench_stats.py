@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from forcemap.host.workbench import evidence, fourier, nufft
-from forcemap.host.workbench.model import Model, basis_stats, fixed_basis
-from forcemap.host.workbench.terms import HilbertGPTerm
+from forcemap.host.workbench.engine import evidence, fourier, nufft
+from forcemap.host.workbench.engine.model import Model, basis_stats, fixed_basis
+from forcemap.host.workbench.terms.base import HilbertGPTerm
 
 
 @pytest.fixture(scope="module")

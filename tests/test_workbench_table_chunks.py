@@ -7,9 +7,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from forcemap.host.workbench import table_files
-from forcemap.host.workbench.cleaning import to_numeric
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.survey import table_files
+from forcemap.host.workbench.survey.cleaning import to_numeric
+from forcemap.host.workbench.survey.table import load_survey
 
 
 def _columns(n: int) -> dict[str, list[str]]:

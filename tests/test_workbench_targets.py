@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.survey_fits import derived_column, survey_fits
-from forcemap.host.workbench.table import load_survey
-from forcemap.host.workbench.targets import SurveyModel
+from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.targets.survey_fits import derived_column, survey_fits
+from forcemap.host.workbench.targets.target_model import SurveyModel
 
 from bench.synth_survey import make_survey
 
@@ -75,8 +75,8 @@ def test_derived_covariates_are_not_added_to_the_table(table):
 def test_figures_leave_the_backend_and_pyplot_alone(table):
     code = f"""
 import sys, matplotlib
-from forcemap.host.workbench import plots
-from forcemap.host.workbench.table import load_survey
+from forcemap.host.workbench.fits import plots
+from forcemap.host.workbench.survey.table import load_survey
 s = load_survey({str(table)!r})
 png = plots.png_bytes(plots.scatter_map(s, s.columns["depth"], "depth", "m"))
 assert png[:8] == b"\\x89PNG\\r\\n\\x1a\\n", png[:8]
@@ -97,7 +97,7 @@ def test_a_vectors_components_share_one_gram_and_cv_reuses_the_fit_pass(table):
     the held-out predictions equal those of a design that computes its fold Grams afresh."""
     import copy
 
-    from forcemap.host.workbench.fitting import make_folds
+    from forcemap.host.workbench.fits.fit import make_folds
 
     survey = load_survey(table)
     folds = make_folds(survey, "blocked")

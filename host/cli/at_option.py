@@ -1,4 +1,4 @@
-"""`--at TIME` on `fit` and `grid`: the time a prediction or a map is for (host/workbench/at_time.py)."""
+"""`--at TIME` on `fit` and `grid`: the time a prediction or a map is for (host/workbench/survey/at_time.py)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import argparse
 
 
 def add_at(parser: argparse.ArgumentParser, what: str) -> None:
-    """`--at TIME`: ISO 8601 with its zone, UNIX seconds, or now (host/workbench/at_time.py)."""
+    """`--at TIME`: ISO 8601 with its zone, UNIX seconds, or now (host/workbench/survey/at_time.py)."""
     parser.add_argument(
         "--at",
         metavar="TIME",
@@ -18,6 +18,6 @@ def add_at(parser: argparse.ArgumentParser, what: str) -> None:
 
 def at_time(args: argparse.Namespace) -> float | None:
     """`--at` as UNIX seconds (None when not given); a bad one is one line and exit 2."""
-    from forcemap.host.workbench.at_time import parse_at
+    from forcemap.host.workbench.survey.at_time import parse_at
 
     return None if getattr(args, "at", None) is None else parse_at(args.at)

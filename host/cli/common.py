@@ -278,13 +278,13 @@ def add_water_level(parser: argparse.ArgumentParser) -> None:
 def load_table(args: argparse.Namespace):
     """The samples table of `args.table` as the workbench's Survey, with --keep-outliers and, when given,
     the depth reduced to --water-level's gauge datum (a bad gauge file is one line and exit 2)."""
-    from forcemap.host.workbench.table import load_survey
+    from forcemap.host.workbench.survey.table import load_survey
 
     survey = load_survey(args.table, keep_outliers=args.keep_outliers)
     gauge = getattr(args, "water_level", None)
     if gauge is None:
         return survey
-    from forcemap.host.workbench.water_level import read_gauge, reduce_to_gauge
+    from forcemap.host.workbench.depth.water_level import read_gauge, reduce_to_gauge
 
     return reduce_to_gauge(survey, read_gauge(gauge))
 
@@ -297,7 +297,7 @@ def teach(parser: argparse.ArgumentParser, epilog: str) -> None:
 def prepare_workspace(args: argparse.Namespace, create: bool = False) -> Path:
     """Check the table and the workspace before any heavy work (creating it only with `create`:
     a command that fails leaves no empty folder behind); apply --reset-history."""
-    from forcemap.host.workbench.workspace import (
+    from forcemap.host.workbench.fits.workspace import (
         check_workspace,
         load_history,
         reset_history,

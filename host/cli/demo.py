@@ -279,6 +279,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _unit(target: str) -> str:
-    from forcemap.host.workbench.table import unit_of
+    from forcemap.host.workbench.survey.table import unit_of
 
     return f" {u}" if (u := unit_of(target)) else ""

@@ -76,10 +76,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.workbench.diagnose.rounds import diagnose
-    from forcemap.host.workbench.fitting import resolve_terms
-    from forcemap.host.workbench.model import small_blas
-    from forcemap.host.workbench.spec import BASELINE, check_terms
-    from forcemap.host.workbench.workspace import current_terms, save_diagnosis
+    from forcemap.host.workbench.engine.model import small_blas
+    from forcemap.host.workbench.fits.fit import resolve_terms
+    from forcemap.host.workbench.fits.workspace import current_terms, save_diagnosis
+    from forcemap.host.workbench.terms.spec import BASELINE, check_terms
 
     if args.rounds < 1:
         raise CliError(f"--rounds must be at least 1, not {args.rounds}")

@@ -81,8 +81,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.api import Fit, Survey
-    from forcemap.host.workbench.fitting import resolve_terms, save_residual_plots
-    from forcemap.host.workbench.spec import check_terms
+    from forcemap.host.workbench.fits.fit import resolve_terms, save_residual_plots
+    from forcemap.host.workbench.terms.spec import check_terms
 
     # everything that can be checked is checked before the fit, which can take a minute
     terms, target = resolve_terms(args.model, args.effects, args.target)
@@ -120,7 +120,7 @@ def prediction_at(fit, at: float, most: int = 2000) -> dict:
     """The fitted target at UNIX time `at` over the survey's own places (at most `most` of them): its mean,
     range and mean predictive sd there, and what the time terms do at that time."""
     import numpy as np
-    from forcemap.host.workbench.time_terms import iso, notes_at
+    from forcemap.host.workbench.terms.time_terms import iso, notes_at
 
     s = fit.model_.survey
     idx = np.unique(np.linspace(0, s.n - 1, min(most, s.n)).astype(int))
@@ -141,7 +141,7 @@ def prediction_at(fit, at: float, most: int = 2000) -> dict:
 
 def prediction_line(p: dict) -> str:
     """`prediction_at` in words, with its notes."""
-    from forcemap.host.workbench.table import unit_of
+    from forcemap.host.workbench.survey.table import unit_of
 
     unit = f" {u}" if (u := unit_of(p["target"])) else ""
     head = (

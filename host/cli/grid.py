@@ -150,7 +150,7 @@ def _run(args: argparse.Namespace, out: Path) -> int:
     from forcemap.host.gis.netcdf import write_netcdf
     from forcemap.host.outputs import check_output
     from forcemap.host.progress import note
-    from forcemap.host.workbench.model import small_blas
+    from forcemap.host.workbench.engine.model import small_blas
 
     progress = not args.quiet
     survey = Survey(load_table(args))

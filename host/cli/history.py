@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.outputs import atomic_write, check_output
     from forcemap.host.workbench.diagnose.result import round_steps
     from forcemap.host.workbench.errors import WorkbenchError
-    from forcemap.host.workbench.workspace import load_diagnoses, load_history
+    from forcemap.host.workbench.fits.workspace import load_diagnoses, load_history
 
     ws = prepare_workspace(args)
     history = load_history(ws)
@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         plot = ws / "history.png"  # the workspace's own file, redrawn every time
         check_output(plot, [args.table], force=True)
-    from forcemap.host.workbench.table import unit_of
+    from forcemap.host.workbench.survey.table import unit_of
 
     if history:
         print(
@@ -75,8 +75,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"diagnose {target}:")
         print("\n".join(f"  {line}" for line in round_steps(d)))
     if history:
-        from forcemap.host.workbench import plots
-
+        from forcemap.host.workbench.fits import plots
         png = plots.png_bytes(plots.history_figure(history))
         with atomic_write(plot, "wb") as f:
             f.write(png)

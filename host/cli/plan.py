@@ -134,7 +134,7 @@ def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
 
 def mission_start(args: argparse.Namespace) -> float:
     """--start as UNIX seconds (now by default); a bad one is one line and exit 2."""
-    from forcemap.host.workbench.at_time import parse_at
+    from forcemap.host.workbench.survey.at_time import parse_at
 
     return parse_at(args.start or "now", "--start")
 
@@ -177,8 +177,8 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.plan.workspace_io import save_plan
     from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.errors import WorkbenchError
-    from forcemap.host.workbench.table import load_survey
-    from forcemap.host.workbench.time_terms import iso
+    from forcemap.host.workbench.survey.table import load_survey
+    from forcemap.host.workbench.terms.time_terms import iso
 
     progress = not args.quiet
     if args.output.is_dir():  # a folder: the three files named like the mission

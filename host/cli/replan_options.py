@@ -71,7 +71,7 @@ def replan_service(args: argparse.Namespace) -> Any:
             "--replan needs --mavlink: the autopilot to read the mission from and upload to"
         )
     positive("--replan-bound", args.replan_bound)
-    from forcemap.host.workbench.spec import BASELINE, check_terms, split_effects
+    from forcemap.host.workbench.terms.spec import BASELINE, check_terms, split_effects
 
     terms = None
     if getattr(args, "replan_terms", None):

@@ -45,8 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from forcemap.host.outputs import atomic_write, check_output
     from forcemap.host.report.build import build_report
-    from forcemap.host.workbench.model import small_blas
-    from forcemap.host.workbench.workspace import load_diagnoses
+    from forcemap.host.workbench.engine.model import small_blas
+    from forcemap.host.workbench.fits.workspace import load_diagnoses
 
     ws = prepare_workspace(args, create=args.output is None)  # the default report goes there
     load_diagnoses(ws)  # a corrupt diagnosis stops the report before the fits

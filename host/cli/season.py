@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
 
     gauge = None
     if args.water_level is not None:
-        from forcemap.host.workbench.water_level import read_gauge
+        from forcemap.host.workbench.depth.water_level import read_gauge
 
         gauge = read_gauge(args.water_level)
     work = runner(args.dask)

@@ -29,7 +29,7 @@ MAX_SLOPE against the distance travelled, both ways, by more than REVERSAL_SHARE
 window (a damped sounder gliding between its shallowest and deepest readings, every step continuous).
 
 One home for the import (forcemap.host.convert.depth_findings: a ``qa.depth.bottom_lost`` finding and the
-rows marked ``bottom_lost``) and the workbench (forcemap.host.workbench.spikes: the rows left out of the
+rows marked ``bottom_lost``) and the workbench (forcemap.host.workbench.survey.spikes: the rows left out of the
 depth map): ``depth_lost`` runs the whole test on a column of soundings.
 """
 

@@ -1,7 +1,7 @@
 """Where the track crosses or revisits itself: pairs of readings close in space and apart in time.
 
 One home for the import's depth checks (a beam angle from the crossings, a sounder against itself) and
-the workbench's revisits (forcemap.host.workbench.water_level): at a crossing two soundings measure one
+the workbench's revisits (forcemap.host.workbench.depth.water_level): at a crossing two soundings measure one
 bed, so their difference is the error of the soundings, not of the map.
 """
 

@@ -18,7 +18,7 @@ stretch pays for every sounding of the bottom it leaves below it, and a plateau 
 more is followed (a sand bar, as a running median of 9 follows one wider than half its window); a
 deep spike is left off, and a step down is followed at once.
 
-The path does not flag anything: the spike test (forcemap.host.workbench.spikes) takes its
+The path does not flag anything: the spike test (forcemap.host.workbench.survey.spikes) takes its
 reference from the soundings on it, and flags what departs from that by its threshold.
 """
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.survey.table import Survey
 from scipy.spatial import cKDTree
 
 UTM_NORTH_LIMIT, UTM_SOUTH_LIMIT = 84.0, -80.0
@@ -330,14 +330,14 @@ def evaluate(grid: MapGrid, model) -> Layer:
     layer = Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
     if model.target == "depth":
         from forcemap.host.gis.surface import surface_bands
-        from forcemap.host.workbench.water_level import map_datum
+        from forcemap.host.workbench.depth.water_level import map_datum
 
         layer.datum = map_datum(model.survey, list(model.terms), grid.at)
         layer.bands.update(surface_bands(grid, model.survey))
     rows = getattr(model, "rows", None)  # what the model left out for want of a reading
     notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
     if grid.at is not None:
-        from forcemap.host.workbench.time_terms import notes_at
+        from forcemap.host.workbench.terms.time_terms import notes_at
 
         notes += [f"{model.target}: {n}" for n in notes_at(model.primary, model.survey, grid.at)]
     layer.notes, layer.calibration = notes, getattr(model, "calibration", None)

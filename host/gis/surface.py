@@ -1,11 +1,11 @@
 """A depth layer's surface bands: the hypothesis most soundings support at each cell, its uncertainty and
-the IHO S-44 order it meets (forcemap.host.workbench.depth_surface), beside the GP map's bands; and the GP
+the IHO S-44 order it meets (forcemap.host.workbench.depth.surface), beside the GP map's bands; and the GP
 map's cells that no kept sounding is near left blank (a lost stretch makes no cell)."""
 
 from __future__ import annotations
 
 import numpy as np
-from forcemap.host.workbench import depth_surface
+from forcemap.host.workbench.depth import surface as depth_surface
 
 # band -> what it is (host/gis/names.py gives each its CF attributes)
 SURFACE_BANDS = (

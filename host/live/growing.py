@@ -18,13 +18,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from forcemap.host.workbench.engine.evidence import evidence, small_blas
+from forcemap.host.workbench.engine.model import Model, term_inputs
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.evidence import evidence, small_blas
-from forcemap.host.workbench.model import Model, term_inputs
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import Survey, survey_from_columns
-from forcemap.host.workbench.targets import SurveyModel
-from forcemap.host.workbench.terms import HilbertGPTerm
+from forcemap.host.workbench.survey.table import Survey, survey_from_columns
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.terms.base import HilbertGPTerm
+from forcemap.host.workbench.terms.spec import BASELINE
 from scipy import linalg
 
 GRID_CELLS = 48  # along the longer side of the survey's box

@@ -23,9 +23,9 @@ import numpy as np
 from forcemap.host.live.growing import Component, MapGrid, grid_over, live_survey
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import MIN_ROWS
-from forcemap.host.workbench.target_rows import target_rows
+from forcemap.host.workbench.survey.table import MIN_ROWS
+from forcemap.host.workbench.survey.target_rows import target_rows
+from forcemap.host.workbench.terms.spec import BASELINE
 
 TARGETS: dict[str, tuple[str, ...]] = {
     "current": ("current_east", "current_north"),

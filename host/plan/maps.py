@@ -15,14 +15,14 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.progress import note
-from forcemap.host.workbench.cv import blocked_folds
+from forcemap.host.workbench.engine.model import HYPER_SPACING_S, DesignCache, Model, small_blas
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.model import HYPER_SPACING_S, DesignCache, Model, small_blas
-from forcemap.host.workbench.spec import BASELINE, parse_term
-from forcemap.host.workbench.survey_fits import grid_inputs, survey_fits, survey_inputs
-from forcemap.host.workbench.table import Survey, is_circular
-from forcemap.host.workbench.target_rows import target_rows
-from forcemap.host.workbench.workspace import current_terms, workspace_dir
+from forcemap.host.workbench.fits.workspace import current_terms, workspace_dir
+from forcemap.host.workbench.survey.table import Survey, is_circular
+from forcemap.host.workbench.survey.target_rows import target_rows
+from forcemap.host.workbench.targets.survey_fits import grid_inputs, survey_fits, survey_inputs
+from forcemap.host.workbench.terms.spec import BASELINE, parse_term
+from forcemap.host.workbench.validation.cv import blocked_folds
 
 GRID_STEP_M = 4.0
 MAX_BASIS = 800  # a current or wind field steering a boat needs no detail finer than ~30 m
@@ -190,7 +190,7 @@ def latest_terms(table: Path, survey: Survey, target: str, progress: bool) -> li
     ws = workspace_dir(table)
     terms = current_terms(ws, target)
     if terms is None:
-        from forcemap.host.workbench.fitting import fit_target, record
+        from forcemap.host.workbench.fits.fit import fit_target, record
 
         note(f"no fit of {target} in {ws}: fitting the baseline first", progress)
         record(table, fit_target(survey, target, list(BASELINE), progress=progress))
@@ -256,7 +256,7 @@ def field_times(terms: list[str], start: float, span_s: float) -> np.ndarray | N
     nothing in it changes in time; else evenly, SLICES_PER_PERIOD to the shortest tide or seiche period
     (every GP_STEP_S for a GP in time alone), at most MAX_SLICES."""
     from forcemap.host.vessel import tides
-    from forcemap.host.workbench.spec import TIME_KINDS
+    from forcemap.host.workbench.terms.spec import TIME_KINDS
 
     specs = [parse_term(t, is_circular) for t in terms if _inputs(t) is not None]
     if not any(s.inputs and ({"t", "utc"} & set(s.inputs)) for s in specs):
@@ -320,7 +320,7 @@ def survey_maps(
 
 def mission_time_notes(f: Field, survey: Survey, times: np.ndarray) -> list[str]:
     """What the field in time is: read at the times the boat will be there, and how far from the survey."""
-    from forcemap.host.workbench.time_terms import iso
+    from forcemap.host.workbench.terms.time_terms import iso
 
     t1 = float(survey.columns["t"].max())
     lines = [

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.spec import BASELINE
-from forcemap.host.workbench.table import Survey
+from forcemap.host.workbench.survey.table import Survey
+from forcemap.host.workbench.terms.spec import BASELINE
 
 from .inflight import MapSnapshot
 from .maps import Field, Maps, field_times, fit_field

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.outputs import atomic_write
-from forcemap.host.workbench.workspace import workspace_dir
+from forcemap.host.workbench.fits.workspace import workspace_dir
 
 from .metrics import missed_stretches
 

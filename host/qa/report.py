@@ -164,7 +164,7 @@ def _not_applied(f: QaFinding) -> QaFinding:
 
 def check_table(path: str | Path) -> CheckReport:
     """A samples table (CSV, Parquet) or an MCAP log: its recorded findings and the checks now."""
-    from forcemap.host.workbench.table_files import mcap_provenance, read_raw
+    from forcemap.host.workbench.survey.table_files import mcap_provenance, read_raw
 
     p = Path(path)
     raw = read_raw(p)

@@ -22,14 +22,15 @@ from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
 from forcemap.host.report.map_figure import grid_figure, point_figure
 from forcemap.host.report.mission_section import mission_section
-from forcemap.host.workbench import data_quality, plots
-from forcemap.host.workbench.cv import blocked_folds
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.failures import failure_summary
-from forcemap.host.workbench.fitting import calibrated, latest_terms, map_terms, refit_or_restore
-from forcemap.host.workbench.table import Survey, unit_of
-from forcemap.host.workbench.targets import SurveyModel
-from forcemap.host.workbench.workspace import load_diagnoses, load_history, workspace_dir
+from forcemap.host.workbench.fits import plots
+from forcemap.host.workbench.fits.fit import calibrated, latest_terms, map_terms, refit_or_restore
+from forcemap.host.workbench.fits.workspace import load_diagnoses, load_history, workspace_dir
+from forcemap.host.workbench.survey import data_quality
+from forcemap.host.workbench.survey.table import Survey, unit_of
+from forcemap.host.workbench.targets.target_model import SurveyModel
+from forcemap.host.workbench.validation.cv import blocked_folds
+from forcemap.host.workbench.validation.failures import failure_summary
 
 CSS = """
 body { font-family: sans-serif; max-width: 1100px; margin: 1em auto; color: #222; }
@@ -104,7 +105,7 @@ def header_section(ctx: ReportContext) -> list[str]:
 
 def data_quality_section(ctx: ReportContext) -> list[str]:
     """Problems of the log itself, ahead of every map and candidate: source conflicts, spikes, latency,
-    quantisation (host/workbench/data_quality.py)."""
+    quantisation (host/workbench/survey/data_quality.py)."""
     targets = [t for t, _, _ in MAPPED] + [h["target"] for h in ctx.history] + list(ctx.diagnoses)
     targets = [t for t in dict.fromkeys(targets) if t in ctx.survey.columns]
     found = data_quality.findings(ctx.survey, targets)

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 from forcemap.host.gis.grid import POSITIVE, Layer, MapGrid, true_north
-from forcemap.host.workbench.plots import new_figure
+from forcemap.host.workbench.fits.plots import new_figure
 
 PAGE_WIDTH_IN = 11.0
 

@@ -125,8 +125,7 @@ def mission_section(table: Path, survey) -> list[str]:  # type: ignore[no-untype
     replans = read_replans(table)
     if not plans:
         return ["<h2>Mission</h2>", *replan_section(replans)] if replans else []
-    from forcemap.host.workbench import plots
-
+    from forcemap.host.workbench.fits import plots
     plan = plans[0]
     res = plan["result"]
     png = base64.b64encode(plots.png_bytes(_figure(plan, survey))).decode()

@@ -92,7 +92,7 @@ def _off_curve(A: np.ndarray, h: np.ndarray, sd: np.ndarray) -> list[int]:
 
 def rating_figure(check: dict):
     """Stage against the current's scale, with the fitted rating curve."""
-    from forcemap.host.workbench.plots import new_figure
+    from forcemap.host.workbench.fits.plots import new_figure
 
     pts = np.array(check["points"])
     fig = new_figure((6, 3.6))

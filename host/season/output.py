@@ -14,7 +14,7 @@ from forcemap.host.outputs import atomic_path, atomic_write
 from forcemap.host.season.levels import rating_check, rating_figure, survey_levels
 from forcemap.host.season.run import Season
 from forcemap.host.season.staleness import binned
-from forcemap.host.workbench.plots import new_figure, png_bytes
+from forcemap.host.workbench.fits.plots import new_figure, png_bytes
 
 FILES = ("season.json", "maps.npz", "season.html")
 GRID_NX = 90

@@ -13,9 +13,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from forcemap.host.workbench import fourier
-from forcemap.host.workbench.evidence import LOG_2PI, small_blas
-from forcemap.host.workbench.model import FTOL, NOISE_BOUNDS
+from forcemap.host.workbench.engine import fourier
+from forcemap.host.workbench.engine.evidence import LOG_2PI, small_blas
+from forcemap.host.workbench.engine.model import FTOL, NOISE_BOUNDS
 from scipy import linalg
 from scipy.optimize import minimize
 
@@ -154,7 +154,7 @@ class Prior:
     [log noise var, log const var, log gp var, log lengthscale] in units of the target's std."""
 
     def __init__(self, gp) -> None:
-        from forcemap.host.workbench.terms import ConstTerm
+        from forcemap.host.workbench.terms.base import ConstTerm
 
         self.const, self.gp = ConstTerm(), gp
 

@@ -22,12 +22,12 @@ from forcemap.host.season.stats import (
     without_offset,
 )
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.cv import blocked_folds
+from forcemap.host.workbench.depth.water_level import reduce_to_gauge
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.gaps import target_gaps
-from forcemap.host.workbench.survey_fits import HYPER_SPACING_S, MIN_HYPER_ROWS
-from forcemap.host.workbench.table import Survey, load_survey
-from forcemap.host.workbench.water_level import reduce_to_gauge
+from forcemap.host.workbench.survey.gaps import target_gaps
+from forcemap.host.workbench.survey.table import Survey, load_survey
+from forcemap.host.workbench.targets.survey_fits import HYPER_SPACING_S, MIN_HYPER_ROWS
+from forcemap.host.workbench.validation.cv import blocked_folds
 
 # the statistics' targets and their columns: depth and the current share the spatial basis, each on the
 # rows that have it

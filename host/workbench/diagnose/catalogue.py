@@ -3,7 +3,7 @@
 Depth is its own case: a sounding that depends on the heading, the wind's angle on the bow or the hull's
 attitude is a tilted sounder (heel), never a misaligned sensor (docs/SOUNDINGS.md).
 
-Causes name instruments: only those the survey has (host/workbench/instruments.py), by the name its log
+Causes name instruments: only those the survey has (host/workbench/survey/instruments.py), by the name its log
 gives them ("the speed log (VW VHW)"); a clause about an instrument the survey does not show is left out.
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 
-from forcemap.host.workbench.instruments import Instruments
+from forcemap.host.workbench.survey.instruments import Instruments
 
 Cause = Callable[[Instruments, str], str]
 

@@ -10,14 +10,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from forcemap.host.workbench import clock_offset
-from forcemap.host.workbench.cv import CVResult, paired_test, random_folds, repeated_blocked_folds
-from forcemap.host.workbench.model import Model, term_inputs
-from forcemap.host.workbench.spec import build_term, parse_term
-from forcemap.host.workbench.survey_fits import survey_fits
-from forcemap.host.workbench.table import KINEMATIC, Survey, family, is_circular
-from forcemap.host.workbench.target_rows import target_rows
-from forcemap.host.workbench.targets import SurveyModel, survey_inputs
+from forcemap.host.workbench.engine.model import Model, term_inputs
+from forcemap.host.workbench.survey.table import KINEMATIC, Survey, family, is_circular
+from forcemap.host.workbench.survey.target_rows import target_rows
+from forcemap.host.workbench.targets.survey_fits import survey_fits
+from forcemap.host.workbench.targets.target_model import SurveyModel, survey_inputs
+from forcemap.host.workbench.terms import clock_offset
+from forcemap.host.workbench.terms.spec import build_term, parse_term
+from forcemap.host.workbench.validation.cv import (
+    CVResult,
+    paired_test,
+    random_folds,
+    repeated_blocked_folds,
+)
 
 # the comparison between candidates needs no finer spatial basis than this; `fit` goes further
 DIAGNOSE_MAX_BASIS = 600
@@ -196,8 +201,8 @@ class Evaluator:
     def time_verdict(self, threshold: float | None = None):
         """What the revisits say about time (`time_candidate.time_verdict`), computed once; again with more
         permutations when a `threshold` lies within its p-value's sampling error."""
-        from forcemap.host.workbench.diagnose.time_candidate import time_verdict
-        from forcemap.host.workbench.diagnose.time_judge import undecided
+        from forcemap.host.workbench.timejudge.candidate import time_verdict
+        from forcemap.host.workbench.timejudge.judge import undecided
 
         if self._time is None:
             self._time = (time_verdict(self.sm),)

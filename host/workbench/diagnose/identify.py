@@ -12,9 +12,9 @@ gain is position's, and the candidate is confounded with it.
 from __future__ import annotations
 
 import numpy as np
-from forcemap.host.workbench.model import Model
-from forcemap.host.workbench.table import Survey, is_circular
-from forcemap.host.workbench.terms import LinearTerm
+from forcemap.host.workbench.engine.model import Model
+from forcemap.host.workbench.survey.table import Survey, is_circular
+from forcemap.host.workbench.terms.base import LinearTerm
 
 # a candidate is confounded when its stand-in from position keeps at least this share of its gain
 REPLACED_SHARE = 0.5

@@ -6,14 +6,14 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-from forcemap.host.workbench.cv import DEFAULT_FOLDS
-from forcemap.host.workbench.data_quality import DataFinding
 from forcemap.host.workbench.diagnose.catalogue import explain, time_form_cause
 from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, REPEATS
 from forcemap.host.workbench.diagnose.null import NULL_MARGIN
-from forcemap.host.workbench.diagnose.time_notes import revisit_note
-from forcemap.host.workbench.instruments import Instruments
-from forcemap.host.workbench.table import unit_of
+from forcemap.host.workbench.survey.data_quality import DataFinding
+from forcemap.host.workbench.survey.instruments import Instruments
+from forcemap.host.workbench.survey.table import unit_of
+from forcemap.host.workbench.timejudge.notes import revisit_note
+from forcemap.host.workbench.validation.cv import DEFAULT_FOLDS
 
 # which folds the diagnosis's errors come from
 FOLD_WORDS = (
@@ -104,8 +104,8 @@ class Round:
         """What the candidate with the smallest p-value showed, when nothing was found, and for a change in
         time the form it would take: a change the data almost show (a level seen at one harbour passed
         twice) is worth a look, and worth a survey, or a gauge, that would settle it."""
-        from forcemap.host.workbench.diagnose.time_candidate import short_for_a_tide
-        from forcemap.host.workbench.table import family as family_of
+        from forcemap.host.workbench.survey.table import family as family_of
+        from forcemap.host.workbench.timejudge.candidate import short_for_a_tide
 
         c = self.closest
         if c is None:
@@ -182,7 +182,7 @@ class Diagnosis:
 
     target: str
     rounds: list[Round]
-    # problems of the log itself, listed ahead of the physics (host/workbench/data_quality.py)
+    # problems of the log itself, listed ahead of the physics (host/workbench/survey/data_quality.py)
     data: list[DataFinding] = field(default_factory=list)
 
     @property
@@ -340,7 +340,7 @@ def round_steps(diagnosis_json: dict) -> list[str]:
 
 def explain_time(c: Candidate, family: str) -> str:
     """Time's line when the revisits judged it: what they showed, how sure, its form and its term."""
-    from forcemap.host.workbench.diagnose.time_candidate import short_for_a_tide
+    from forcemap.host.workbench.timejudge.candidate import short_for_a_tide
 
     v = c.time
     head = (

@@ -25,8 +25,6 @@ import re
 import time
 
 from forcemap.host.progress import Progress
-from forcemap.host.workbench import clock_offset, data_quality
-from forcemap.host.workbench.cv import DEFAULT_FOLDS
 from forcemap.host.workbench.diagnose import identify
 from forcemap.host.workbench.diagnose.evaluate import DIAGNOSE_MAX_BASIS, Evaluator
 from forcemap.host.workbench.diagnose.null import beats_null, null_gains
@@ -36,18 +34,21 @@ from forcemap.host.workbench.diagnose.result import (
     Round,
     explain_candidate,
 )
-from forcemap.host.workbench.diagnose.time_candidate import (
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.survey import data_quality
+from forcemap.host.workbench.survey.instruments import Instruments
+from forcemap.host.workbench.survey.table import NOT_COVARIATES as SKIP
+from forcemap.host.workbench.survey.table import Survey, family, is_circular
+from forcemap.host.workbench.targets.target_model import SurveyModel, derived_column, survey_inputs
+from forcemap.host.workbench.terms import clock_offset
+from forcemap.host.workbench.terms.spec import parse_term
+from forcemap.host.workbench.timejudge.candidate import (
     fitted_seiche,
     smooth_time_term,
     time_term,
     too_few_note,
 )
-from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.instruments import Instruments
-from forcemap.host.workbench.spec import parse_term
-from forcemap.host.workbench.table import NOT_COVARIATES as SKIP
-from forcemap.host.workbench.table import Survey, family, is_circular
-from forcemap.host.workbench.targets import SurveyModel, derived_column, survey_inputs
+from forcemap.host.workbench.validation.cv import DEFAULT_FOLDS
 
 __all__ = ["DIAGNOSE_MAX_BASIS", "FLOOR", "diagnose", "Diagnosis", "Candidate"]
 
@@ -237,7 +238,7 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
 
 
 def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
-    """Time judged where the boat comes back too (host/workbench/diagnose/time_judge.py): the revisits'
+    """Time judged where the boat comes back too (host/workbench/timejudge/judge.py): the revisits'
     share and p-value become the candidate's, the term is the one their form advises, and the blocked-CV
     figures stay beside them (a short survey's few stretches may judge weakly what its blocks show
     plainly). Nothing changes when the track comes back too little."""

@@ -1,0 +1,147 @@
+"""The depth surface most soundings support: each sounding with its TVU propagated to grid nodes, several
+depth hypotheses kept per node where the soundings disagree, the one with the most soundings chosen.
+
+It follows CUBE (Calder & Mayer 2003, "Automatic processing of high-rate, high-density multibeam
+echosounder data"), the surface CARIS HIPS and QPS Qimera build, in a form a single-beam survey needs:
+
+- every sounding that is not a spike and not in a stretch where the bottom was lost
+  (forcemap.host.workbench.survey.spikes) reaches the nodes within CAPTURE cells of it, with its variance grown
+  by the distance: ``sd_node^2 = sd^2 + (slope x (distance + sd_h))^2`` (the bed's slope along the track
+  carries a sounding's depth to a neighbouring node as badly as it carries a position error);
+- at each node the soundings are taken in time order; each joins the hypothesis whose depth it is
+  nearest in units of their combined sd, if within GATE of it (a Kalman update: inverse-variance
+  mean), else it starts a new hypothesis. A false echo or a second bottom becomes a hypothesis of its
+  own and never pulls the true bed toward it;
+- the node's depth is the hypothesis most soundings support (CUBE's "number of samples"
+  disambiguation); ties go to the smaller variance.
+
+A node's uncertainty is a sounding's there (the harmonic mean of its chosen soundings' propagated
+variances: the nearest count most), not the sd of their mean: the soundings' errors share their sources
+(the sounder's calibration, the attitude, the position), and averaging hides none of that. Its TVU is 1.96 times that, graded against
+IHO S-44 (forcemap.host.fuse.tvu). A node no sounding reaches is empty: no cell is made from a lost
+stretch or from extrapolation (the GP map, forcemap.host.workbench.targets.target_model, is the continuous estimate).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from forcemap.host.fuse import tvu
+from forcemap.host.workbench.survey.table import Survey
+
+CAPTURE = 1.5  # cells: a sounding reaches the nodes within this many cell sizes of it
+GATE = 3.0  # a sounding joins a hypothesis within this many combined sds of its depth
+
+
+@dataclass
+class Surface:
+    """Per node (flat, in the order given): the chosen hypothesis and what supports it."""
+
+    depth: np.ndarray
+    sd: np.ndarray  # 1 sd, m
+    hypotheses: np.ndarray  # how many the node kept
+    soundings: np.ndarray  # how many reached it
+    support: np.ndarray  # the share of them in the chosen hypothesis
+
+    @property
+    def tvu(self) -> np.ndarray:
+        return tvu.Z95 * self.sd
+
+    def order(self) -> np.ndarray:
+        """The strictest S-44 order each node's TVU meets (tvu.ORDER_CODES; 0 none; NaN empty)."""
+        code = tvu.order_met(self.tvu, self.depth).astype(float)
+        return np.where(code < 0, np.nan, code)
+
+
+def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> dict:
+    """The soundings the surface is built from: the depth column's rows that are not spikes or lost
+    (one per reading), with their TVU's sd, slope and time."""
+    from forcemap.host.workbench.survey.spikes import target_spikes
+
+    depth = survey.columns["depth"]
+    keep = np.isfinite(depth)
+    if "depth" not in survey.spikes_removed and not survey.keep_outliers:
+        found = target_spikes(survey, "depth")  # a survey whose spikes are still in it
+        if found is not None:
+            keep &= ~found.flagged
+    held = np.r_[False, (depth[1:] == depth[:-1]) & keep[1:] & keep[:-1]]
+    keep &= ~held  # a table sampled faster than its sounder holds a reading over several rows
+    cols = survey.columns
+    t_ = tvu.table_tvu(
+        depth, survey.xy, tvu.SounderSpec(), cols.get("depth_raw"), cols.get("roll"),
+        cols.get("pitch"), position_sd,
+    )  # fmt: skip
+    slope = t_.position / max(position_sd, 1e-9)
+    sd = t_.sd
+    given = cols.get("depth_tvu")  # the export's, from the log's own sounder and position noise
+    if given is not None:
+        sd = np.where(np.isfinite(given), given / tvu.Z95, sd)
+    return {
+        "xy": survey.xy[keep],
+        "depth": depth[keep],
+        "sd": sd[keep],
+        "slope": slope[keep],
+        "t": cols["t"][keep],
+        "position_sd": position_sd,
+    }
+
+
+def build(nodes: np.ndarray, s: dict, cell: float) -> Surface:
+    """The surface at ``nodes`` (n, 2 metres in the survey frame) from ``survey_soundings``."""
+    from scipy.spatial import cKDTree
+
+    n = len(nodes)
+    out = Surface(
+        np.full(n, np.nan), np.full(n, np.nan), np.zeros(n), np.zeros(n), np.full(n, np.nan)
+    )
+    if not len(s["depth"]) or not n:
+        return out
+    order = np.argsort(s["t"], kind="stable")
+    xy, z, sd, slope = s["xy"][order], s["depth"][order], s["sd"][order], s["slope"][order]
+    reach = cKDTree(nodes).query_ball_point(xy, CAPTURE * cell)
+    lens = np.fromiter((len(r) for r in reach), int, len(reach))
+    if not lens.sum():
+        return out
+    node = np.concatenate([np.asarray(r, int) for r in reach if len(r)])
+    snd = np.repeat(np.arange(len(z)), lens)
+    dist = np.hypot(*(nodes[node] - xy[snd]).T)
+    var = sd[snd] ** 2 + (slope[snd] * (dist + s["position_sd"])) ** 2
+    by = np.lexsort((snd, node))  # per node, in time order
+    node, snd, var = node[by], snd[by], var[by]
+    starts = np.flatnonzero(np.diff(np.r_[-1, node]))
+    ends = np.r_[starts[1:], len(node)]
+    for a, b in zip(starts, ends, strict=True):
+        k = node[a]
+        best = _node(z[snd[a:b]], var[a:b])
+        out.depth[k], out.sd[k], out.hypotheses[k], out.soundings[k], out.support[k] = best
+    return out
+
+
+def _node(z: np.ndarray, var: np.ndarray) -> tuple[float, float, int, int, float]:
+    """One node's hypotheses from its soundings in time order: (depth, sd, hypotheses, soundings,
+    support) of the one most soundings support."""
+    mean: list[float] = []
+    post: list[float] = []  # the hypothesis mean's variance
+    count: list[int] = []
+    own: list[float] = []  # the sum of its soundings' inverse variances
+    for zi, vi in zip(z.tolist(), var.tolist(), strict=True):
+        j, score = -1, GATE
+        for h in range(len(mean)):
+            s = abs(zi - mean[h]) / (vi + post[h]) ** 0.5
+            if s <= score:
+                j, score = h, s
+        if j < 0:
+            mean.append(zi)
+            post.append(vi)
+            count.append(1)
+            own.append(1.0 / vi)
+            continue
+        w = post[j] / (post[j] + vi)
+        mean[j] += w * (zi - mean[j])
+        post[j] = post[j] * vi / (post[j] + vi)
+        count[j] += 1
+        own[j] += 1.0 / vi
+    j = max(range(len(mean)), key=lambda h: (count[h], -post[h]))
+    total = sum(count)
+    return mean[j], (count[j] / own[j]) ** 0.5, len(mean), total, count[j] / total

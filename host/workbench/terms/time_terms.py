@@ -1,0 +1,167 @@
+"""What a target's terms in time need from the survey, and what they say about a prediction at a time.
+
+- a `seiche` without a period gets one estimated from the survey (`resolve_seiche`), and is recorded with it;
+- a tide or a seiche on a wind or current sets the vector's flow frame to the oscillation's axis and
+  moves both of its components (`frame_terms`, `all_terms`);
+- a map asked for at a time far from the survey's says what each time term does there (`notes_at`): a
+  tide predicts, a GP in `t` (or `water_level`) has reverted to its mean beyond a few lengthscales, a
+  seiche's phase is carried on although a real seiche decays.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from forcemap.host.workbench.targets.flow_axis import uniform
+from forcemap.host.workbench.targets.survey_fits import survey_fits, survey_inputs
+from forcemap.host.workbench.terms.base import HilbertGPTerm, TermSpec
+from forcemap.host.workbench.terms.seiche import SeicheTerm, merian, resolve, seiche_text
+from forcemap.host.workbench.terms.spec import BASELINE, TIME_KINDS
+from forcemap.host.workbench.terms.tide import (
+    TideTerm,
+    constituents,
+    describe_fit,
+    ellipses,
+    term_block,
+)
+
+
+def all_terms(specs: list[TermSpec]) -> tuple[str, ...]:
+    """The time terms among a target's term specs (tide, seiche), as written."""
+    return tuple(str(s) for s in specs if s.kind in TIME_KINDS)
+
+
+def frame_terms(specs: list[TermSpec]) -> tuple[str, ...]:
+    """The time terms the vector's frame models carry: their uniform form."""
+    return tuple(dict.fromkeys(uniform(t) for t in all_terms(specs)))
+
+
+def resolve_seiche(sm) -> None:
+    """Replace each `seiche` without a period in the `SurveyModel`'s specs by `seiche(P s)`, P estimated from
+    the survey (host/workbench/terms/seiche.py); the estimate is kept as `sm.seiche_estimate`."""
+    for i, spec in enumerate(sm.term_specs):
+        if spec.kind != "seiche" or spec.options.get("period_s") is not None:
+            continue
+        others = [s for s in sm.term_specs if s is not spec]
+        fits = survey_fits(sm.survey)
+        models = _base_models(sm, others)
+        est = resolve(models, sm.survey.trel, spec.options["harmonics"], fits.hyper_rows)
+        depth = sm.survey.columns.get("depth")
+        mean_depth = float(np.nanmean(depth)) if depth is not None else None
+        est.merian = merian(est.period_s, mean_depth, float(np.ptp(sm.survey.xy, axis=0).max()))
+        period = round(est.period_s, 1)
+        options = dict(spec.options, period_s=period)
+        options["text"] = seiche_text(period, spec.options["harmonics"])
+        sm.term_specs[i] = TermSpec("seiche", spec.inputs, options=options)
+        sm.seiche_estimate = est
+
+
+def _base_models(sm, others: list[TermSpec]) -> list:
+    """Fitted models without the seiche whose residual shows it: the target's own (a scalar), or the
+    vector's east and north components over position and the other time terms."""
+    fits = survey_fits(sm.survey)
+    X = survey_inputs(sm.survey, {i for s in others for i in s.inputs})
+    if sm.vector is None:
+        y = sm.survey.column(sm.target)  # the rows that have the target (target_rows)
+        return [sm.new_primary(others).fit(X, y)]
+    terms = [*BASELINE, *frame_terms(others)]
+    e, n = sm.survey.components(sm.vector)
+    out = []
+    for y in (e, n):  # both there on every row the model is fitted on (target_rows)
+        out.append(fits.model(terms).fit(X, y))
+    return out
+
+
+def iso(unix_s: float) -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(unix_s))
+
+
+def _distance_s(at: float, t0: float, t1: float) -> float:
+    return max(t0 - at, at - t1, 0.0)
+
+
+def notes_at(model, survey, at: float) -> list[str]:
+    """What each time term of a fitted `Model` does at UNIX time `at`, said when `at` is outside the
+    survey's span (a tide, a seiche) or beyond a GP in time's lengthscale from it."""
+    t0, t1 = float(survey.columns["t"].min()), float(survey.columns["t"].max())
+    away = _distance_s(at, t0, t1)
+    if away <= 0:
+        return []
+    when = f"{iso(at)} is {_span(away)} {'after' if at > t1 else 'before'} the survey"
+    out = []
+    for term, sl in zip(model.feat_terms_, model.h_slices_, strict=True):
+        if isinstance(term, HilbertGPTerm) and "t" in term.inputs:
+            ell = math.exp(model.theta_[sl][term.hyper_index("lengthscale")])
+            if away > ell:
+                out.append(
+                    f"{term.describe()}: {when}, {away / ell:.0f} times its lengthscale "
+                    f"({_span(ell)}): it has reverted to its mean there, and the map is the survey's "
+                    "average for it, not a forecast (a tide term predicts: --effects tide)"
+                )
+        elif isinstance(term, TideTerm):
+            out.append(
+                f"{term.describe()}: {when}: the tidal prediction from {', '.join(term.names)} "
+                f"fitted over {_span(term.t_last - term.t_first)}"
+            )
+        elif isinstance(term, SeicheTerm):
+            cycles = away / term.period_s
+            out.append(
+                f"{term.describe()}: {when} ({cycles:.0f} periods): its phase is carried on as fitted, "
+                "but a real seiche decays over hours to days and is set off again by the wind"
+            )
+    return out
+
+
+def _span(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 172800:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
+def tide_summary(sm) -> dict:
+    """A fitted `SurveyModel`'s tide and seiche: constituents of its modelled component (target units: the
+    along-flow component of a speed, the across-flow one of a direction), a vector's tidal ellipses from its
+    east and north frame models, the frame's axis and why (`axis_choice`), and a seiche's period (estimated,
+    or as given)."""
+    out: dict = {"constituents": constituents(sm.primary), "ellipses": [], "seiche": None}
+    k = term_block(sm.primary, TideTerm)
+    if k is not None:
+        out["selection"] = sm.primary.feat_terms_[k].selection.describe()
+    if sm.secondary is not None and sm.frame_terms:
+        me, mn = survey_fits(sm.survey).frame(sm.vector, sm.frame_terms)
+        out["ellipses"] = ellipses(me, mn)
+        out["axis"] = sm.axis.to_json()
+    k = term_block(sm.primary, SeicheTerm)
+    if k is not None:
+        est = sm.seiche_estimate
+        term = sm.primary.feat_terms_[k]
+        out["seiche"] = {"period_s": term.period_s, "estimated": est is not None}
+        if est is not None:
+            out["seiche"].update(
+                period_sd_s=est.period_sd_s, power=est.power, fap=est.fap, text=est.describe()
+            )
+    return out
+
+
+def describe(sm) -> list[str]:
+    """The fit's time terms in words, for `fit`'s summary."""
+    lines = describe_fit(sm.primary)
+    summary = tide_summary(sm) if lines or sm.seiche_estimate else {"ellipses": []}
+    for e in summary["ellipses"]:
+        lines.append(
+            f"  {e['name']} ellipse (east/north): major {e['major']:.3g} +- {e['major_sd']:.2g} m/s "
+            f"toward {e['direction_deg']:.1f} +- {e['direction_sd_deg']:.1f} deg at the phase (then back), minor "
+            f"{e['minor']:+.3g} +- {e['minor_sd']:.2g} m/s, phase {e['phase_deg']:.1f} +- "
+            f"{e['phase_sd_deg']:.1f} deg"
+        )
+    if sm.seiche_estimate is not None:
+        lines.append(sm.seiche_estimate.describe())
+    if sm.secondary is not None and sm.axis is not None:
+        lines.append(f"  {sm.axis.line()}")
+    return lines
