@@ -39,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "RESULTS.md"
 ARCHIVE = ROOT / "bench" / "RESULTS_ARCHIVE.md"
 INDEX = ("<!-- bench-index -->", "<!-- /bench-index -->")
+NOT_YET = "Not measured yet"  # a section that never ran: nothing to archive
 
 
 @dataclass(frozen=True)
@@ -287,7 +288,7 @@ def render(bench: Bench, r: Run) -> str:
 def archived(archive: Path, name: str, old: str) -> None:
     """The figures a run replaces, appended to the archive under the benchmark's name."""
     old = old.strip("\n")
-    if not old or not archive.exists():
+    if not old or old.startswith(NOT_YET) or not archive.exists():
         return
     with archive.open("a", encoding="utf-8") as f:
         f.write(f"\n### `{name}`, replaced {dt.datetime.now(dt.UTC):%Y-%m-%d}\n\n{old}\n")
