@@ -9,6 +9,7 @@ is (`parse_term`), what it builds (`build_term`), and what it can do (`caps`, `i
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -105,6 +106,26 @@ register(TermKind(clock_offset.NAME, clock_offset.ClockOffsetTerm, clock_offset.
                   clock_offset.build_clock_offset,
                   "the clock offset between a vector's sources, undone: clock_offset, clock_offset(+1.5 s)"))
 # fmt: on
+
+
+def load_entry_points(group: str = "forcemap.terms") -> list[str]:
+    """Register the kinds other packages declare as entry points in `group` (each a `TermKind`), so a
+    lab's own term needs no change to forcemap; a kind that cannot be loaded is named, not fatal."""
+    from importlib.metadata import entry_points
+
+    problems = []
+    for ep in entry_points(group=group):
+        try:
+            kind = ep.load()
+            if kind.name not in KINDS:
+                register(kind)
+        except Exception as exc:  # a broken plug-in must not stop the workbench
+            problems.append(f"term kind {ep.name!r} from {ep.value}: {exc}")
+    return problems
+
+
+for _problem in load_entry_points():
+    warnings.warn(_problem, stacklevel=1)
 
 
 def names() -> tuple[str, ...]:
