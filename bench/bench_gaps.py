@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from forcemap.host.season.stats import chunk_stats, masked_stats
 from forcemap.host.workbench.engine.model import small_blas
-from forcemap.host.workbench.terms.base import HilbertGPTerm
+from forcemap.host.workbench.terms.gp import HilbertGPTerm
 
 REPO = Path(__file__).resolve().parents[1]
 FJORD = REPO / "tests/data/real/nmea/irene/irene_2013-08-03_flensburg.nmea"

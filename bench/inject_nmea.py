@@ -29,8 +29,9 @@ recorded (docs/QA.md, "Testing a pipeline on your own log"):
 Times: a sentence with its own time (RMC, GGA, GLL, GNS, ZDA) is injected at that time; any other
 takes the time of the last timed sentence before it (a sentence before the first one: the log's
 start). A stamp more than an hour from the running clock is taken as damaged, and the clock used.
-The date is the first RMC or ZDA date, midnight crossings counted, as ``forcemap import`` does, so
-the truth's ``t`` is the samples table's.
+The date is the day most valid fixes' RMC or ZDA dates give (a date without a fix never counts),
+midnight crossings counted, as ``forcemap import`` finds it, so the truth's ``t`` is the samples
+table's.
 
 Every rewritten field keeps its decimals and padding (``bench/nmea_fields_like.py``); its rounding
 error is carried into the same field's next value, so a change smaller than the log's resolution (a

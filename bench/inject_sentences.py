@@ -118,13 +118,42 @@ def _sentences(lines: list[bytes]):  # type: ignore[no-untyped-def]
         yield i, prefix, body, cs, convention, tail, stype, f[1:]
 
 
+def log_date(lines: list[bytes]) -> float | None:
+    """The UTC midnight the log starts on, by the importer's rule (issue 60): the day most dated
+    sentences of a valid fix give (RMC of status A, a ZDA whose talker's last position had a fix),
+    midnights crossed counted; a date without a fix never counts; a ZDA with no position of its
+    talker counts only where no valid fix is dated."""
+    votes: dict[bool | None, Counter] = {True: Counter(), None: Counter()}
+    has_fix: dict[str, bool] = {}
+    days, prev = 0.0, None
+    for _, _, body, _, convention, _, stype, f in _sentences(lines):
+        if not convention or stype not in TIMED or len(f) <= max(TIME_FIELD[stype], 5):
+            continue
+        talker = body.split(",", 1)[0][:-3]
+        if stype in ("RMC", "GLL"):
+            has_fix[talker] = f[1 if stype == "RMC" else 5].upper() == "A"
+        elif stype in ("GGA", "GNS"):
+            has_fix[talker] = f[5] not in ("", "0") and not set(f[5].upper()) <= {"N"}
+        tod = tod_of(f[TIME_FIELD[stype]])
+        if tod is None:
+            continue
+        if prev is not None and tod < prev - DAY / 2:
+            days += DAY
+        prev = tod
+        if (d := date_of(stype, f)) is None:
+            continue
+        ok = has_fix[talker] if stype == "RMC" else has_fix.get(talker)
+        if ok is not False:
+            votes[ok][d - days] += 1
+    for v in votes.values():
+        if v:
+            return v.most_common(1)[0][0]
+    return None
+
+
 def survey(lines: list[bytes]) -> tuple[float, float, float, tuple[float, float] | None]:
     """(date0, first time, last time, first fix) of a capture, as the importer finds its date."""
-    date0 = None
-    for *_, convention, _tail, stype, f in _sentences(lines):
-        if convention and stype in ("RMC", "ZDA") and (d := date_of(stype, f)) is not None:
-            date0 = d
-            break
+    date0 = log_date(lines)
     clock = Clock(date0 or 0.0)
     t0 = t1 = None
     fix = None

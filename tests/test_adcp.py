@@ -259,6 +259,32 @@ def test_damaged_ensembles_are_left_out_and_counted(raws, tmp_path, capsys):
     assert len(err) == 1 and "at least 2" in err[0]
 
 
+def test_gga_without_a_fix_never_sets_the_clock(raws):
+    """Issue 60: RiverPro_test01's first 60 % of GGA made fixless (quality 0) and stamped by a
+    receiver clock of 2009-02-21, as before a first fix: the clock on UTC is the one the fixes give
+    (the untouched file's, within its jitter), and the GGA left out are counted in its timing."""
+    from dataclasses import replace
+
+    from forcemap.host.convert.adcp_import import _config
+
+    raw = raws["RiverPro_test01.PD0"]
+    clean = process(raw).clock
+    k = int(0.6 * raw.t_gps.size)
+    old_day = 1235174400.0  # 2009-02-21 00:00 UTC
+    t_gps, fix = raw.t_gps.copy(), raw.fix.copy()
+    t_gps[:k] = old_day + t_gps[:k] % 86400.0
+    fix[:k] = 0
+    s = process(replace(raw, t_gps=t_gps, fix=fix))
+    assert s.clock.offset_s == pytest.approx(clean.offset_s, abs=max(clean.spread_s, 0.05))
+    assert (s.clock.fixes, s.clock.without_fix) == (raw.t_gps.size - k, k)
+    assert time_day(s.t[0]) == time_day(raw.t_gps[-1])  # the survey on its own day
+    assert f"{k} GGA without a fix not used" in _config(s, "x.PD0")["timing"]
+
+
+def time_day(t: float) -> int:
+    return int(t // 86400)
+
+
 def _every_message_matches_its_schema(mcap) -> None:
     n, names = validate_log_schemas(mcap)
     assert n > 272

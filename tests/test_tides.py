@@ -16,7 +16,7 @@ from forcemap.host.workbench.engine.periodogram import estimate_period
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.at_time import parse_at
 from forcemap.host.workbench.survey.table import is_circular
-from forcemap.host.workbench.terms.spec import build_term, parse_term
+from forcemap.host.workbench.terms.registry import build_term, parse_term
 from forcemap.host.workbench.terms.tide import TideTerm
 
 NAMES = [

@@ -18,7 +18,7 @@ import pytest
 from forcemap.host.cli import main
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.survey.table import is_circular, load_survey
 from forcemap.host.workbench.targets.target_model import SurveyModel
 from forcemap.host.workbench.terms import clock_offset
 from forcemap.host.workbench.validation.cv import blocked_folds
@@ -127,12 +127,21 @@ def test_the_corrected_wind_is_the_true_wind(late):
     assert tau == pytest.approx(1.5, abs=0.1)
 
 
-def test_terms_name_the_offset():
-    assert clock_offset.split_terms(["const", "clock_offset"])[0] == ["const"]
-    assert math.isnan(clock_offset.split_terms(["clock_offset"])[1])
-    assert clock_offset.split_terms(["clock_offset(+1.50 s)"])[1] == 1.5
-    assert clock_offset.split_terms(["clock_offset(-0.4)"])[1] == -0.4
-    assert clock_offset.split_terms(["gp(t, matern32)"])[1] is None
+def test_the_offset_is_an_ordinary_term():
+    """Parsed by the registry like any term; it acts on the survey before the model, not as a sum term."""
+    from forcemap.host.workbench.terms import registry
+
+    def spec(text):
+        return registry.parse_term(text, is_circular)
+
+    model, data = registry.split_data_terms([spec("const"), spec("clock_offset")])
+    assert [str(s) for s in model] == ["const"] and [str(s) for s in data] == ["clock_offset"]
+    assert math.isnan(registry.build_term(spec("clock_offset"), is_circular).tau)
+    assert registry.build_term(spec("clock_offset(+1.50 s)"), is_circular).tau == 1.5
+    assert str(spec("clock_offset(-0.4)")) == "clock_offset(-0.40 s)"
+    assert registry.corrections(["gp(t, matern32)", "const"], is_circular) == []
+    with pytest.raises(WorkbenchError):
+        spec("clock_offset(soon)")
 
 
 def test_a_model_with_the_offset_names_it_and_fits_better(late):

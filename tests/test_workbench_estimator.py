@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from forcemap.host.workbench.engine.model import DesignCache, Model, NotFittedError, spaced_rows
 from forcemap.host.workbench.survey.table import is_circular
-from forcemap.host.workbench.terms.spec import build_term, parse_term
+from forcemap.host.workbench.terms.registry import build_term, parse_term
 from sklearn.base import clone
 from sklearn.model_selection import GroupKFold, KFold
 from sklearn.utils import estimator_checks as ec

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from forcemap.host.workbench.engine.model import Model, evidence
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.terms.base import HilbertGPTerm
+from forcemap.host.workbench.terms.gp import HilbertGPTerm
 
 
 def matern32(a, b, ell, var):
@@ -143,7 +143,7 @@ def test_extended_model_shares_design_and_improves_fit():
     y = np.sin(xy[:, 0] / 40) + 0.4 * np.sin(z) + 0.05 * rng.standard_normal(n)
     base = Model(["const", "gp(position, matern32)"]).fit({"position": xy}, y)
     from forcemap.host.workbench.survey.table import is_circular
-    from forcemap.host.workbench.terms.spec import build_term, parse_term
+    from forcemap.host.workbench.terms.registry import build_term, parse_term
 
     X = {"position": xy, "z": z}
     ext = base.extended(build_term(parse_term("z", is_circular), is_circular), X, y)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from forcemap.host.workbench.engine import fourier, nufft
 from forcemap.host.workbench.engine.model import Model
-from forcemap.host.workbench.terms.base import HilbertGPTerm
+from forcemap.host.workbench.terms.gp import HilbertGPTerm
 from forcemap.host.workbench.validation.cv import blocked_folds
 
 

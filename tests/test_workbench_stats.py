@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from forcemap.host.workbench.engine import evidence, fourier, nufft
 from forcemap.host.workbench.engine.model import Model, basis_stats, fixed_basis
-from forcemap.host.workbench.terms.base import HilbertGPTerm
+from forcemap.host.workbench.terms.gp import HilbertGPTerm
 
 
 @pytest.fixture(scope="module")

@@ -51,8 +51,9 @@ def add_log_date(parser: argparse.ArgumentParser) -> None:
         type=log_day,
         metavar="YYYY-MM-DD",
         help="the UTC day an NMEA log starts on, for a log whose sentences carry no date (GGA or "
-        "GLL without RMC or ZDA): the magnetic declination, tides and --at need it; a log's own "
-        "date is used before it",
+        "GLL without RMC or ZDA, or whose only dates come without a fix): the magnetic "
+        "declination, tides and --at need it; a log's own date (its valid fixes') is used "
+        "before it",
     )
 
 

@@ -197,7 +197,7 @@ def process(raw: AdcpRaw, reference: str = "bt", compass_offset: float | None = 
     """The transect from its raw ensembles (see the module docstring)."""
     if reference not in REFERENCES:
         raise ValueError(f"reference {reference!r} is not one of {REFERENCES}")
-    clock = clock_to_utc(raw.t_gps, raw.t_gps_inst)
+    clock = clock_to_utc(raw.t_gps, raw.t_gps_inst, raw.fix)
     t = raw.t_inst + clock.offset_s
     vtg = (raw.vtg_speed, raw.vtg_course) if raw.vtg_speed is not None else None
     track = gps_track(t, raw.t_gps, raw.lat, raw.lon, raw.fix, vtg)

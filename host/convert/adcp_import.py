@@ -99,7 +99,13 @@ def _config(s, path: str | Path) -> dict[str, str]:  # type: ignore[no-untyped-d
         "coord_sys": s.raw.coord_sys,
         "reference": s.reference,
         "timing": (
-            f"instrument clock + {s.clock.offset_s:.3f} s = GPS UTC ({s.clock.fixes} fixes)"
+            f"instrument clock + {s.clock.offset_s:.3f} s = GPS UTC ({s.clock.fixes} fixes"
+            + (
+                f"; {s.clock.without_fix} GGA without a fix not used"
+                if s.clock.without_fix
+                else ""
+            )
+            + ")"
             if s.clock.fixes
             else "instrument clock (no GPS: not UTC-checked)"
         ),

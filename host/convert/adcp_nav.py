@@ -30,16 +30,27 @@ class ClockFix:
     offset_s: float
     spread_s: float  # the interquartile range of the per-fix offsets (latency jitter)
     fixes: int
+    without_fix: int = 0  # GGA of quality 0 left out: a receiver without a fix times it by its own clock
 
 
-def clock_to_utc(t_gps: np.ndarray, t_gps_inst: np.ndarray) -> ClockFix:
-    """The median offset between each fix's UTC and the instrument time of its ensemble."""
+def clock_to_utc(
+    t_gps: np.ndarray, t_gps_inst: np.ndarray, fix: np.ndarray | None = None
+) -> ClockFix:
+    """The median offset between each fix's UTC and the instrument time of its ensemble; a GGA
+    that says it has no fix (``fix`` quality 0) never sets the clock (issue 60), unless no GGA has
+    one (a quality left empty counts as a fix)."""
     d = t_gps - t_gps_inst
-    d = d[np.isfinite(d)]
+    ok = np.isfinite(d)
+    dropped = 0
+    if fix is not None and fix.size == d.size:
+        good = ok & (np.where(np.isfinite(fix), fix, MIN_FIX_QUALITY) >= MIN_FIX_QUALITY)
+        if good.any():
+            dropped, ok = int(ok.sum() - good.sum()), good
+    d = d[ok]
     if not d.size:
         return ClockFix(0.0, math.nan, 0)
     q1, q3 = np.percentile(d, [25, 75])
-    return ClockFix(float(np.median(d)), float(q3 - q1), int(d.size))
+    return ClockFix(float(np.median(d)), float(q3 - q1), int(d.size), dropped)
 
 
 def rotate(east: np.ndarray, north: np.ndarray, delta_deg: float) -> tuple[np.ndarray, np.ndarray]:

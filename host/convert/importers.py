@@ -3,8 +3,9 @@ ArduPilot DataFlash logs (.BIN).
 
 NMEA captures carry no receive times. Each line gets one from the sentences' own UTC: every line
 where the UTC time of day (RMC, GGA, GLL, ZDA) moves forward is an anchor, and lines between
-anchors are spread evenly; the date comes from the first RMC or ZDA that has one, else from `--date`
-(else 1970-01-01, and the import says what that day gets wrong).
+anchors are spread evenly; the date comes from the RMC and ZDA of valid fixes, the day most of them
+give (a date without a fix never dates a log, and what was overruled is said: nmea_prepass), else
+from `--date` (else 1970-01-01, and the import says what that day gets wrong).
 A capture with no UTC at all is paced at 1 s per line. tlogs carry the ground station's receive
 time (8-byte big-endian UNIX microseconds) before each packet, used as the arrival time. DataFlash
 logs are read by ``forcemap.host.convert.dataflash``. A gzipped NMEA capture or tlog is read as the
@@ -156,6 +157,8 @@ def import_nmea(
         ns = int(t * 1e9)
         pipe.feed("nmea", ns, ns, line + b"\n")
     pipe.close()
+    if pre.day_finding is not None:  # what the log's day overruled (its line is in pre.how)
+        sink.metadata(pre.day_finding.name, pre.day_finding.to_metadata())
     res = ImportResult(str(path), "nmea", len(pre.lines), pipe.counters(), [*pre.notes, pre.how])
     _check_errors(pipe, res)
     return res

@@ -23,7 +23,6 @@ from forcemap.host.workbench.engine.model import Model, term_inputs
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.table import Survey, survey_from_columns
 from forcemap.host.workbench.targets.target_model import SurveyModel
-from forcemap.host.workbench.terms.base import HilbertGPTerm
 from forcemap.host.workbench.terms.spec import BASELINE
 from scipy import linalg
 
@@ -74,7 +73,7 @@ class Component:
         if not len(xy):
             return True
         for t in self.model.terms_:
-            if isinstance(t, HilbertGPTerm):
+            if t.grows_basis:
                 Zr = (term_inputs(t, {"position": xy}) - t.center) @ t.rot
                 if np.any(np.abs(Zr) > t.half * (1.0 + 1e-9)):
                     return False
@@ -87,7 +86,7 @@ class Component:
         (with a 1 % tolerance, measured up to 3 % of the map's range apart near the samples; with
         0.3 %, within 1 %: tests/test_live_maps.py)."""
         for t in self.model.terms_:
-            if isinstance(t, HilbertGPTerm):
+            if t.grows_basis:
                 fresh = copy.deepcopy(t)
                 fresh.setup(term_inputs(t, {"position": xy}))
                 scale = float(t.half.max())

@@ -21,7 +21,9 @@ from forcemap.host.workbench.fits.workspace import current_terms, workspace_dir
 from forcemap.host.workbench.survey.table import Survey, is_circular
 from forcemap.host.workbench.survey.target_rows import target_rows
 from forcemap.host.workbench.targets.survey_fits import grid_inputs, survey_fits, survey_inputs
-from forcemap.host.workbench.terms.spec import BASELINE, parse_term
+from forcemap.host.workbench.terms import registry
+from forcemap.host.workbench.terms.registry import parse_term
+from forcemap.host.workbench.terms.spec import BASELINE
 from forcemap.host.workbench.validation.cv import blocked_folds
 
 GRID_STEP_M = 4.0
@@ -255,23 +257,11 @@ def field_times(terms: list[str], start: float, span_s: float) -> np.ndarray | N
     """When a field of `terms` is gridded along a mission from UNIX time `start` over `span_s`: None if
     nothing in it changes in time; else evenly, SLICES_PER_PERIOD to the shortest tide or seiche period
     (every GP_STEP_S for a GP in time alone), at most MAX_SLICES."""
-    from forcemap.host.vessel import tides
-    from forcemap.host.workbench.terms.spec import TIME_KINDS
-
     specs = [parse_term(t, is_circular) for t in terms if _inputs(t) is not None]
-    if not any(s.inputs and ({"t", "utc"} & set(s.inputs)) for s in specs):
+    if not any(registry.in_time(s) for s in specs):
         return None
-    periods = []
-    for s in specs:
-        if s.kind == "seiche" and s.options.get("period_s"):
-            periods.append(float(s.options["period_s"]) / s.options.get("harmonics", 1))
-        elif s.kind == "tide":
-            names = s.options.get("constituents") or ("M4",)  # the fastest a record may pick
-            periods.append(min(tides.constituent(n).period_h for n in names) * 3600.0)
-    kinds = {s.kind for s in specs}
-    step = (
-        max(MIN_STEP_S, min(periods) / SLICES_PER_PERIOD) if kinds & set(TIME_KINDS) else GP_STEP_S
-    )
+    periods = [p for s in specs for p in registry.periods_s(s)]
+    step = max(MIN_STEP_S, min(periods) / SLICES_PER_PERIOD) if periods else GP_STEP_S
     step = max(step, span_s / (MAX_SLICES - 1))
     return start + np.arange(0.0, span_s + step, step)
 
@@ -328,7 +318,8 @@ def mission_time_notes(f: Field, survey: Survey, times: np.ndarray) -> list[str]
         f"{(times[1] - times[0]) / 60 if len(times) > 1 else 0:.0f} min: each leg is predicted in the "
         "current expected when the boat is on it"
     ]
-    if times[0] > t1 and not any(t.startswith(("tide", "seiche")) for t in f.terms):
+    predicts = any(registry.caps(parse_term(t, is_circular)).predicts_in_time for t in f.terms)
+    if times[0] > t1 and not predicts:
         lines.append(
             f"the mission starts {(times[0] - t1) / 3600:.1f} h after the survey: a GP in time has "
             "reverted to its mean there (a tide term predicts: fit --effects tide)"

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from forcemap.host.season.tasks import Footprint, Frame, Rejected
 from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.terms.base import HilbertGPTerm
+from forcemap.host.workbench.terms.gp import HilbertGPTerm
 
 # boxes closer than this still count as the same reach (GPS scatter, a survey of the bank next door)
 OVERLAP_SLACK_M = 50.0

@@ -154,7 +154,7 @@ class Prior:
     [log noise var, log const var, log gp var, log lengthscale] in units of the target's std."""
 
     def __init__(self, gp) -> None:
-        from forcemap.host.workbench.terms.base import ConstTerm
+        from forcemap.host.workbench.terms.simple import ConstTerm
 
         self.const, self.gp = ConstTerm(), gp
 

@@ -323,20 +323,14 @@ def crossings(xy: np.ndarray, t: np.ndarray) -> int:
 
 
 def level_term(model):
-    """The index of a fitted model's level term, `water_level` or a uniform `tide`, or None."""
-    from forcemap.host.workbench.terms.base import WaterLevelTerm
-    from forcemap.host.workbench.terms.tide import TideTerm
-
-    kinds = (WaterLevelTerm, TideTerm)
-    return next((i for i, t in enumerate(model.feat_terms_) if isinstance(t, kinds)), None)
+    """The index of a fitted model's level term (`water_level`, or a `tide`'s uniform part), or None."""
+    return next((i for i, t in enumerate(model.feat_terms_) if t.is_level), None)
 
 
 def level_estimate(model, t: np.ndarray, t0: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The fitted water level at survey times `t` (s since the survey's start, UNIX time `t0`: for a tide,
     its first sample's by default), centred on its mean over `t`, and its posterior sd (m). The level is the
     `water_level` term's, or the tidal term's (its uniform part: the tide at the gauge the survey is)."""
-    from forcemap.host.vessel import tides
-    from forcemap.host.workbench.terms.tide import TideTerm
     from scipy import linalg
 
     k = level_term(model)
@@ -345,11 +339,7 @@ def level_estimate(model, t: np.ndarray, t0: float | None = None) -> tuple[np.nd
     term = model.feat_terms_[k]
     start = int(sum(model.design_.sizes[:k]))
     t = np.asarray(t, float)
-    if isinstance(term, TideTerm):
-        utc = (term.t_first if t0 is None else t0) + t
-        phi = tides.basis(utc, term.names, term.lat)
-    else:
-        phi = term.features(t[:, None])
+    phi = term.level_features(t, t0)
     m = phi.shape[1]
     phi = phi - phi.mean(axis=0)
     post = model.posterior_
@@ -374,8 +364,12 @@ def map_datum(survey, terms: list[str] | None = None, at: float | None = None) -
     mid-survey, or `at`), else the surface as it was at each sounding."""
     if getattr(survey, "datum", None):
         return survey.datum
-    names = [str(t).strip() for t in terms or []]
-    if any(t.startswith("tide") for t in names):
+    from forcemap.host.workbench.survey.table import is_circular
+    from forcemap.host.workbench.terms import registry
+
+    levels = [s for s in (registry.parse_term(str(t), is_circular) for t in terms or []) if registry.caps(s).is_level]
+    tidal = [s for s in levels if registry.caps(s).predicts_in_time]
+    if tidal:
         import time
 
         when = (
@@ -384,9 +378,9 @@ def map_datum(survey, terms: list[str] | None = None, at: float | None = None) -
             else time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime(at))
         )
         return (
-            f"depth below the water surface as the tidal fit ({next(t for t in names if t.startswith('tide'))}) "
+            f"depth below the water surface as the tidal fit ({tidal[0]}) "
             f"predicts it at {when}, from {crossings(survey.xy, survey.trel)} crossings"
         )
-    if "water_level" in names:
+    if levels:
         return surface_datum(crossings(survey.xy, survey.trel))
     return "depth below the water surface at the time of each sounding (not reduced to a datum)"

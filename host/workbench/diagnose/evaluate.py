@@ -16,7 +16,7 @@ from forcemap.host.workbench.survey.target_rows import target_rows
 from forcemap.host.workbench.targets.survey_fits import survey_fits
 from forcemap.host.workbench.targets.target_model import SurveyModel, survey_inputs
 from forcemap.host.workbench.terms import clock_offset
-from forcemap.host.workbench.terms.spec import build_term, parse_term
+from forcemap.host.workbench.terms.registry import build_term, parse_term
 from forcemap.host.workbench.validation.cv import (
     CVResult,
     paired_test,

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from forcemap.host.workbench.engine.model import Model
 from forcemap.host.workbench.survey.table import Survey, is_circular
-from forcemap.host.workbench.terms.base import LinearTerm
+from forcemap.host.workbench.terms.gp import LinearTerm
 
 # a candidate is confounded when its stand-in from position keeps at least this share of its gain
 REPLACED_SHARE = 0.5
@@ -117,9 +117,9 @@ def smooth_along_track(survey: Survey, name: str, values: np.ndarray, scale_m: f
 
 def map_length_scale(ev) -> float:
     """The spatial GP's length scale (m) in the current model, or 5 % of the track when it has none."""
-    for term, params in ev.sm.primary.params_.items():
-        if term.startswith("gp(position") and "lengthscale" in params:
-            return float(params["lengthscale"])
+    ell = ev.sm.primary.position_lengthscale_
+    if ell is not None:
+        return ell
     return 0.05 * float(along_track(ev.survey.xy)[-1]) or 10.0
 
 

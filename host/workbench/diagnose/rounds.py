@@ -40,8 +40,8 @@ from forcemap.host.workbench.survey.instruments import Instruments
 from forcemap.host.workbench.survey.table import NOT_COVARIATES as SKIP
 from forcemap.host.workbench.survey.table import Survey, family, is_circular
 from forcemap.host.workbench.targets.target_model import SurveyModel, derived_column, survey_inputs
-from forcemap.host.workbench.terms import clock_offset
-from forcemap.host.workbench.terms.spec import parse_term
+from forcemap.host.workbench.terms import clock_offset, registry
+from forcemap.host.workbench.terms.registry import parse_term
 from forcemap.host.workbench.timejudge.candidate import (
     fitted_seiche,
     smooth_time_term,
@@ -95,7 +95,7 @@ def candidate_covariates(survey: Survey, sm: SurveyModel) -> list[str]:
         and "sog" in survey.columns
     ):
         names.append("stw")
-    if sm.clock_offset is None and clock_offset.applicable(survey, sm.vector):
+    if not sm.corrections and clock_offset.applicable(survey, sm.vector):
         names.append(clock_offset.NAME)
     if sm.vector and sm.vector.aspect == "speed":
         own_dir = sm.vector.name.replace("_speed", "_dir")
@@ -258,7 +258,7 @@ def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
     """The term a significant verdict's form advises (a tide, a seiche, a drift), with its blocked-CV RMSE
     and gain as the next round will fit it."""
     term = time_term(c.time, ev.target)
-    if term.startswith("seiche("):
+    if registry.caps(parse_term(term, is_circular)).estimates_period:
         est = fitted_seiche(ev.sm, c.time)
         if est is not None:
             c.time.fitted_period_s, c.time.fitted_period_sd_s = est.period_s, est.period_sd_s

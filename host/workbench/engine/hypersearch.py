@@ -13,7 +13,7 @@ import numpy as np
 from forcemap.host.workbench.engine import fourier
 from forcemap.host.workbench.engine.evidence import SufficientStats, evidence, small_blas
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.terms.base import ConstTerm, HilbertGPTerm, Term
+from forcemap.host.workbench.terms.base import Term
 from scipy.optimize import minimize
 
 NOISE_BOUNDS = (math.log(1e-8), math.log(10.0))
@@ -94,7 +94,7 @@ class HyperSearch:
         for t in self.feat_terms_:
             hs = t.hypers()
             vals = [h.init for h in hs]
-            if isinstance(t, ConstTerm):
+            if t.is_constant:
                 vals[0] = math.log((np.mean(y) / self.y_scale_) ** 2 + 1.0)
             theta += vals
         for t in self.mean_terms_:
@@ -161,7 +161,7 @@ class HyperSearch:
     def _search_lengthscale(self, theta: np.ndarray) -> np.ndarray:
         """Start L-BFGS from the best of a few lengthscales for the first GP term (avoids poor local optima)."""
         for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True):
-            if isinstance(t, HilbertGPTerm):
+            if t.grows_basis:
                 lo, hi = math.log(t.l_min * 1.1), math.log(2.0 * float(t.half.max()))
                 best, best_val = theta, self._objective(theta, grad=False)[0]
                 for logl in np.linspace(lo, hi, 7):
@@ -197,7 +197,7 @@ class HyperSearch:
             grow = [
                 t
                 for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True)
-                if isinstance(t, HilbertGPTerm)
+                if t.grows_basis
                 and theta[sl.start + t.hyper_index("lengthscale")] < math.log(1.25 * t.l_min)
                 and t.n_basis < min(t.max_basis, len(y))
             ]
@@ -248,7 +248,7 @@ def fixed_basis(terms: Sequence, X: Mapping[str, np.ndarray]) -> list[Term]:
     """Feature terms set up on `X` (for a season: the positions of every survey, or its bounding box): the
     basis that chunks of rows share, so that their `basis_stats` add up."""
     from forcemap.host.workbench.survey.table import is_circular
-    from forcemap.host.workbench.terms.spec import build_term, parse_term
+    from forcemap.host.workbench.terms.registry import build_term, parse_term
 
     out = []
     for t in terms:

@@ -39,7 +39,7 @@ from forcemap.host.workbench.engine.hypersearch import (
 )
 from forcemap.host.workbench.engine.model_setup import build_design, build_terms
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.terms.base import HilbertGPTerm, Term, TermSpec
+from forcemap.host.workbench.terms.base import Term, TermSpec
 from forcemap.host.workbench.terms.spec import BASELINE
 from scipy import linalg
 
@@ -218,6 +218,14 @@ class Model(HyperSearch):
         return math.sqrt(math.exp(self.theta_[0])) * self.y_scale_
 
     @property
+    def position_lengthscale_(self) -> float | None:
+        """The fitted lengthscale (m) of the first GP term over position, or None when it has none."""
+        for t, sl in zip(self.feat_terms_, self.h_slices_, strict=True):
+            if t.grows_basis and t.inputs[:1] == ("position",):
+                return float(math.exp(self.theta_[sl][t.hyper_index("lengthscale")]))
+        return None
+
+    @property
     def params_(self) -> dict[str, dict[str, float]]:
         """Fitted parameters of every term, plus the noise standard deviation, in the target's units."""
         out: dict[str, dict[str, float]] = {"noise": {"std": self.noise_std_}}
@@ -237,7 +245,7 @@ class Model(HyperSearch):
     def n_basis_(self) -> dict[str, int]:
         """Basis functions of every reduced-rank GP term, as the fit left them (it may have grown them)."""
         self._check_fitted()
-        return {t.describe(): t.n_basis for t in self.terms_ if isinstance(t, HilbertGPTerm)}
+        return {t.describe(): t.n_basis for t in self.terms_ if t.grows_basis}
 
     def features(self, X: Mapping[str, np.ndarray]) -> list[np.ndarray]:
         self._check_fitted()

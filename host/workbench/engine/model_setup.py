@@ -11,8 +11,9 @@ from forcemap.host.workbench.engine import fourier
 from forcemap.host.workbench.engine.evidence import Design, DesignCache, TermBlock, design_key
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.table import is_circular
-from forcemap.host.workbench.terms.base import ConstTerm, HilbertGPTerm, Term, TermSpec
-from forcemap.host.workbench.terms.spec import build_term, parse_term
+from forcemap.host.workbench.terms.base import Term, TermSpec
+from forcemap.host.workbench.terms.registry import build_term, parse_term
+from forcemap.host.workbench.terms.simple import ConstTerm
 
 
 def build_terms(terms: Sequence[str | TermSpec | Term], max_basis: int | None) -> list[Term]:
@@ -29,7 +30,7 @@ def build_terms(terms: Sequence[str | TermSpec | Term], max_basis: int | None) -
         built.insert(0, ConstTerm())
     if max_basis is not None:
         for t in built:
-            if isinstance(t, HilbertGPTerm) and t.dims >= 2:
+            if t.grows_basis and t.dims >= 2:
                 t.max_basis = min(t.max_basis, max(max_basis, t.n_basis))
     return built
 

@@ -13,10 +13,10 @@ from forcemap.host.workbench.depth.water_level import crossline_errors, crosslin
 from forcemap.host.workbench.engine import nufft
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.fits.workspace import record_fit, workspace_dir
-from forcemap.host.workbench.survey.table import Survey, unit_of
+from forcemap.host.workbench.survey.table import Survey, is_circular, unit_of
 from forcemap.host.workbench.targets.survey_fits import survey_fits
 from forcemap.host.workbench.targets.target_model import SurveyModel, hyper_rows
-from forcemap.host.workbench.terms import clock_offset, time_terms
+from forcemap.host.workbench.terms import registry, time_terms
 from forcemap.host.workbench.terms.spec import BASELINE, read_spec_file, split_effects
 from forcemap.host.workbench.timejudge.level_check import LevelCheck, check_level
 from forcemap.host.workbench.timejudge.revisits import target_radius
@@ -284,12 +284,12 @@ def map_terms(survey: Survey, history: list[dict], target: str) -> list[str]:
     corrects the whole vector, so the map of its speed uses it too."""
     terms = latest_terms(history, target)
     vt = survey.vector_target(target)
-    if vt is None or clock_offset.split_terms(terms)[1] is not None:
+    if vt is None or registry.corrections(terms, is_circular):
         return terms
     for h in reversed(history):
         other = survey.vector_target(h["target"])
         if other is not None and other.prefix == vt.prefix:
-            offset = [t for t in h["terms"] if clock_offset.split_terms([t])[1] is not None]
+            offset = registry.corrections(h["terms"], is_circular)
             if offset:
                 return terms + offset
     return terms

@@ -18,6 +18,7 @@ from forcemap.host.workbench.survey.table import (
     is_circular,
     unit_of,
 )
+from forcemap.host.workbench.terms.spec import BASELINE
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -157,7 +158,7 @@ def history_figure(history: list[dict]):
             label=target,
         )
         for h in rows:
-            extra = [t for t in h["terms"] if t not in ("const", "gp(position, matern32)")]
+            extra = [t for t in h["terms"] if t not in BASELINE]
             ax.annotate(
                 "+" + ", ".join(extra) if extra else "baseline",
                 (h["fit"], h["cv_rmse"] / rmse0),

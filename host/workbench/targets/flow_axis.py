@@ -23,12 +23,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from forcemap.host.vessel import tides
 from forcemap.host.workbench.engine.hypersearch import term_inputs
-from forcemap.host.workbench.terms.seiche import SeicheTerm
-from forcemap.host.workbench.terms.tide import TideTerm
+from forcemap.host.workbench.survey.table import is_circular
+from forcemap.host.workbench.terms import registry
 
-TIME_TERMS = (TideTerm, SeicheTerm)
 CYCLE_SAMPLES = 512
 # the mean flow orients the axis where its projection is at least this share of the cycle's rms along it
 MEAN_CLEAR = 0.1
@@ -36,10 +34,7 @@ MEAN_CLEAR = 0.1
 
 def uniform(term: str) -> str:
     """A time term's uniform form (the frame needs the axis, not the ellipse's variation over the reach)."""
-    if term.startswith("tide(position"):
-        rest = term[len("tide(position") :].strip(", )")
-        return f"tide({rest})" if rest else "tide"
-    return term
+    return registry.uniform(registry.parse_term(term, is_circular))
 
 
 def time_part(model, X: dict) -> np.ndarray:
@@ -47,7 +42,7 @@ def time_part(model, X: dict) -> np.ndarray:
     n = len(next(iter(X.values())))
     out, i = np.zeros(n), 0
     for t, m in zip(model.feat_terms_, model.design_.sizes, strict=True):
-        if isinstance(t, TIME_TERMS):
+        if t.on_flow_axis:
             out += t.features(term_inputs(t, X)) @ model.posterior_["mu"][i : i + m]
         i += m
     return out * model.y_scale_
@@ -57,10 +52,7 @@ def cycle_inputs(model, survey) -> dict:
     """Times over the survey or the model's longest period, whichever is longer (at the survey's centre)."""
     longest = 0.0
     for t in model.feat_terms_:
-        if isinstance(t, TideTerm):
-            longest = max(longest, *(tides.constituent(n).period_h * 3600 for n in t.names))
-        elif isinstance(t, SeicheTerm):
-            longest = max(longest, float(t.period_s))
+        longest = max(longest, *t.periods_s(), 0.0)
     span = max(float(np.ptp(survey.trel)), longest)
     trel = np.linspace(0.0, span, CYCLE_SAMPLES)
     return {

@@ -19,8 +19,8 @@ from forcemap.host.workbench.survey.gaps import DERIVED_INPUTS, bridged, prepare
 from forcemap.host.workbench.survey.table import MIN_ROWS, Survey, VectorTarget, is_circular
 from forcemap.host.workbench.targets.axis_choice import AxisChoice, choose_axis
 from forcemap.host.workbench.targets.flow_axis import axis_frame, time_part
-from forcemap.host.workbench.terms.base import HilbertGPTerm
-from forcemap.host.workbench.terms.spec import BASELINE, build_term, parse_terms
+from forcemap.host.workbench.terms.registry import build_term
+from forcemap.host.workbench.terms.spec import BASELINE, parse_terms
 
 # the names callers have always found here (hyperparameters come from samples HYPER_SPACING_S apart)
 __all__ = ["HYPER_SPACING_S", "MIN_HYPER_ROWS", "SurveyFits", "hyper_rows", "survey_fits"]
@@ -44,7 +44,7 @@ def terms_with_basis(terms, n_basis=None) -> list:
     specs = parse_terms(terms, is_circular) if all(isinstance(t, str) for t in terms) else terms
     built = [build_term(t, is_circular) for t in specs]
     for t in built:
-        if isinstance(t, HilbertGPTerm) and n_basis and t.describe() in n_basis:
+        if t.grows_basis and n_basis and t.describe() in n_basis:
             t.n_basis = int(n_basis[t.describe()])
             t.max_basis = max(t.max_basis, t.n_basis)
     return built

@@ -26,7 +26,7 @@ from forcemap.host.workbench.targets.survey_fits import (
     survey_inputs,
     terms_with_basis,
 )
-from forcemap.host.workbench.terms import clock_offset, time_terms
+from forcemap.host.workbench.terms import registry, time_terms
 from forcemap.host.workbench.terms.spec import BASELINE, parse_terms
 from forcemap.host.workbench.validation.cv import Calibration, CVResult
 
@@ -49,21 +49,24 @@ class SurveyModel:
         """`rows_with`: covariates outside the terms whose rows the model must be fitted on too (a
         diagnose candidate judged on the rows that have it)."""
         self.target, self.max_basis = target, max_basis
-        terms, self.clock_offset = clock_offset.split_terms(list(terms or BASELINE))
-        self.term_specs = parse_terms(terms or BASELINE, is_circular)
+        specs = parse_terms(list(terms or BASELINE), is_circular)
+        self.term_specs, data_specs = registry.split_data_terms(specs)
+        self.term_specs = self.term_specs or parse_terms(BASELINE, is_circular)
+        corrections = [registry.build_term(s, is_circular) for s in data_specs]
         self.vector = survey.vector_target(target)
         self._check_target(survey)
         # the rows first (the target there, its spikes left out, every covariate there): a clock offset is
         # judged on the readings the map will be fitted to
         needs = {i for s in self.term_specs for i in s.inputs} | set(rows_with)
-        if self.clock_offset is not None:
-            needs |= set(clock_offset.AUTOPILOT_COLUMNS)
+        for c in corrections:
+            needs |= c.needs()
         self.rows = target_rows(survey, target, needs)
         survey, self.spikes, self.gaps = self.rows.survey, self.rows.spikes, self.rows.gaps
-        if self.clock_offset is not None:
-            survey, self.clock_offset = clock_offset.corrected_for(
-                survey, self.vector, self.clock_offset
-            )
+        # the terms that act on the survey before the model (a clock offset), as the model records them
+        self.corrections: list[str] = []
+        for c in corrections:
+            survey, recorded = c.apply(survey, self.vector)
+            self.corrections.append(recorded)
         self.survey = survey
         self.seiche_estimate = (
             None  # a seiche's period estimated at `fit` (host/workbench/terms/seiche.py)
@@ -106,10 +109,7 @@ class SurveyModel:
 
     @property
     def terms(self) -> list[str]:
-        out = [str(s) for s in self.term_specs]
-        return (
-            out if self.clock_offset is None else out + [clock_offset.describe(self.clock_offset)]
-        )
+        return [str(s) for s in self.term_specs] + self.corrections
 
     @property
     def time_terms(self) -> tuple[str, ...]:

@@ -29,6 +29,7 @@ import numpy as np
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.gaps import prepare_column
 from forcemap.host.workbench.survey.table import Survey, VectorTarget
+from forcemap.host.workbench.terms.base import Term, TermSpec
 
 NAME = "clock_offset"
 AUTOPILOT_COLUMNS = ("heading", "sog", "cog")
@@ -192,20 +193,45 @@ def describe(tau: float) -> str:
     return f"{NAME}({tau:+.2f} s)"
 
 
-_TERM = re.compile(rf"^{NAME}(?:\(\s*([-+]?\d+(?:\.\d*)?)\s*s?\s*\))?$")
+_VALUE = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?)\s*s?\s*$")
 
 
-def split_terms(terms: list[str]) -> tuple[list[str], float | None]:
-    """Model terms without the clock offset, and the offset: None if absent, NaN to estimate it
-    (`clock_offset`), or the value of `clock_offset(+1.50 s)`."""
-    rest, tau = [], None
-    for t in terms:
-        m = _TERM.match(t.strip()) if isinstance(t, str) else None
-        if m is None:
-            rest.append(t)
-        else:
-            tau = float(m.group(1)) if m.group(1) else math.nan
-    return rest, tau
+class ClockOffsetTerm(Term):
+    """The clock offset as a term of a wind or current model: not a sum term but a correction of the
+    survey before the model, `clock_offset` to estimate it, `clock_offset(+1.50 s)` for a known value."""
+
+    kind = NAME
+    acts_on_data = True
+
+    def __init__(self, tau: float | None) -> None:
+        self.tau = math.nan if tau is None else float(tau)
+
+    def describe(self) -> str:
+        return NAME if math.isnan(self.tau) else describe(self.tau)
+
+    def needs(self) -> set[str]:
+        """The columns the correction reads beside the target's."""
+        return set(AUTOPILOT_COLUMNS)
+
+    def apply(self, survey: Survey, vt: VectorTarget | None) -> tuple[Survey, str]:
+        """The survey with the vector re-referenced, and the term as the model records it."""
+        corrected, tau = corrected_for(survey, vt, self.tau)
+        return corrected, describe(tau)
+
+
+def parse_clock_offset(args: list[str] | None, text: str, is_circular=None) -> TermSpec:
+    """`clock_offset` (estimated) or `clock_offset(+1.50 s)`."""
+    if args is None:
+        return TermSpec(NAME, (), options={"tau": None}, text=NAME)
+    m = _VALUE.match(args[0]) if len(args) == 1 else None
+    if m is None:
+        raise WorkbenchError(f"'{text}': write clock_offset or clock_offset(+1.50 s)")
+    tau = float(m.group(1))
+    return TermSpec(NAME, (), options={"tau": tau}, text=describe(tau))
+
+
+def build_clock_offset(spec: TermSpec, is_circular=None) -> ClockOffsetTerm:
+    return ClockOffsetTerm(spec.options.get("tau"))
 
 
 def corrected_for(survey: Survey, vt: VectorTarget | None, tau: float) -> tuple[Survey, float]:

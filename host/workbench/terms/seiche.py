@@ -26,7 +26,8 @@ from forcemap.host.workbench.engine.periodogram import (
     search_range,
 )
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.terms.base import MAX_STD_RATIO, Hyper, Term, TermSpec
+from forcemap.host.workbench.terms.base import Hyper, Term, TermSpec
+from forcemap.host.workbench.terms.gp import MAX_STD_RATIO
 from scipy import linalg
 from scipy.optimize import minimize_scalar
 
@@ -35,8 +36,9 @@ _UNITS = {"s": 1.0, "sec": 1.0, "min": 60.0, "h": 3600.0, "hr": 3600.0}
 _PERIOD = re.compile(r"^([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z]*)$")
 
 
-def parse_seiche(args: list[str], text: str) -> TermSpec:
+def parse_seiche(args: list[str] | None, text: str, is_circular=None) -> TermSpec:
     """`seiche`, `seiche(4440 s)`, `seiche(74 min)`, `seiche(4440 s, 2)` (2 harmonics)."""
+    args = args or []
     if len(args) > 2:
         raise WorkbenchError(
             f"'{text}': write seiche, seiche(PERIOD s) or seiche(PERIOD s, HARMONICS)"
@@ -56,9 +58,8 @@ def parse_seiche(args: list[str], text: str) -> TermSpec:
         if not args[1].isdigit() or not 1 <= int(args[1]) <= 4:
             raise WorkbenchError(f"'{text}': the number of harmonics is 1 to 4")
         harmonics = int(args[1])
-    spec = TermSpec("seiche", ("t",), options={"period_s": period, "harmonics": harmonics})
-    spec.options["text"] = seiche_text(period, harmonics)
-    return spec
+    options = {"period_s": period, "harmonics": harmonics}
+    return TermSpec("seiche", ("t",), options=options, text=seiche_text(period, harmonics))
 
 
 def seiche_text(period_s: float | None, harmonics: int = 1) -> str:
@@ -70,12 +71,24 @@ def seiche_text(period_s: float | None, harmonics: int = 1) -> str:
 class SeicheTerm(Term):
     """cos/sin pairs at a period (s) and its first `harmonics` multiples, in the survey's time `t`."""
 
+    kind = "seiche"
+    in_time = predicts_in_time = on_flow_axis = estimates_period = True
+
     def __init__(self, period_s: float | None, harmonics: int = 1) -> None:
         self.period_s, self.harmonics = period_s, harmonics
         self.inputs = ("t",)
 
     def describe(self) -> str:
         return seiche_text(self.period_s, self.harmonics)
+
+    def periods_s(self) -> list[float]:
+        return [float(self.period_s)] if self.period_s else []
+
+    def note_at(self, h: np.ndarray, away_s: float, when: str) -> str | None:
+        return (
+            f"{self.describe()}: {when} ({away_s / self.period_s:.0f} periods): its phase is carried on "
+            "as fitted, but a real seiche decays over hours to days and is set off again by the wind"
+        )
 
     def setup(self, Z: np.ndarray) -> None:
         if self.period_s is None:
@@ -208,3 +221,21 @@ def resolve(
     sd_f = curvature_sd(grid, gain)
     fap = fap_baluev(power, len(th), 1 / lo, th)
     return SeicheEstimate(1.0 / best, sd_f / best**2, power, fap, 1.0 / freqs[k])
+
+
+def spec_periods(spec: TermSpec) -> list[float]:
+    """The shortest period (s) a `seiche` spec oscillates at (its highest harmonic's), if it has one yet."""
+    period = spec.options.get("period_s")
+    return [float(period) / spec.options.get("harmonics", 1)] if period else []
+
+
+def with_period(spec: TermSpec, period_s: float) -> TermSpec:
+    """A `seiche` spec with the period the data gave it, recorded as `seiche(P s)`."""
+    options = dict(spec.options, period_s=period_s)
+    text = seiche_text(period_s, spec.options.get("harmonics", 1))
+    return TermSpec(spec.kind, spec.inputs, options=options, text=text)
+
+
+def seiche_block(model) -> int | None:
+    """The index of a fitted model's seiche term among its feature terms, or None."""
+    return next((i for i, t in enumerate(model.feat_terms_) if isinstance(t, SeicheTerm)), None)

@@ -18,15 +18,17 @@ import re
 import numpy as np
 from forcemap.host.vessel import tides
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.terms.base import MAX_STD_RATIO, HilbertGPTerm, Hyper, Term, TermSpec
+from forcemap.host.workbench.terms.base import Hyper, Term, TermSpec, span_words
+from forcemap.host.workbench.terms.gp import MAX_STD_RATIO, HilbertGPTerm
 
 # the spatial form's basis in position: a tidal ellipse changes over the reach, not from line to line
 SPACE_BASIS = 16
 _NAME = re.compile(r"^[A-Za-z0-9]+$")
 
 
-def parse_tide(args: list[str], text: str) -> TermSpec:
-    """`tide(...)`'s arguments: `position` (the spatial form) and constituent names, in any order."""
+def parse_tide(args: list[str] | None, text: str, is_circular=None) -> TermSpec:
+    """`tide`, or `tide(...)` with `position` (the spatial form) and constituent names, in any order."""
+    args = args or []
     spatial = any(a.lower() == "position" for a in args)
     names = [a for a in args if a.lower() != "position"]
     for a in names:
@@ -43,12 +45,15 @@ def parse_tide(args: list[str], text: str) -> TermSpec:
     canonical = (
         "tide" if not args else f"tide({', '.join((['position'] if spatial else []) + names)})"
     )
-    return TermSpec("tide", inputs, options={"text": canonical, "constituents": tuple(names)})
+    return TermSpec("tide", inputs, options={"constituents": tuple(names)}, text=canonical)
 
 
 class TideTerm(Term):
     """Tidal constituents at the samples' UTC times (inputs `utc` and `lat`, and `position` for the spatial
     form). The constituents are fixed at `setup` from the record's span, or as named."""
+
+    kind = "tide"
+    in_time = predicts_in_time = on_flow_axis = is_level = True
 
     def __init__(
         self, constituents: tuple[str, ...] = (), spatial: bool = False, rayleigh: float = 1.0
@@ -71,6 +76,19 @@ class TideTerm(Term):
         if self.spatial:
             self.space = HilbertGPTerm(("position",), "matern32", SPACE_BASIS, dims=2)
             self.space.setup(Z[:, 2:4])
+
+    def periods_s(self) -> list[float]:
+        return [tides.constituent(n).period_h * 3600.0 for n in self.names]
+
+    def note_at(self, h: np.ndarray, away_s: float, when: str) -> str | None:
+        return (
+            f"{self.describe()}: {when}: the tidal prediction from {', '.join(self.names)} "
+            f"fitted over {span_words(self.t_last - self.t_first)}"
+        )
+
+    def level_features(self, t: np.ndarray, t0: float | None) -> np.ndarray:
+        utc = (self.t_first if t0 is None else t0) + np.asarray(t, float)
+        return tides.basis(utc, self.names, self.lat)
 
     @property
     def n_uniform(self) -> int:
@@ -242,3 +260,21 @@ def describe_fit(model) -> list[str]:
             f"{c['amplitude_sd']:.2g}, {phase}"
         )
     return lines
+
+
+def spec_periods(spec: TermSpec) -> list[float]:
+    """The periods (s) a `tide` spec may oscillate at before it meets data: its named constituents', or
+    down to M4's, the fastest the Rayleigh criterion may pick."""
+    names = spec.options.get("constituents") or ("M4",)
+    return [tides.constituent(n).period_h * 3600.0 for n in names]
+
+
+def uniform_text(spec: TermSpec) -> str:
+    """The uniform form of a tide (one ellipse over the reach): what the vector's flow frame needs."""
+    args = list(spec.options.get("constituents") or ())
+    return f"tide({', '.join(args)})" if args else "tide"
+
+
+def tide_block(model) -> int | None:
+    """The index of a fitted model's tidal term among its feature terms, or None."""
+    return term_block(model, TideTerm)

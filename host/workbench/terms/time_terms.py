@@ -10,27 +10,21 @@
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 from forcemap.host.workbench.targets.flow_axis import uniform
 from forcemap.host.workbench.targets.survey_fits import survey_fits, survey_inputs
-from forcemap.host.workbench.terms.base import HilbertGPTerm, TermSpec
-from forcemap.host.workbench.terms.seiche import SeicheTerm, merian, resolve, seiche_text
-from forcemap.host.workbench.terms.spec import BASELINE, TIME_KINDS
-from forcemap.host.workbench.terms.tide import (
-    TideTerm,
-    constituents,
-    describe_fit,
-    ellipses,
-    term_block,
-)
+from forcemap.host.workbench.terms import registry
+from forcemap.host.workbench.terms.base import TermSpec, span_words
+from forcemap.host.workbench.terms.seiche import merian, resolve, seiche_block, with_period
+from forcemap.host.workbench.terms.spec import BASELINE
+from forcemap.host.workbench.terms.tide import constituents, describe_fit, ellipses, tide_block
 
 
 def all_terms(specs: list[TermSpec]) -> tuple[str, ...]:
-    """The time terms among a target's term specs (tide, seiche), as written."""
-    return tuple(str(s) for s in specs if s.kind in TIME_KINDS)
+    """The terms among a target's term specs that oscillate along a flow axis (tide, seiche), as written."""
+    return tuple(str(s) for s in specs if registry.caps(s).on_flow_axis)
 
 
 def frame_terms(specs: list[TermSpec]) -> tuple[str, ...]:
@@ -42,7 +36,7 @@ def resolve_seiche(sm) -> None:
     """Replace each `seiche` without a period in the `SurveyModel`'s specs by `seiche(P s)`, P estimated from
     the survey (host/workbench/terms/seiche.py); the estimate is kept as `sm.seiche_estimate`."""
     for i, spec in enumerate(sm.term_specs):
-        if spec.kind != "seiche" or spec.options.get("period_s") is not None:
+        if not registry.caps(spec).estimates_period or spec.options.get("period_s") is not None:
             continue
         others = [s for s in sm.term_specs if s is not spec]
         fits = survey_fits(sm.survey)
@@ -51,10 +45,7 @@ def resolve_seiche(sm) -> None:
         depth = sm.survey.columns.get("depth")
         mean_depth = float(np.nanmean(depth)) if depth is not None else None
         est.merian = merian(est.period_s, mean_depth, float(np.ptp(sm.survey.xy, axis=0).max()))
-        period = round(est.period_s, 1)
-        options = dict(spec.options, period_s=period)
-        options["text"] = seiche_text(period, spec.options["harmonics"])
-        sm.term_specs[i] = TermSpec("seiche", spec.inputs, options=options)
+        sm.term_specs[i] = with_period(spec, round(est.period_s, 1))
         sm.seiche_estimate = est
 
 
@@ -89,39 +80,12 @@ def notes_at(model, survey, at: float) -> list[str]:
     away = _distance_s(at, t0, t1)
     if away <= 0:
         return []
-    when = f"{iso(at)} is {_span(away)} {'after' if at > t1 else 'before'} the survey"
-    out = []
-    for term, sl in zip(model.feat_terms_, model.h_slices_, strict=True):
-        if isinstance(term, HilbertGPTerm) and "t" in term.inputs:
-            ell = math.exp(model.theta_[sl][term.hyper_index("lengthscale")])
-            if away > ell:
-                out.append(
-                    f"{term.describe()}: {when}, {away / ell:.0f} times its lengthscale "
-                    f"({_span(ell)}): it has reverted to its mean there, and the map is the survey's "
-                    "average for it, not a forecast (a tide term predicts: --effects tide)"
-                )
-        elif isinstance(term, TideTerm):
-            out.append(
-                f"{term.describe()}: {when}: the tidal prediction from {', '.join(term.names)} "
-                f"fitted over {_span(term.t_last - term.t_first)}"
-            )
-        elif isinstance(term, SeicheTerm):
-            cycles = away / term.period_s
-            out.append(
-                f"{term.describe()}: {when} ({cycles:.0f} periods): its phase is carried on as fitted, "
-                "but a real seiche decays over hours to days and is set off again by the wind"
-            )
-    return out
-
-
-def _span(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    if seconds < 172800:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.1f} days"
+    when = f"{iso(at)} is {span_words(away)} {'after' if at > t1 else 'before'} the survey"
+    notes = (
+        term.note_at(model.theta_[sl], away, when)
+        for term, sl in zip(model.feat_terms_, model.h_slices_, strict=True)
+    )
+    return [n for n in notes if n]
 
 
 def tide_summary(sm) -> dict:
@@ -130,14 +94,14 @@ def tide_summary(sm) -> dict:
     east and north frame models, the frame's axis and why (`axis_choice`), and a seiche's period (estimated,
     or as given)."""
     out: dict = {"constituents": constituents(sm.primary), "ellipses": [], "seiche": None}
-    k = term_block(sm.primary, TideTerm)
+    k = tide_block(sm.primary)
     if k is not None:
         out["selection"] = sm.primary.feat_terms_[k].selection.describe()
     if sm.secondary is not None and sm.frame_terms:
         me, mn = survey_fits(sm.survey).frame(sm.vector, sm.frame_terms)
         out["ellipses"] = ellipses(me, mn)
         out["axis"] = sm.axis.to_json()
-    k = term_block(sm.primary, SeicheTerm)
+    k = seiche_block(sm.primary)
     if k is not None:
         est = sm.seiche_estimate
         term = sm.primary.feat_terms_[k]

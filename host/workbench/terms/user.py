@@ -22,6 +22,7 @@ from forcemap.host.workbench.terms.base import Term
 class UserTerm(Term):
     """A user's Python function `f(z, **params)` loaded by `module:function`; its parameters fitted as a mean function."""
 
+    kind = "user"
     is_mean = True
 
     def __init__(self, name: str, ref: str) -> None:

@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 from forcemap.host.workbench.survey.table import family, unit_of
+from forcemap.host.workbench.terms import registry
 from forcemap.host.workbench.timejudge.judge import M2_S, TimeVerdict, judge_time
 from forcemap.host.workbench.timejudge.revisits import (
     MIN_RADIUS_M,
@@ -179,7 +180,7 @@ def fitted_seiche(sm, verdict: TimeVerdict):
 
     if verdict.best.name != "periodic" or verdict.period_sd_s is None:
         return None
-    terms = [str(t) for t in sm.term_specs if t.kind not in ("seiche", "tide")]
+    terms = [str(t) for t in sm.term_specs if not registry.caps(t).predicts_in_time]
     probe = SurveyModel(sm.survey, sm.target, [*terms, "seiche"], max_basis=sm.max_basis)
     try:
         time_terms.resolve_seiche(probe)
@@ -200,10 +201,8 @@ def smooth_time_term(target: str) -> str:
 def is_time_term(term: str) -> bool:
     """Whether `term` parses as a term in time (not as a covariate of that name)."""
     from forcemap.host.workbench.survey.table import is_circular
-    from forcemap.host.workbench.terms.spec import parse_term
 
-    spec = parse_term(term, is_circular)
-    return spec.kind in ("tide", "seiche", "water_level") or tuple(spec.inputs) == ("t",)
+    return registry.in_time(registry.parse_term(term, is_circular))
 
 
 def short_for_a_tide(verdict: TimeVerdict) -> bool:

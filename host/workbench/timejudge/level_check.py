@@ -21,8 +21,7 @@ from forcemap.host.progress import note
 from forcemap.host.workbench.depth.water_level import crossline_errors, level_estimate, level_term
 from forcemap.host.workbench.survey.table import family
 from forcemap.host.workbench.targets.target_model import SurveyModel
-
-LEVEL_KINDS = ("water_level", "tide")
+from forcemap.host.workbench.terms import registry
 
 
 @dataclass
@@ -86,8 +85,8 @@ def check_level(sm, radius_m: float, errors, progress: bool = False) -> LevelChe
     if errors is None or family(sm.target) != "depth" or level_term(sm.primary) is None:
         return None
     note("checking the level against the map alone where the track comes back ...", progress)
-    level = [str(s) for s in sm.term_specs if s.kind in LEVEL_KINDS]
-    rest = [str(s) for s in sm.term_specs if s.kind not in LEVEL_KINDS]
+    level = [str(s) for s in sm.term_specs if registry.caps(s).is_level]
+    rest = [str(s) for s in sm.term_specs if not registry.caps(s).is_level]
     without = SurveyModel(sm.survey, sm.target, rest, max_basis=sm.max_basis).fit()
     e1 = errors[0] ** 2
     e0 = crossline_errors(without, radius_m)[0] ** 2  # the same survey: the same folds and rows

@@ -73,10 +73,8 @@ def stretch_length(t: np.ndarray, r: np.ndarray) -> float:
 
 def map_lengthscale(sm) -> float:
     """A fitted survey model's spatial length scale (m), or the survey's extent when it has none."""
-    for name, p in sm.primary.params_.items():
-        if name.startswith("gp(position") and "lengthscale" in p:
-            return float(p["lengthscale"])
-    return float(np.ptp(sm.survey.xy, axis=0).max())
+    ell = sm.primary.position_lengthscale_
+    return ell if ell is not None else float(np.ptp(sm.survey.xy, axis=0).max())
 
 
 def target_radius(sm) -> float:
