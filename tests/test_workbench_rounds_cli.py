@@ -49,3 +49,27 @@ def test_rounds_must_be_positive(table, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err
     assert re.search(r"^forcemap diagnose: .*rounds", err.strip(), re.M), err
+
+
+def test_a_correction_behind_a_leading_proxy_is_not_asked_for_a_column():
+    """A proxy leads and the clock offset follows close behind: the check that a direct cause takes the
+    proxy's place pairs real columns only (it asked the table for a column 'clock_offset', exit 2, on a
+    shipped log's current_dir)."""
+    from forcemap.host.workbench.diagnose.result import Candidate
+    from forcemap.host.workbench.diagnose.rounds import _prefer_direct_cause
+
+    def cand(name, gain):
+        return Candidate(name, name, 1.0, gain, 1e-6, gain, None, False)
+
+    asked = []
+
+    def pair_gain(a, b):
+        asked.append((a, b))
+        if a == "clock_offset":
+            raise AssertionError("asked for a column clock_offset")
+        return 0.05
+
+    ranked = _prefer_direct_cause(
+        [cand("cog", 0.6), cand("clock_offset", 0.5), cand("depth", 0.45)], pair_gain
+    )
+    assert asked == [("depth", "cog")] and ranked[0].covariate == "depth"

@@ -388,6 +388,8 @@ def _prefer_direct_cause(results: list[Candidate], pair_gain) -> list[Candidate]
     for i, c in enumerate(results[1:PROXY_WINDOW], start=1):
         if is_proxy(c.covariate) or c.consequence:
             continue  # a consequence of the field is no direct cause (sog reads the current it explains)
+        if registry.caps(parse_term(c.covariate, is_circular)).acts_on_data:
+            continue  # a correction of the data (a clock offset), not a column a model can take a term in
         if c.improvement < 0.5 * lead.improvement or c.improvement < PROXY_LEFTOVER:
             continue
         if pair_gain(c.covariate, lead.covariate) < PROXY_LEFTOVER:
