@@ -123,8 +123,10 @@ def _stw(nav: Navigation, readings: dict, t: np.ndarray, stw: np.ndarray) -> np.
     return np.where(np.isfinite(stw) & np.isfinite(out), out, stw)
 
 
-def _compensate(cols: dict[str, np.ndarray], n: int) -> None:
-    """True wind (from the apparent wind) and the current from the speed through water, again."""
+def _compensate(cols: dict[str, np.ndarray], n: int, beta: float = 0.0) -> None:
+    """True wind (from the apparent wind) and the current from the speed through water, again
+    (``beta``: the speed log's misalignment the log was imported with, as the pipeline applies it:
+    the water passes the hull at heading + beta)."""
     h, ve, vn = cols["heading"], cols["v_east"], cols["v_north"]
     for name in ("wind_east", "wind_north", "wind_speed", "wind_dir"):
         cols.setdefault(name, np.full(n, np.nan))
@@ -145,7 +147,7 @@ def _compensate(cols: dict[str, np.ndarray], n: int) -> None:
                 comp.from_direction(we, wn),
             )
         if stw is not None and math.isfinite(stw[i]):
-            ce, cn = comp.current_from_stw(stw[i], h[i], ve[i], vn[i])
+            ce, cn = comp.current_from_stw(stw[i], h[i] + beta, ve[i], vn[i])
             speed, direction = math.hypot(ce, cn), comp.to_direction(ce, cn)
             cols["current_speed_stw"][i], cols["current_dir_stw"][i] = speed, direction
             if not wheels[i]:
@@ -214,15 +216,26 @@ def smooth(
         remove_latency = settings(paths)[1] != "keep"
     readings = nav_readings.read(paths) if messages is None else nav_readings.collect(messages)
     if "position" not in readings or not rows:
-        _CACHE[_key(paths, remove_latency)] = None
+        _remember(paths, remove_latency, None)
         return columns, rows, None
     try:
         return _smooth(columns, rows, paths, readings, messages, remove_latency)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError):
         # a log the smoother cannot solve keeps the rows the pipeline made (counted nowhere else:
         # `log info` says the navigation was not smoothed)
-        _CACHE[_key(paths, remove_latency)] = None
+        _remember(paths, remove_latency, None)
         return columns, rows, None
+
+
+def _remember(
+    paths: Sequence[str | os.PathLike[str]], remove: bool, nav: Navigation | None
+) -> None:
+    """The smoothing of a log, for its findings (rows of no log yet are not kept)."""
+    if not paths:
+        return
+    if len(_CACHE) > 8:
+        _CACHE.clear()
+    _CACHE[_key(paths, remove)] = nav
 
 
 def _smooth(
@@ -240,9 +253,8 @@ def _smooth(
         # times: the rows keep it (`log info` still measures the sources: fitted)
         return columns, rows, None
     nav = Navigation(remove_latency=remove_latency).fit(readings, t)
-    if len(_CACHE) > 8:
-        _CACHE.clear()
-    _CACHE[_key(paths, remove_latency)] = nav
+    _remember(paths, remove_latency, nav)
+    cal = log_metadata(paths, "calibration")
     st = nav.state(t)
     cols: dict[str, Any] = {c: _col(columns, rows, c) for c in columns}
     for c in ("lat", "lon", "heading", "yaw_rate"):
@@ -255,9 +267,9 @@ def _smooth(
     cols["cog"] = np.degrees(np.arctan2(ve, vn)) % 360.0
     if "stw" in cols:
         cols["stw"] = _stw(nav, readings, t, cols["stw"])
-    _compensate(cols, n)
+    _compensate(cols, n, _float(cal.get("stw_misalignment_deg")))
     if messages is not None:
-        _wheels(cols, nav, messages, log_metadata(paths, "calibration"))
+        _wheels(cols, nav, messages, cal)
     order = [c for c in SAMPLE_COLUMNS if c in cols]
     order += [c for c in cols if c not in order and c not in ("v_east", "v_north")]
     keep = [c for c in order if c == "t" or np.isfinite(cols[c]).any()]
@@ -266,6 +278,42 @@ def _smooth(
         for vals in zip(*(cols[c] for c in keep), strict=True)
     ]
     return keep, out, nav
+
+
+def _float(text: str | None) -> float:
+    """A number of a metadata record (written as its repr; "None" or none: 0)."""
+    try:
+        x = float(text or "nan")
+    except ValueError:
+        return 0.0
+    return x if math.isfinite(x) else 0.0
+
+
+def as_exported(
+    rows: Sequence[dict[str, Any]], messages: list[tuple[str, int, dict]], remove_latency: bool
+) -> list[dict[str, Any]]:
+    """Sample rows not yet in a log (the calibrated import's first pass) with the navigation an
+    export of their log gives them (``smooth``): ordered by ``t``, a repeated ``t`` dropped, each
+    row's navigation smoothed from ``messages`` (READING_TOPICS, as logged) and its compensation
+    done again. Cells that are not numbers are left out."""
+    names: dict[str, None] = {"t": None}
+    for r in rows:
+        names.update(dict.fromkeys(r))
+    columns = list(names)
+    table: list[list[float | None]] = []
+    for r in sorted(rows, key=lambda r: float(r["t"])):
+        if table and table[-1][0] == float(r["t"]):
+            continue
+        table.append([_cell(r.get(c)) for c in columns])
+    columns, table, _ = smooth(columns, table, (), messages, remove_latency=remove_latency)
+    return [dict(zip(columns, r, strict=True)) for r in table]
+
+
+def _cell(v: Any) -> float | None:
+    """A cell as export keeps it: a finite number (a flag as 0 or 1), else None."""
+    if not isinstance(v, int | float) or not math.isfinite(v):
+        return None
+    return float(v)
 
 
 def comp_velocity(sog: Any, cog: Any, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -2,7 +2,8 @@
 
 ``import_calibrated`` runs the live pipeline twice: a first pass (in memory) gives the samples that the
 estimators of ``forcemap.host.fuse.redundancy`` read (the speed log's gain and misalignment, the rate of
-turn's unit, a dead speed log) and those of ``forcemap.host.convert.depth_findings`` (the bottom lost,
+turn's unit, a dead speed log; the gain on the navigation an export of the log will have, so that
+`check` of the exported table finds the same) and those of ``forcemap.host.convert.depth_findings`` (the bottom lost,
 sounder against sounder, the transducer's tilt); the second pass writes the log with the estimates applied, and every
 estimate as a ``qa.*`` metadata record (``forcemap.host.log.qa_records.QaFinding``) with its evidence. A
 value pinned in ``boat.toml`` is used as pinned, and the estimate is only reported. Thresholds and their
@@ -19,11 +20,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from forcemap.host.convert import depth_findings, nmea_prepass
+from forcemap.host.convert import depth_findings, nav_readings, nmea_prepass
+from forcemap.host.convert import navigation_table as nt
 from forcemap.host.convert.depth_findings import arrays
 from forcemap.host.convert.importers import ImportResult, import_file, import_to_mcap
 from forcemap.host.fuse import redundancy as rd
 from forcemap.host.fuse.calibration import Calibration
+from forcemap.host.fuse.sources import split_name
 from forcemap.host.log.messages import Record, as_json
 from forcemap.host.log.qa_records import QaFinding
 
@@ -41,14 +44,15 @@ THRESH_DEAD = "constant (range < 0.001 m/s) over 60 s while SOG >= 1 m/s, and ze
 
 
 class SamplesSink:
-    """A pipeline sink that keeps only the ``/samples`` rows, every depth source's readings, and the
-    ``columns`` and ``sources`` metadata."""
+    """A pipeline sink that keeps only the ``/samples`` rows, every depth source's readings, the
+    navigation readings the export's smoother reads, and the ``columns`` and ``sources`` metadata."""
 
     def __init__(self) -> None:
         self.rows: list[dict[str, Any]] = []
         self.columns: dict[str, str] = {}
         self.depth: dict[str, list[tuple[float, float]]] = {}
         self.depth_chosen = ""
+        self.nav: list[tuple[str, int, dict[str, Any]]] = []  # (topic, log time ns, message)
 
     def write(self, topic: str, log_time_ns: int, message: Record) -> None:
         if topic == "/samples":
@@ -57,6 +61,8 @@ class SamplesSink:
             v = message.value[0] if message.value else None  # type: ignore[attr-defined]
             if v is not None:
                 self.depth.setdefault(message.source, []).append((log_time_ns * 1e-9, v))  # type: ignore[attr-defined]
+        if _navigation(topic, message):
+            self.nav.append((topic, log_time_ns, as_json(message)))
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         if name == "columns":
@@ -72,6 +78,13 @@ class SamplesSink:
         return {k: tuple(np.array(v, float).T) for k, v in self.depth.items() if len(v) > 1}  # type: ignore[misc]
 
 
+def _navigation(topic: str, message: Record) -> bool:
+    """A message the export's smoother reads (forcemap.host.convert.nav_readings)."""
+    if topic == "/source/reading":
+        return getattr(message, "quantity", "") in nav_readings.QUANTITIES
+    return topic == "/nmea/sentence" and getattr(message, "type", "") in nav_readings.TIME_FIELD
+
+
 @dataclass
 class Estimates:
     """What the estimators found, and the calibration to import with."""
@@ -85,13 +98,18 @@ def _stw_source(columns: Mapping[str, str]) -> str:
 
 
 def speed_log_findings(
-    c: Mapping[str, np.ndarray], source: str, pinned: Calibration
+    c: Mapping[str, np.ndarray],
+    source: str,
+    pinned: Calibration,
+    table: Mapping[str, np.ndarray] | None = None,
 ) -> tuple[list[QaFinding], dict[str, Any]]:
-    """Dead stretches and Pollard & Read's gain and misalignment of the speed log."""
+    """Dead stretches (in ``c``, the rows as logged) and Pollard & Read's gain and misalignment of
+    the speed log (in ``table``: the rows with the navigation the exported table will have; None:
+    ``c``)."""
     out: list[QaFinding] = []
     upd: dict[str, Any] = {}
-    t, stw = c["t"], c["stw"].copy()
-    dead = rd.dead_stretches(t, stw, c["sog"])
+    t = c["t"]
+    dead = rd.dead_stretches(t, c["stw"], c["sog"])
     if dead.intervals:
         mins = dead.seconds / 60
         out.append(
@@ -106,11 +124,13 @@ def speed_log_findings(
             )
         )  # fmt: skip
         upd["stw_dead"] = dead.intervals
-        for a, b in dead.intervals:
-            stw[(t >= a) & (t <= b)] = np.nan
-    fit = rd.fit_speed_log(t, c["heading"], stw, c["sog"], c["cog"], c.get("yaw_rate"))
+    g = c if table is None else table
+    stw = g["stw"].copy()
+    for a, b in dead.intervals:
+        stw[(g["t"] >= a) & (g["t"] <= b)] = np.nan
+    fit = rd.fit_speed_log(g["t"], g["heading"], stw, g["sog"], g["cog"], g.get("yaw_rate"))
     if fit is None:
-        why = "no heading" if not np.isfinite(c["heading"]).any() else "too few rows under way"
+        why = "no heading" if not np.isfinite(g["heading"]).any() else "too few rows under way"
         out.append(
             QaFinding("speed_through_water", "gain", "yellow",
                       f"speed log gain not estimated ({why}): STW used as read", source,
@@ -168,6 +188,25 @@ def _gain_finding(
     )  # fmt: skip
 
 
+def on_table(f: QaFinding) -> QaFinding:
+    """A gain finding estimated on a samples table (CSV, Parquet), not on a log: its gain is of the
+    table's ``stw``, which is the log's times the gain its import applied (the table does not say
+    which, `forcemap check LOG.mcap` does); its misalignment is the whole (no column is turned by
+    one), so the fix gives what to pin from both."""
+    if (f.category, f.check) != ("speed_through_water", "gain") or not np.isfinite(f.value):
+        return f
+    beta = float(f.extra.get("misalignment_deg", "nan"))
+    why = f.fix.split(";")[0] + "; " if f.fix.startswith("not applied") else ""
+    fix = (
+        f"{why}to pin in boat.toml [speed_log]: gain = {f.value:.3f} x the gain the log's import "
+        f"applied (`forcemap check LOG.mcap`; 1 if none), misalignment_deg = {beta:+.1f}"
+    )
+    msg = f.message.replace("speed log gain", "speed log gain on the table's stw", 1)
+    return dataclasses.replace(
+        f, message=msg, fix="" if f.verdict == "green" else fix, applied=False
+    )
+
+
 def rate_findings(
     c: Mapping[str, np.ndarray], columns: Mapping[str, str], pinned: Calibration
 ) -> tuple[list[QaFinding], dict[str, Any]]:
@@ -220,13 +259,15 @@ def estimate(
     c = arrays(rows, names)
     out = Estimates(calibration=pinned)
     upd: dict[str, Any] = {}
+    rate, u = rate_findings(c, columns, pinned)
+    upd.update(u)
     if np.isfinite(c["stw"]).any():
-        f, u = speed_log_findings(c, _stw_source(columns) or "speed log", pinned)
+        unit = pinned.rot_unit or upd.get("rot_unit")
+        table = _as_exported(rows, sink, pinned, unit) if sink is not None else None
+        f, u = speed_log_findings(c, _stw_source(columns) or "speed log", pinned, table)
         out.findings += f
         upd.update(u)
-    f, u = rate_findings(c, columns, pinned)
-    out.findings += f
-    upd.update(u)
+    out.findings += rate
     readings = sink.depth_readings() if sink is not None else {}
     f, u = depth_findings.estimate(
         rows, columns, readings, sink.depth_chosen if sink else "", pinned
@@ -242,6 +283,28 @@ def estimate(
     upd = {k: v for k, v in upd.items() if pins.get(k) is None}
     out.calibration = dataclasses.replace(pinned, **upd)
     return out
+
+
+def _as_exported(
+    rows: list[Mapping[str, Any]], sink: SamplesSink, cal: Calibration, rot_unit: str | None
+) -> dict[str, np.ndarray] | None:
+    """The first pass's rows as the export of the calibrated log will give them (boat.toml
+    ``[sync] navigation``, ``latency``), the rate of turn read in the unit the second pass reads it
+    in; None: as logged."""
+    if cal.navigation == "logged" or not sink.nav:
+        return None
+    nav = sink.nav
+    if rot_unit == "deg/s":  # as forcemap.host.fuse.nmea_feed reads ROT in the second pass
+        nav = [(tp, ns, _per_s(m)) for tp, ns, m in nav]
+    table = nt.as_exported([dict(r) for r in rows], nav, cal.latency != "keep")
+    return arrays(table, ("t", "heading", "yaw_rate", "sog", "cog", "stw"))
+
+
+def _per_s(m: dict[str, Any]) -> dict[str, Any]:
+    """A ROT reading sent in deg/s, read as such (x 60)."""
+    if m.get("quantity") != "yaw_rate" or split_name(str(m.get("source", "")))[2] != "ROT":
+        return m
+    return {**m, "value": [None if v is None else 60.0 * v for v in m.get("value") or []]}
 
 
 def unpinned_first_pass(cal: Calibration) -> Calibration:

@@ -179,7 +179,7 @@ def check_table(path: str | Path) -> CheckReport:
                 for i in range(len(c["t"]))]  # fmt: skip
         cols = dict(columns) or {"yaw_rate": "yaw_rate", "heading": "heading", "stw": "stw"}
         est = sc.estimate(rows, cols, sc.Calibration())
-        rep.findings += [_not_applied(f) for f in est.findings]
+        rep.findings += [_not_applied(sc.on_table(f)) for f in est.findings]
         rep.notes.append("no estimates recorded in this file: estimated now, not applied")
     cal = _metadata(p, lambda n: n == "calibration").get("calibration") if is_mcap else None
     rep.findings += computed_findings(c, columns, recorded, cal)
