@@ -22,6 +22,7 @@ import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.table import Survey
+from forcemap.host.workbench.targets.survey_fits import held_notes
 from scipy.spatial import cKDTree
 
 UTM_NORTH_LIMIT, UTM_SOUTH_LIMIT = 84.0, -80.0
@@ -336,6 +337,8 @@ def evaluate(grid: MapGrid, model) -> Layer:
         layer.bands.update(surface_bands(grid, model.survey))
     rows = getattr(model, "rows", None)  # what the model left out for want of a reading
     notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
+    held = held_notes(model.survey, getattr(model, "term_specs", ()))  # covariates at their median
+    notes += [f"{model.target}: {n}" for n in held]
     if grid.at is not None:
         from forcemap.host.workbench.terms.time_terms import notes_at
 

@@ -49,8 +49,10 @@ def unit_of(name: str) -> str:
     it has none that forcemap knows)."""
     if is_circular(name):
         return "deg"
-    if name in ("position", "x", "y", "depth") or name.endswith("_m"):
+    if name in ("position", "x", "y", "depth", "depth_raw", "depth_tvu") or name.endswith("_m"):
         return "m"
+    if name in ("roll", "pitch"):  # the hull's attitude (or an ADCP's tilts)
+        return "deg"
     if name == "t":
         return "s"
     if name == "yaw_rate":

@@ -16,7 +16,13 @@ from forcemap.host.workbench.engine.model import (
 )
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.gaps import DERIVED_INPUTS, bridged, prepare_column, too_few
-from forcemap.host.workbench.survey.table import MIN_ROWS, Survey, VectorTarget, is_circular
+from forcemap.host.workbench.survey.table import (
+    MIN_ROWS,
+    Survey,
+    VectorTarget,
+    is_circular,
+    unit_of,
+)
 from forcemap.host.workbench.targets.axis_choice import AxisChoice, choose_axis
 from forcemap.host.workbench.targets.flow_axis import axis_frame, time_part
 from forcemap.host.workbench.terms.registry import build_term
@@ -328,14 +334,36 @@ def grid_inputs(
         "lat": np.full(len(xy), survey.lat0),
     }
     for name in names - set(PLACE_AND_TIME):
-        values = survey_inputs(survey, {name})[name]
         if name == "depth":
             X[name] = survey_fits(survey).depth_map.predict({"position": xy})
-        elif is_circular(name):
-            X[name] = np.full(len(xy), circular_median(values))
         else:
-            X[name] = np.full(len(xy), float(np.median(values)))
+            X[name] = np.full(len(xy), typical_value(survey, name))
     return X
+
+
+def typical_value(survey: Survey, name: str) -> float:
+    """The value a map holds a covariate at (`grid_inputs`): its median over the survey (an angle's
+    circular median)."""
+    values = survey_inputs(survey, {name})[name]
+    return circular_median(values) if is_circular(name) else float(np.median(values))
+
+
+def held_notes(survey: Survey, specs) -> list[str]:
+    """One line per term a map draws with a covariate held at its typical value (`grid_inputs`: not
+    place, time or depth, which the map has at every cell): the term, the covariate and its value."""
+    out = []
+    for spec in specs:
+        held = [n for n in spec.inputs if n not in PLACE_AND_TIME and n != "depth"]
+        if not held:
+            continue
+        values = ", ".join(
+            f"{n} = {typical_value(survey, n):.3g}{' ' + u if (u := unit_of(n)) else ''}"
+            for n in held
+        )
+        out.append(
+            f"{spec} drawn at {values} everywhere (the survey's median; `plan` leaves the term out)"
+        )
+    return out
 
 
 def hyper_rows(survey: Survey) -> np.ndarray | None:
