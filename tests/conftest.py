@@ -16,13 +16,12 @@ session-scoped fixture's cost lands on the first test that asks for it.
 
 from __future__ import annotations
 
-import os
-
 # `pytest -n 2` on two cores: one BLAS and OpenMP thread per worker, set before numpy is first imported.
 # More only oversubscribe the cores (fjord_tide's diagnose: 53 s of CPU on two threads for 38 s of wall
-# time, 37 s on one for 37 s); the CLI runs its fits so already (`small_blas`)
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+# time, 37 s on one for 37 s); the `forcemap` command starts so too (the rule's one home is threads.py)
+from forcemap.host.workbench.engine.threads import one_thread_by_default
+
+one_thread_by_default()
 
 import resource
 import time

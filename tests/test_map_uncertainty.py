@@ -55,7 +55,7 @@ def paccup(tmp_path_factory, real_case):
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
-    """The demo's survey: the river with its hidden depth-current effect, 35 minutes."""
+    """The demo's river with its hidden depth-current effect, 35 minutes (the demo now runs 20)."""
     d = tmp_path_factory.mktemp("demo")
     survey = forcemap.read_survey(make_survey("river", ["depth_current"], 1, 2100.0, d))
     return {t: survey.fit(t) for t in SHOWN}

@@ -25,6 +25,7 @@ import sys
 import traceback
 
 from forcemap.host.errors import CliError
+from forcemap.host.workbench.engine.threads import one_thread_by_default
 
 # name -> (module, one-line summary shown by `forcemap --help`)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -127,6 +128,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # before any subcommand's module loads numpy (importing this package loads none)
+    one_thread_by_default()
     argv = sys.argv[1:] if argv is None else argv
     command = next((a for a in argv if not a.startswith("-")), None)
     if command not in COMMANDS:

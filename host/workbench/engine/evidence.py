@@ -38,6 +38,17 @@ def chunks(rows: np.ndarray, size: int | None = None) -> Iterator[np.ndarray]:
         yield rows[a : a + size]
 
 
+def _zero_outside(rows, r: np.ndarray) -> np.ndarray | None:
+    """`r` with zeros outside `rows` (every row, or a mask of at least a tenth of them: fewer are cheaper
+    gathered); None for other rows."""
+    if isinstance(rows, slice) and rows == slice(None):
+        return r
+    rows = np.asarray(rows)
+    if rows.dtype == bool and len(rows) == len(r) and 10 * np.count_nonzero(rows) >= len(rows):
+        return np.where(rows, r, 0.0)
+    return None
+
+
 def as_rows(rows, n: int) -> np.ndarray:
     """Row indices from a boolean mask, a slice or indices."""
     if isinstance(rows, slice):
@@ -219,6 +230,11 @@ class Design:
         """Phi[rows]' r[rows] (`r` has a value for every row)."""
         if self._sines_pay(1):
             return self._fast_pass(rows, r, False)[1]
+        self._materialize()
+        if not self.lazy and (w := _zero_outside(rows, r)) is not None:
+            # features held: each block's product with r zeroed outside the rows, without copying the rows'
+            # features out (a CV fold's fifth of 8,310 rows x 433 columns: 2.9 ms gathered, 1.1 ms so)
+            return np.concatenate([b.T @ w for b in self.blocks])
         out = np.zeros(self.M)
         for idx, F in self.row_chunks(rows):
             out += F.T @ r[idx]
