@@ -20,7 +20,7 @@ from forcemap.host.workbench.survey.spikes import Spikes, target_spikes
 from forcemap.host.workbench.survey.table import MIN_ROWS, Survey
 
 # inputs of a term that are no covariate column
-NOT_COLUMNS = {"position", "t", "utc", "lat"}  # survey_fits.PLACE_AND_TIME
+NOT_COLUMNS = {"position", "t", "utc", "lat", "reference"}  # survey_fits.PLACE_AND_TIME
 
 
 @dataclass

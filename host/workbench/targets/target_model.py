@@ -54,6 +54,9 @@ class SurveyModel:
         self.term_specs = self.term_specs or parse_terms(BASELINE, is_circular)
         corrections = [registry.build_term(s, is_circular) for s in data_specs]
         self.vector = survey.vector_target(target)
+        if survey.reference is not None and self.vector is not None and self.vector.family == "current":
+            # a tide on a current with a reference is its relation to the reference
+            self.term_specs = [registry.with_reference(s) for s in self.term_specs]
         self._check_target(survey)
         # the rows first (the target there, its spikes left out, every covariate there): a clock offset is
         # judged on the readings the map will be fitted to

@@ -1,0 +1,176 @@
+"""The tide as a subordinate station of a reference current (`tide(reference)`, `tide(reference, position)`).
+
+With a reference current (`--reference-current FILE`: a station's harmonic constants or predicted series,
+host/vessel/reference_current.py) every place is a subordinate station of its reference station: the
+current there is `ratio(x) r(t - offset(x))` along the station's flood axis, with r the station's
+prediction. For offsets short beside the tide's period that is linear in two features,
+
+    ratio r(t - offset) = a r(t) + b r'(t) / w,   ratio = hypot(a, b),   offset = -atan2(b, a) / w
+
+(w: M2's angular frequency; exact for one constituent, whatever the offset below half its period). The
+term's features are r and r'/w, and again r and r'/w on the ebb alone (r < 0: the ebb's difference from
+the flood, its own prior variance, which shrinks to nothing where the data hold no ebb), each uniform and,
+in the spatial form, times a small reduced-rank GP basis in position: a and b, flood and ebb, are smooth
+maps. Beyond the data's box the spatial part is zero (the place keeps the survey's relation).
+
+The term carries no reference of its own: its input `reference` is each row's station prediction and rate
+(`survey/reference.py`), so it predicts at any time the reference predicts, carrying the reference's
+spring and neap, its diurnal inequality and every constituent a short record cannot separate (they are
+inferred from the reference, as the ratio and offset say). A vector is modelled along each place's
+station's flood axis and across it (`along_reference`), both components with the term: the across part
+is the local flow's turn from the station's axis.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from forcemap.host.vessel import tides
+from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.terms.base import Hyper, Term, TermSpec, span_words
+from forcemap.host.workbench.terms.gp import HilbertGPTerm
+
+# the ratio and offset maps need no detail finer than the reach's bends
+SPACE_BASIS = 24
+# M2's angular frequency (rad/s): the rate's scale, and the offset's from the phase
+OMEGA = 2 * math.pi / (tides.constituent("M2").period_h * 3600.0)
+KIND = "tide_reference"
+BLOCKS = ("flood", "flood_rate", "ebb", "ebb_rate")
+
+
+def parse(args: list[str] | None, text: str, is_circular=None) -> TermSpec:
+    """`tide(reference)` (one relation over the reach) or `tide(reference, position)` (a map of it)."""
+    args = [a.lower() for a in (args or [])]
+    extra = [a for a in args if a not in ("reference", "position")]
+    if extra:
+        raise WorkbenchError(
+            f"'{text}': a tide on a reference current takes its constituents from the reference; "
+            f"write tide(reference) or tide(reference, position), not {', '.join(extra)}"
+        )
+    spatial = "position" in args
+    inputs = ("position", "reference") if spatial else ("reference",)
+    canonical = "tide(reference, position)" if spatial else "tide(reference)"
+    return TermSpec(KIND, inputs, options={"spatial": spatial}, text=canonical)
+
+
+def referenced(spec: TermSpec) -> TermSpec:
+    """What a harmonic `tide` becomes on a survey with a reference current: the map of its relation to
+    the reference (named constituents stay the harmonic fit asked for)."""
+    if spec.options.get("constituents"):
+        return spec
+    return parse(["reference", "position"], "tide(reference, position)")
+
+
+def uniform_text(spec: TermSpec) -> str:
+    return "tide(reference)"
+
+
+def spec_periods(spec: TermSpec) -> list[float]:
+    """The periods (s) the reference's prediction is gridded for before it meets data: M2's and M4's."""
+    return [tides.constituent(n).period_h * 3600.0 for n in ("M2", "M4")]
+
+
+def ref_features(R: np.ndarray) -> np.ndarray:
+    """(n, 4): the station's prediction r, its rate r'/w, and both on the ebb alone (r < 0)."""
+    r, q = R[:, 0], R[:, 1] / OMEGA
+    ebb = r < 0
+    return np.column_stack([r, q, np.where(ebb, r, 0.0), np.where(ebb, q, 0.0)])
+
+
+def relation(a: float, b: float) -> tuple[float, float]:
+    """(ratio, offset in s: the place later than the station by it) of the weights on r and r'/w."""
+    return math.hypot(a, b), -math.atan2(b, a) / OMEGA
+
+
+class ReferenceTideTerm(Term):
+    """The place's relation to its reference station (inputs `reference` and, spatial, `position`)."""
+
+    kind = KIND
+    in_time = predicts_in_time = on_flow_axis = along_reference = True
+
+    def __init__(self, spatial: bool = True) -> None:
+        self.spatial = spatial
+        self.inputs = ("position", "reference") if spatial else ("reference",)
+
+    def describe(self) -> str:
+        return "tide(reference, position)" if self.spatial else "tide(reference)"
+
+    def setup(self, Z: np.ndarray) -> None:
+        R = Z[:, -2:]
+        if not np.all(np.isfinite(R)):
+            raise WorkbenchError(
+                f"{self.describe()}: the reference current has no prediction for "
+                f"{int((~np.isfinite(R).all(axis=1)).sum())} rows (a time series that ends before them)"
+            )
+        if self.spatial:
+            self.space = HilbertGPTerm(("position",), "matern32", SPACE_BASIS, dims=2)
+            self.space.setup(Z[:, :2])
+
+    def periods_s(self) -> list[float]:
+        return spec_periods(TermSpec(KIND, self.inputs))
+
+    def note_at(self, h: np.ndarray, away_s: float, when: str) -> str | None:
+        return (
+            f"{self.describe()}: {when}: the reference's prediction there, times each place's ratio and "
+            f"later by its offset ({span_words(away_s)} from the survey: the reference carries its "
+            "spring and neap)"
+        )
+
+    def _space(self, Z: np.ndarray) -> np.ndarray:
+        """The spatial basis at the rows' positions, zero beyond the box it vanishes on."""
+        phi = self.space.features(Z[:, :2])
+        Zr = (Z[:, :2] - self.space.center) @ self.space.rot
+        inside = np.all(np.abs(Zr) <= self.space.L, axis=1)
+        return phi * inside[:, None]
+
+    def features(self, Z: np.ndarray) -> np.ndarray:
+        U = ref_features(Z[:, -2:])
+        if not self.spatial:
+            return U
+        phi = self._space(Z)
+        return np.hstack([U, (U[:, :, None] * phi[:, None, :]).reshape(len(Z), -1)])
+
+    def hypers(self) -> list[Hyper]:
+        out = [Hyper("variance", 0.0, -14.0, 6.0), Hyper("ebb_ratio", -2.0, -14.0, math.log(4.0))]
+        if self.spatial:
+            _, sl = self.space.hypers()
+            out += [Hyper("space_ratio", -2.0, -14.0, math.log(4.0)), sl]
+        return out
+
+    def log_prior_var(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n_h = len(h)
+        ebb = np.array([0.0, 0.0, 1.0, 1.0])
+        lv = h[0] + h[1] * ebb
+        d = np.zeros((4, n_h))
+        d[:, 0], d[:, 1] = 1.0, ebb
+        if not self.spatial:
+            return lv, d
+        logS, dS = self.space.log_prior_var(h[2:4])
+        m = len(logS)
+        lv_sp = (lv[:, None] + logS[None, :]).ravel()
+        d_sp = np.zeros((4 * m, n_h))
+        d_sp[:, :2] = np.repeat(d[:, :2], m, axis=0)
+        d_sp[:, 2:4] = np.tile(dS, (4, 1))
+        return np.concatenate([lv, lv_sp]), np.vstack([d, d_sp])
+
+    def params(self, h: np.ndarray, w: np.ndarray) -> dict[str, float]:
+        ratio, offset = relation(w[0], w[1])
+        eratio, eoffset = relation(w[0] + w[2], w[1] + w[3])
+        out = {"ratio": ratio, "offset_s": offset, "ebb_ratio": eratio, "ebb_offset_s": eoffset}
+        if self.spatial:
+            out["space_lengthscale"] = float(math.exp(h[3]))
+        return out
+
+    def weights_at(self, xy: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """(n, 4) weights on (r, r'/w, ebb r, ebb r'/w) at positions `xy`, from the term's weights `w`
+        (a posterior draw or mean, in the target's units)."""
+        out = np.broadcast_to(w[:4], (len(xy), 4)).copy()
+        if self.spatial:
+            phi = self._space(np.asarray(xy, float))
+            out += phi @ w[4:].reshape(4, -1).T
+        return out
+
+
+def build(spec: TermSpec, is_circular=None) -> ReferenceTideTerm:
+    return ReferenceTideTerm(spatial=bool(spec.options.get("spatial", "position" in spec.inputs)))
