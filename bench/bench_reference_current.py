@@ -119,13 +119,13 @@ def near_track(train: Survey, b: Bins) -> np.ndarray:
     return d <= NEAR_M
 
 
-def direction(train_day: str, test_day: str, tables: dict, effects: list[str], ref) -> dict:
+def direction(train_day: str, test_day: str, tables: dict, terms: list[str], ref) -> dict:
     """One direction's figures: the three predictors' RMSE on every bin and on the near ones."""
     train, test = load_survey(tables[train_day]), load_survey(tables[test_day])
     if ref is not None:
         with_reference(train, ref)
     cpu = time.process_time()
-    sm = SurveyModel(train, "current_speed", [*BASELINE, *effects]).fit()
+    sm = SurveyModel(train, "current_speed", terms).fit()
     cpu = time.process_time() - cpu
     b = bins_of(test)
     me, mn = model_prediction(sm, test, b)
@@ -152,6 +152,7 @@ def tables_of(cases: Path) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--effects", nargs="*", default=["tide"])
+    p.add_argument("--terms", nargs="*", default=None, help="exactly these terms (no baseline)")
     p.add_argument("--no-reference", action="store_true", help="fit without the reference current")
     p.add_argument("--station", default=None, help="one station for every place")
     p.add_argument("--cases-dir", type=Path, default=Path("/tmp/forcemap-cases"))
@@ -162,7 +163,8 @@ def main() -> None:
     print(f"effects {' '.join(a.effects) or '(baseline)'}; reference "
           f"{'none' if ref is None else REFERENCE.name}")  # fmt: skip
     for train_day, test_day in (("05-17", "05-10"), ("05-10", "05-17")):
-        r = direction(train_day, test_day, tables, a.effects, ref)
+        terms = a.terms if a.terms is not None else [*BASELINE, *a.effects]
+        r = direction(train_day, test_day, tables, terms, ref)
         print(
             f"{r['train']} -> {r['test']} ({', '.join(r['terms'])}; fit {r['fit_cpu_s']:.0f} s CPU): "
             f"{r['bins']} bins: model {r['model']:.3f}, station {r['station']:.3f}, mean "

@@ -58,6 +58,13 @@ def inputs_at(survey, xy: np.ndarray, utc: np.ndarray) -> np.ndarray:  # type: i
     return np.column_stack([speed, rate])
 
 
+def station_vector(survey, xy: np.ndarray, utc) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    """(east, north) of each place's station prediction at UNIX times `utc` (m/s)."""
+    r = inputs_at(survey, xy, utc)[:, 0]
+    ue, un = flood_axes(survey, xy)
+    return r * ue, r * un
+
+
 def survey_rows(survey) -> np.ndarray:  # type: ignore[no-untyped-def]
     """`inputs_at` the survey's own rows, computed once per survey."""
     if _ROWS not in survey.cache:

@@ -17,6 +17,7 @@ from forcemap.host.workbench.engine.model import Model
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.table import NOT_COVARIATES, Survey, is_circular, why_absent
 from forcemap.host.workbench.survey.target_rows import target_rows
+from forcemap.host.workbench.targets import reference_part
 from forcemap.host.workbench.targets.survey_fits import (
     derived_column,
     frame_direction,
@@ -142,6 +143,9 @@ class SurveyModel:
 
     def _prepare_y(self) -> None:
         s, vt = self.survey, self.vector
+        # the station's own part where the target is modelled as its departure from it (reference_part)
+        self.station_rows = reference_part.rows(self) if reference_part.applies(self) else None
+        dep = 0.0 if self.station_rows is None else self.station_rows
         if vt is None:
             self.measured = self.y_primary = s.column(self.target)  # every row has it (target_rows)
             if np.ptp(self.measured) <= 1e-12 * max(1.0, float(np.abs(self.measured).max())):
@@ -151,7 +155,8 @@ class SurveyModel:
             return
         e, n = s.components(vt)
         if vt.aspect in ("east", "north"):
-            self.measured = self.y_primary = e if vt.aspect == "east" else n
+            self.measured = e if vt.aspect == "east" else n
+            self.y_primary = self.measured - dep
             if np.ptp(self.measured) < 1e-12:
                 raise WorkbenchError(
                     f"target '{self.target}' is constant; there is nothing to model"
@@ -165,7 +170,7 @@ class SurveyModel:
         else:
             self.measured = vt.direction(e, n)
         self.ue, self.un = frame_direction(s, vt, s.xy, s.trel, self.frame_terms)
-        along = e * self.ue + n * self.un
+        along = e * self.ue + n * self.un - dep
         across = -e * self.un + n * self.ue
         self.y_primary, self.y_secondary = (
             (along, across) if self.primary_is_along else (across, along)
@@ -309,6 +314,7 @@ class SurveyModel:
         if sd_p is None:
             sd_p = np.zeros_like(mu_p)
         if self.secondary is None:
+            mu_p, _ = reference_part.add_along(self, mu_p, None, self.station_rows)
             mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_, interval=interval)
         else:
             mu_s, sd_s = (
@@ -318,6 +324,7 @@ class SurveyModel:
             )
             if sd_s is None:
                 sd_s = np.zeros_like(mu_s)
+            mu_p, mu_s = reference_part.add_along(self, mu_p, mu_s, self.station_rows)
             ue, un = self._frame_cv(folds)
             mean, lo, hi = self.combine(
                 mu_p,
@@ -373,9 +380,12 @@ class SurveyModel:
         k = self.sd_scale
         mu_p, sd_p = self.primary.predict(X, return_std=True)
         noise_p = self.primary.noise_std_
+        station = None if self.station_rows is None else reference_part.part(self, xy, X["utc"])
         if self.secondary is None:
+            mu_p, _ = reference_part.add_along(self, mu_p, None, station)
             return {"mean": mu_p, "std": k * np.hypot(sd_p, noise_p), "mean_std": sd_p}
         mu_s, sd_s = self.secondary.predict(X, return_std=True)
+        mu_p, mu_s = reference_part.add_along(self, mu_p, mu_s, station)
         noise_s = self.secondary.noise_std_
         ue, un = frame_direction(self.survey, self.vector, xy, X["t"], self.frame_terms)
         mean, lo, hi, mean_std = self.combine(

@@ -36,7 +36,11 @@ SPACE_BASIS = 24
 # M2's angular frequency (rad/s): the rate's scale, and the offset's from the phase
 OMEGA = 2 * math.pi / (tides.constituent("M2").period_h * 3600.0)
 KIND = "tide_reference"
-BLOCKS = ("flood", "flood_rate", "ebb", "ebb_rate")
+# flood and ebb get relations of their own where each holds this share of the rows beyond this share
+# of the largest |r| (a record of one flood, or a neap's brief flood, relates both alike)
+SPLIT_SHARE, SPLIT_LEVEL = 0.25, 0.3
+# a departure's prior sd (in the features' and the target's standard units) at most this
+MAX_DEPARTURE_SD = 0.5
 
 
 def parse(args: list[str] | None, text: str, is_circular=None) -> TermSpec:
@@ -71,11 +75,33 @@ def spec_periods(spec: TermSpec) -> list[float]:
     return [tides.constituent(n).period_h * 3600.0 for n in ("M2", "M4")]
 
 
-def ref_features(R: np.ndarray) -> np.ndarray:
-    """(n, 4): the station's prediction r, its rate r'/w, and both on the ebb alone (r < 0)."""
+def ref_features(R: np.ndarray, split: bool = True) -> np.ndarray:
+    """(n, 2) or, `split`, (n, 4): the station's prediction r and its rate r'/w, then both signed by
+    the tide's sense (+ on the flood, - on the ebb): weights (c, d) on the pairs are the flood's c + d
+    and the ebb's c - d."""
     r, q = R[:, 0], R[:, 1] / OMEGA
-    ebb = r < 0
-    return np.column_stack([r, q, np.where(ebb, r, 0.0), np.where(ebb, q, 0.0)])
+    if not split:
+        return np.column_stack([r, q])
+    sense = np.where(r < 0, -1.0, 1.0)
+    return np.column_stack([r, q, sense * r, sense * q])
+
+
+def flood_ebb(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The flood's and the ebb's (a, b) weights on (r, r'/w) from `ref_features`' (last axis: 2 when
+    flood and ebb are one relation, 4 when split)."""
+    if w.shape[-1] == 2:
+        return w, w
+    return w[..., :2] + w[..., 2:4], w[..., :2] - w[..., 2:4]
+
+
+def supports_split(r: np.ndarray) -> bool:
+    """Whether a record holds enough of both the flood and the ebb to tell their relations apart: each
+    sense at least SPLIT_SHARE of the rows, beyond SPLIT_LEVEL of the largest |r|."""
+    top = float(np.abs(r).max()) if len(r) else 0.0
+    if top <= 0:
+        return False
+    share = min(np.mean(r > SPLIT_LEVEL * top), np.mean(r < -SPLIT_LEVEL * top))
+    return bool(share >= SPLIT_SHARE)
 
 
 def relation(a: float, b: float) -> tuple[float, float]:
@@ -103,9 +129,18 @@ class ReferenceTideTerm(Term):
                 f"{self.describe()}: the reference current has no prediction for "
                 f"{int((~np.isfinite(R).all(axis=1)).sum())} rows (a time series that ends before them)"
             )
+        # the features in units of the station's own spread over the survey: a weight of 1 is a
+        # departure of the ratio by about the target's spread where the tide is most of it
+        self.scale = float(np.sqrt(np.mean(R[:, 0] ** 2))) or 1.0
+        self.split = supports_split(R[:, 0])
         if self.spatial:
             self.space = HilbertGPTerm(("position",), "matern32", SPACE_BASIS, dims=2)
             self.space.setup(Z[:, :2])
+
+    @property
+    def width(self) -> int:
+        """Features per block: (r, r'/w), and their flood-ebb difference when split."""
+        return 4 if self.split else 2
 
     def periods_s(self) -> list[float]:
         return spec_periods(TermSpec(KIND, self.inputs))
@@ -118,57 +153,63 @@ class ReferenceTideTerm(Term):
         )
 
     def _space(self, Z: np.ndarray) -> np.ndarray:
-        """The spatial basis at the rows' positions, zero beyond the box it vanishes on."""
-        phi = self.space.features(Z[:, :2])
-        Zr = (Z[:, :2] - self.space.center) @ self.space.rot
-        inside = np.all(np.abs(Zr) <= self.space.L, axis=1)
-        return phi * inside[:, None]
+        """The spatial basis at the rows' positions (zero beyond its box: `HilbertGPTerm.angles`)."""
+        return self.space.features(Z[:, :2])
 
     def features(self, Z: np.ndarray) -> np.ndarray:
-        U = ref_features(Z[:, -2:])
+        U = ref_features(Z[:, -2:], self.split) / self.scale
         if not self.spatial:
             return U
-        phi = self._space(Z)
-        return np.hstack([U, (U[:, :, None] * phi[:, None, :]).reshape(len(Z), -1)])
+        sp = (U[:, :, None] * self._space(Z)[:, None, :]).reshape(len(Z), -1)
+        return np.hstack([U, sp])
 
     def hypers(self) -> list[Hyper]:
-        out = [Hyper("variance", 0.0, -14.0, 6.0), Hyper("ebb_ratio", -2.0, -14.0, math.log(4.0))]
+        top = 2 * math.log(MAX_DEPARTURE_SD)
+        out = [Hyper("variance", -3.0, -14.0, top)]
+        if self.split:
+            out.append(Hyper("flood_ebb", -2.0, -14.0, 0.0))
         if self.spatial:
             _, sl = self.space.hypers()
-            out += [Hyper("space_ratio", -2.0, -14.0, math.log(4.0)), sl]
+            out += [Hyper("space_variance", -3.0, -14.0, top), sl]
         return out
 
     def log_prior_var(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        n_h = len(h)
-        ebb = np.array([0.0, 0.0, 1.0, 1.0])
-        lv = h[0] + h[1] * ebb
-        d = np.zeros((4, n_h))
-        d[:, 0], d[:, 1] = 1.0, ebb
+        n_h, wd = len(h), self.width
+        diff = np.array([0.0, 0.0, 1.0, 1.0])[:wd]  # the flood-ebb difference's pair
+        lv = np.full(wd, h[0]) + (h[1] * diff if self.split else 0.0)
+        d = np.zeros((wd, n_h))
+        d[:, 0] = 1.0
+        if self.split:
+            d[:, 1] = diff
         if not self.spatial:
             return lv, d
-        logS, dS = self.space.log_prior_var(h[2:4])
+        k = 2 if self.split else 1
+        logS, dS = self.space.log_prior_var(h[k : k + 2])
         m = len(logS)
-        lv_sp = (lv[:, None] + logS[None, :]).ravel()
-        d_sp = np.zeros((4 * m, n_h))
-        d_sp[:, :2] = np.repeat(d[:, :2], m, axis=0)
-        d_sp[:, 2:4] = np.tile(dS, (4, 1))
+        lv_sp = ((lv - h[0])[:, None] + logS[None, :]).ravel()  # the spatial variance is its own
+        d_sp = np.zeros((wd * m, n_h))
+        if self.split:
+            d_sp[:, 1] = np.repeat(diff, m)
+        d_sp[:, k : k + 2] = np.tile(dS, (wd, 1))
         return np.concatenate([lv, lv_sp]), np.vstack([d, d_sp])
 
     def params(self, h: np.ndarray, w: np.ndarray) -> dict[str, float]:
-        ratio, offset = relation(w[0], w[1])
-        eratio, eoffset = relation(w[0] + w[2], w[1] + w[3])
+        (fa, fb), (ea, eb) = flood_ebb(np.asarray(w[: self.width]) / self.scale)
+        ratio, offset = relation(fa, fb)
+        eratio, eoffset = relation(ea, eb)
         out = {"ratio": ratio, "offset_s": offset, "ebb_ratio": eratio, "ebb_offset_s": eoffset}
         if self.spatial:
-            out["space_lengthscale"] = float(math.exp(h[3]))
+            out["space_lengthscale"] = float(math.exp(h[-1]))
         return out
 
     def weights_at(self, xy: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """(n, 4) weights on (r, r'/w, ebb r, ebb r'/w) at positions `xy`, from the term's weights `w`
-        (a posterior draw or mean, in the target's units)."""
-        out = np.broadcast_to(w[:4], (len(xy), 4)).copy()
+        """(n, width) weights on `ref_features` at positions `xy`, from the term's weights `w` (a
+        posterior draw or mean, in the target's units)."""
+        w = np.asarray(w, float) / self.scale
+        wd = self.width
+        out = np.zeros((len(xy), wd)) + w[:wd]
         if self.spatial:
-            phi = self._space(np.asarray(xy, float))
-            out += phi @ w[4:].reshape(4, -1).T
+            out += self._space(np.asarray(xy, float)) @ w[wd:].reshape(wd, -1).T
         return out
 
 

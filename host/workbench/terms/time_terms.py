@@ -17,6 +17,7 @@ from forcemap.host.workbench.targets.flow_axis import uniform
 from forcemap.host.workbench.targets.survey_fits import survey_fits, survey_inputs
 from forcemap.host.workbench.terms import registry
 from forcemap.host.workbench.terms.base import TermSpec, span_words
+from forcemap.host.workbench.terms.reference_maps import describe_relation, reference_block
 from forcemap.host.workbench.terms.seiche import merian, resolve, seiche_block, with_period
 from forcemap.host.workbench.terms.spec import BASELINE
 from forcemap.host.workbench.terms.tide import constituents, describe_fit, ellipses, tide_block
@@ -113,9 +114,42 @@ def tide_summary(sm) -> dict:
     return out
 
 
+def along_across(sm) -> tuple:
+    """The models of a vector's along and across components (a scalar target's own, None)."""
+    if sm.secondary is None:
+        return sm.primary, None
+    return (sm.primary, sm.secondary) if sm.primary_is_along else (sm.secondary, sm.primary)
+
+
+def reference_lines(sm) -> list[str]:
+    """A tide on a reference current in words: the reference and its stations, the relation to them."""
+    if reference_block(sm.primary) is None:
+        return []
+    from forcemap.host.workbench.survey.reference import describe as describe_reference
+
+    s = sm.survey
+    xy = s.xy[:: max(1, s.n // 2000)]
+    lines = describe_relation(*along_across(sm), xy, relation_base(sm, xy))
+    return [f"tide: {describe_reference(s)}", *lines]
+
+
+def relation_base(sm, xy):  # type: ignore[no-untyped-def]
+    """What the along weights of a tide on a reference depart from at places `xy`: the station's
+    prediction on the model's component where the model fits the departure (targets/reference_part.py)."""
+    if getattr(sm, "station_rows", None) is None:
+        return 0.0
+    from forcemap.host.workbench.survey import reference
+
+    aspect = sm.vector.aspect
+    if aspect in ("speed", "dir"):
+        return 1.0
+    ue, un = reference.flood_axes(sm.survey, xy)
+    return ue if aspect == "east" else un
+
+
 def describe(sm) -> list[str]:
     """The fit's time terms in words, for `fit`'s summary."""
-    lines = describe_fit(sm.primary)
+    lines = describe_fit(sm.primary) + reference_lines(sm)
     summary = tide_summary(sm) if lines or sm.seiche_estimate else {"ellipses": []}
     for e in summary["ellipses"]:
         lines.append(
