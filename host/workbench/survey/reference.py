@@ -15,6 +15,9 @@ from forcemap.host.workbench.errors import WorkbenchError
 
 INPUT = "reference"
 _ROWS = "reference-rows"
+# a speed log (paddle wheel) reads nothing below about this speed through the water: a current from it
+# there is the boat's own ground velocity (a boat at a berth, or motoring with a stalled log)
+STALL_M_S = 0.5
 
 
 def load_reference(path: str | Path, station: str | None = None) -> ReferenceCurrent:
@@ -91,6 +94,15 @@ def stations_used(survey, xy: np.ndarray | None = None) -> list[Station]:  # typ
     else:
         lat, lon = latlon(survey, xy)
     return ref.used(ref.station_index(lat, lon))
+
+
+def stalled(survey, target: str) -> np.ndarray | None:  # type: ignore[no-untyped-def]
+    """The rows where a current `target` from the speed log cannot be one (the boat slower through the
+    water than STALL_M_S); None for another target or a table without `stw`."""
+    vt = survey.vector_target(target)
+    if vt is None or vt.family != "current" or "stw" not in survey.columns:
+        return None
+    return ~(np.nan_to_num(survey.columns["stw"], nan=np.inf) >= STALL_M_S)
 
 
 def describe(survey) -> str:  # type: ignore[no-untyped-def]

@@ -1,14 +1,24 @@
-"""The reference station's own part of a current modelled on a reference: the model fits the departure.
+"""A current on a reference: the station's part, the place's relation to it, then the map of what is left.
 
 A tide on a reference current (`terms/reference_tide.py`) relates each place to its station, and the
 station's prediction is the relation's natural start: ratio 1, no offset, the flood along the station's
-axis. So a vector whose terms put it along its stations' flood axes is modelled as its departure from
-the station's prediction (the along component less the prediction r(t); a scalar east or north
-component less r(t) times the flood axis's east or north), and the prediction is added back wherever
-the components are combined into the vector. Every weight of the term is then a departure from the
-station with a zero-mean prior: where a day's data cannot tell a mean flow from a ratio (a single flood),
-the fit stays with the station instead of trading one for the other, and the relation is the station's
-plus the fitted departure (`terms/reference_maps.py` adds the 1 back).
+axis. So a vector whose terms put it along its stations' flood axes is taken apart in three, each fitted
+on what the one before leaves:
+
+1. the station's prediction r(t), on the component along its flood axis (a scalar east or north
+   component: r times the axis's east or north);
+2. the relation: the along component's departure from it, fitted by the relation's terms alone (the
+   weights are departures from the station, with zero-mean priors: what a day cannot tell stays the
+   station's);
+3. the model's other terms (the baseline's map, any effect) on what the relation leaves: the map of
+   what is left, the across component's too.
+
+Fitted together, a day of one flood cannot tell a mean flow from a ratio, and the marginal likelihood
+trades one for the other (a map of +0.4 m/s and a ratio of 0.5 fit the 2014-05-17 log as well as a
+ratio of 0.9); the mean flow then predicts the next day's ebb as a flood. In this order the relation
+explains what it can. The across component carries no relation: a yacht's leeway sits there, and the
+turn it would learn does not carry to another day (bench/RESULTS.md, "A reference current"). The parts
+are added back wherever the components are combined into the vector.
 """
 
 from __future__ import annotations
@@ -16,6 +26,9 @@ from __future__ import annotations
 import numpy as np
 from forcemap.host.workbench.survey import reference
 from forcemap.host.workbench.targets.flow_axis import along_reference
+from forcemap.host.workbench.targets.survey_fits import survey_fits, terms_with_basis
+from forcemap.host.workbench.terms import registry
+from forcemap.host.workbench.terms.spec import BASELINE, parse_terms
 
 
 def applies(sm) -> bool:
@@ -27,15 +40,30 @@ def applies(sm) -> bool:
     )
 
 
-def part(sm, xy: np.ndarray, utc: np.ndarray) -> np.ndarray:
-    """The station's prediction on the model's along component (speed, direction) or on its own
-    component (east, north) at places `xy` and UNIX times `utc`."""
-    r = reference.inputs_at(sm.survey, xy, utc)[:, 0]
-    return _project(sm, xy, r)
+def _relation_specs(sm) -> list:
+    return [s for s in sm.term_specs if registry.caps(s).along_reference]
+
+
+def model_terms(sm) -> list:
+    """The terms of the model of what the relation leaves (all of them without a reference)."""
+    if getattr(sm, "station_rows", None) is None:
+        return sm.term_specs
+    from forcemap.host.workbench.survey.table import is_circular
+
+    rest = [s for s in sm.term_specs if not registry.caps(s).along_reference]
+    return rest or parse_terms(BASELINE, is_circular)
+
+
+def secondary_terms(sm) -> tuple[str, ...]:
+    """The time terms of the vector's other component: none of a relation to a reference (see above)."""
+    if getattr(sm, "station_rows", None) is None:
+        return sm.time_terms
+    return tuple(t for t in sm.time_terms if not along_reference((t,)))
 
 
 def rows(sm) -> np.ndarray:
-    """`part` at the survey's own rows (computed once per survey)."""
+    """The station's prediction on the model's along component (speed, direction) or on its own
+    component (east, north) at the survey's rows."""
     return _project(sm, sm.survey.xy, reference.survey_rows(sm.survey)[:, 0])
 
 
@@ -45,6 +73,39 @@ def _project(sm, xy: np.ndarray, r: np.ndarray) -> np.ndarray:
         return r
     ue, un = reference.flood_axes(sm.survey, xy)
     return r * (ue if aspect == "east" else un)
+
+
+def _along_is_primary(sm) -> bool:
+    return sm.vector.aspect != "dir"
+
+
+def fit_relation(sm) -> None:
+    """Fit the relation on the along component's departure from the station (`sm.relation`) and leave
+    what it does not explain to the model of the rest (`sm.y_primary` or `sm.y_secondary`)."""
+    sm.relation = None
+    if sm.station_rows is None:
+        return
+    built = terms_with_basis(_relation_specs(sm))
+    along = "y_primary" if _along_is_primary(sm) else "y_secondary"
+    y = getattr(sm, along)
+    sm.relation = survey_fits(sm.survey).model(built, max_basis=sm.max_basis).fit(sm.X, y)
+    sm.relation_rows = sm.relation.predict(sm.X)
+    setattr(sm, along, y - sm.relation_rows)
+
+
+def part(sm, xy: np.ndarray, X: dict) -> np.ndarray | None:
+    """The station's prediction and the relation on the along component at places `xy` and the map's
+    inputs `X` (their times and reference); None where the target has no reference."""
+    if getattr(sm, "relation", None) is None:
+        return None
+    return _project(sm, xy, X[reference.INPUT][:, 0]) + sm.relation.predict(X)
+
+
+def cv_part(sm, folds: np.ndarray) -> np.ndarray | None:
+    """`part` at the survey's rows with the relation held out as the model is (refitted per fold)."""
+    if getattr(sm, "relation", None) is None:
+        return None
+    return sm.station_rows + sm.relation.cv_predict(folds, return_std=False)[0]
 
 
 def add_along(sm, mu_p: np.ndarray, mu_s, station: np.ndarray | None):

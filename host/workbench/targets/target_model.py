@@ -180,7 +180,7 @@ class SurveyModel:
         self, terms: list | None = None, n_basis: Mapping[str, int] | None = None
     ) -> Model:
         """An unfitted model of the primary component; `n_basis` sets GP terms' bases by term name."""
-        built = terms_with_basis(terms or self.term_specs, n_basis)
+        built = terms_with_basis(terms or reference_part.model_terms(self), n_basis)
         return survey_fits(self.survey).model(built, max_basis=self.max_basis)
 
     def fit(
@@ -195,6 +195,7 @@ class SurveyModel:
         names = {i for s in self.term_specs for i in s.inputs}
         self.X = survey_inputs(self.survey, names)
         self._prepare_y()
+        reference_part.fit_relation(self)  # a relation to a reference current first: the rest is left
         primary = self.new_primary(n_basis=n_basis)
         if theta is None:
             self.primary = primary.fit(self.X, self.y_primary)
@@ -208,7 +209,7 @@ class SurveyModel:
                 self.vector,
                 self.primary_is_along,
                 self.y_secondary,
-                self.time_terms,
+                reference_part.secondary_terms(self),
                 self.max_basis,
                 one_axis=axis is not None and axis.one_axis,
             )
@@ -314,7 +315,7 @@ class SurveyModel:
         if sd_p is None:
             sd_p = np.zeros_like(mu_p)
         if self.secondary is None:
-            mu_p, _ = reference_part.add_along(self, mu_p, None, self.station_rows)
+            mu_p, _ = reference_part.add_along(self, mu_p, None, reference_part.cv_part(self, folds))
             mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_, interval=interval)
         else:
             mu_s, sd_s = (
@@ -324,7 +325,7 @@ class SurveyModel:
             )
             if sd_s is None:
                 sd_s = np.zeros_like(mu_s)
-            mu_p, mu_s = reference_part.add_along(self, mu_p, mu_s, self.station_rows)
+            mu_p, mu_s = reference_part.add_along(self, mu_p, mu_s, reference_part.cv_part(self, folds))
             ue, un = self._frame_cv(folds)
             mean, lo, hi = self.combine(
                 mu_p,
@@ -380,7 +381,7 @@ class SurveyModel:
         k = self.sd_scale
         mu_p, sd_p = self.primary.predict(X, return_std=True)
         noise_p = self.primary.noise_std_
-        station = None if self.station_rows is None else reference_part.part(self, xy, X["utc"])
+        station = reference_part.part(self, xy, X)
         if self.secondary is None:
             mu_p, _ = reference_part.add_along(self, mu_p, None, station)
             return {"mean": mu_p, "std": k * np.hypot(sd_p, noise_p), "mean_std": sd_p}

@@ -3,7 +3,8 @@ and ebb, with their sd (from posterior draws of the term's weights), as maps and
 
 For a vector the along and across components (the station's flood axis and its normal) both carry the
 term: at a place the current is `A r(t) + B r'(t)/w` with A, B vectors. The local flood sets along A
-(`turn_deg`: its angle from the station's flood axis, clockwise); along it, `ratio` and `offset_s` are
+(`turn_deg`: its angle from the station's flood axis, clockwise; 0 where nothing across is modelled,
+targets/reference_part.py); along it, `ratio` and `offset_s` are
 those of the projected weights (`reference_tide.relation`). A scalar target (one component) has its own.
 """
 
@@ -44,7 +45,8 @@ def _relation(A_al, A_ac, B_al, B_ac) -> dict[str, np.ndarray]:
     return {
         "ratio": np.hypot(amp, b),
         "offset_s": -np.arctan2(b, amp) / OMEGA,
-        "turn_deg": np.degrees(np.arctan2(A_ac, A_al)),
+        # the across axis is the along one turned 90 deg anticlockwise: clockwise is negative there
+        "turn_deg": -np.degrees(np.arctan2(A_ac, A_al)),
     }
 
 

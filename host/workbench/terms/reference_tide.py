@@ -8,17 +8,20 @@ prediction. For offsets short beside the tide's period that is linear in two fea
     ratio r(t - offset) = a r(t) + b r'(t) / w,   ratio = hypot(a, b),   offset = -atan2(b, a) / w
 
 (w: M2's angular frequency; exact for one constituent, whatever the offset below half its period). The
-term's features are r and r'/w, and again r and r'/w on the ebb alone (r < 0: the ebb's difference from
-the flood, its own prior variance, which shrinks to nothing where the data hold no ebb), each uniform and,
-in the spatial form, times a small reduced-rank GP basis in position: a and b, flood and ebb, are smooth
-maps. Beyond the data's box the spatial part is zero (the place keeps the survey's relation).
+term's features are r and r'/w (in units of r's spread over the survey), uniform and, in the spatial form,
+times a small reduced-rank GP basis in position: a and b are smooth maps, and beyond the data's box the
+spatial part is zero (the place keeps the survey's relation). Where the record holds enough of both the
+flood and the ebb (`supports_split`), both features again signed by the tide's sense give the two their
+own relations (flood c + d, ebb c - d, the difference with its own prior variance); a record of one flood,
+or of a neap's brief one, relates both alike. Every prior sd is bounded (MAX_DEPARTURE_SD): the weights
+are departures from the station (targets/reference_part.py), not a free fit.
 
 The term carries no reference of its own: its input `reference` is each row's station prediction and rate
 (`survey/reference.py`), so it predicts at any time the reference predicts, carrying the reference's
 spring and neap, its diurnal inequality and every constituent a short record cannot separate (they are
-inferred from the reference, as the ratio and offset say). A vector is modelled along each place's
-station's flood axis and across it (`along_reference`), both components with the term: the across part
-is the local flow's turn from the station's axis.
+inferred from the reference, as the ratio and offset say). A vector with it is modelled along each
+place's station's flood axis (`along_reference`); targets/reference_part.py fits the relation first and
+the map of what is left after it.
 """
 
 from __future__ import annotations
