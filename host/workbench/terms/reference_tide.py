@@ -35,7 +35,7 @@ from forcemap.host.workbench.terms.base import Hyper, Term, TermSpec, span_words
 from forcemap.host.workbench.terms.gp import HilbertGPTerm
 
 # the ratio and offset maps need no detail finer than the reach's bends
-SPACE_BASIS = 40
+SPACE_BASIS = 24
 # M2's angular frequency (rad/s): the rate's scale, and the offset's from the phase
 OMEGA = 2 * math.pi / (tides.constituent("M2").period_h * 3600.0)
 KIND = "tide_reference"
