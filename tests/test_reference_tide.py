@@ -149,6 +149,19 @@ def test_the_commands_take_a_reference_current(days, tmp_path: Path, capsys) -> 
     assert "tide: reference current noaa_sfbay_currents.json: station SFB1204" in out
     report = json.loads((tmp_path / "fit.json").read_text())
     assert report["terms"][-1] == "tide(reference, position)"
+    ref = ["--reference-current", str(NOAA), "--reference-station", STATION]
+    nc = tmp_path / "maps.nc"
+    assert main(["grid", str(table), str(days[1]), "-o", str(nc), "--target", "current_speed",
+                 "--resolution", "40", "--quiet", *ref]) == 0  # fmt: skip
+    import xarray as xr
+
+    with xr.open_dataset(nc) as ds:
+        assert {"current_ratio", "current_offset", "current_ratio_sd"} <= set(ds.data_vars)
+        assert ds["current_offset"].attrs["units"] == "s"
+    html = tmp_path / "report.html"
+    assert main(["report", str(table), "-o", str(html), "--quiet", *ref]) == 0
+    assert "The tide on the reference current" in html.read_text()
+    capsys.readouterr()
     assert main(["fit", str(table), "--target", "current_speed", "--reference-station", STATION]) == 2
     assert "--reference-station needs --reference-current" in capsys.readouterr().err
     none = str(tmp_path / "none.json")

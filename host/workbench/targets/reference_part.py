@@ -9,7 +9,9 @@ on what the one before leaves:
    component: r times the axis's east or north);
 2. the relation: the along component's departure from it, fitted by the relation's terms alone (the
    weights are departures from the station, with zero-mean priors: what a day cannot tell stays the
-   station's);
+   station's), and a steady flow with them where the tide turns in the record (both the flood and the
+   ebb hold a quarter of the rows, `reference_tide.supports_split`): only there can a river's own flow
+   be told from a ratio;
 3. the model's other terms (the baseline's map, any effect) on what the relation leaves: the map of
    what is left, the across component's too.
 
@@ -28,6 +30,7 @@ from forcemap.host.workbench.survey import reference
 from forcemap.host.workbench.targets.flow_axis import along_reference
 from forcemap.host.workbench.targets.survey_fits import survey_fits, terms_with_basis
 from forcemap.host.workbench.terms import registry
+from forcemap.host.workbench.terms.reference_tide import supports_split
 from forcemap.host.workbench.terms.spec import BASELINE, parse_terms
 
 
@@ -85,7 +88,13 @@ def fit_relation(sm) -> None:
     sm.relation = None
     if sm.station_rows is None:
         return
-    built = terms_with_basis(_relation_specs(sm))
+    specs = _relation_specs(sm)
+    if supports_split(reference.survey_rows(sm.survey)[:, 0]):
+        # the tide turns in the record: a steady flow (a river's) is told from the ratio, and fitted here
+        from forcemap.host.workbench.survey.table import is_circular
+
+        specs = parse_terms(["const"], is_circular) + specs
+    built = terms_with_basis(specs)
     along = "y_primary" if _along_is_primary(sm) else "y_secondary"
     y = getattr(sm, along)
     sm.relation = survey_fits(sm.survey).model(built, max_basis=sm.max_basis).fit(sm.X, y)
