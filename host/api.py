@@ -17,19 +17,33 @@ import numpy as np
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.at_time import parse_at
 from forcemap.host.workbench.survey.table import Survey as _Table
-from forcemap.host.workbench.survey.table import load_survey
 from forcemap.host.workbench.terms.spec import BASELINE, check_terms, split_effects
 
 DEFAULT_RESOLUTION_M = 5.0
 
 
 def read_survey(
-    path: str | Path, keep_outliers: bool = False, water_level: str | Path | None = None
+    path: str | Path | Sequence[str | Path],
+    keep_outliers: bool = False,
+    water_level: str | Path | None = None,
+    reference_current: str | Path | None = None,
+    reference_station: str | None = None,
 ) -> Survey:
-    """A samples table (CSV, Parquet, or an MCAP log from `forcemap run`), validated, as a `Survey`;
-    with `keep_outliers`, the spikes flagged along the track stay in the fits (`--keep-outliers`); with
-    `water_level` (a gauge's CSV), the depth is reduced to the gauge's datum (`--water-level`)."""
-    table = load_survey(path, keep_outliers=keep_outliers)
+    """A samples table (CSV, Parquet, or an MCAP log from `forcemap run`), or a list of them (days of
+    the same water as one survey, kept in the first one's workspace), validated, as a `Survey`; with
+    `keep_outliers`, the spikes flagged along the track stay in the fits (`--keep-outliers`); with
+    `water_level` (a gauge's CSV), the depth is reduced to the gauge's datum (`--water-level`); with
+    `reference_current` (stations' harmonic constants or a predicted series), a tide on the current is
+    each place's relation to its nearest station, or to `reference_station` (`--reference-current`)."""
+    from forcemap.host.workbench.survey.reference import load_reference, with_reference
+    from forcemap.host.workbench.survey.several import load_surveys
+
+    paths = path if isinstance(path, str | Path) else list(path)
+    table = load_surveys(paths, keep_outliers=keep_outliers)
+    if reference_station is not None and reference_current is None:
+        raise WorkbenchError("reference_station needs reference_current")
+    if reference_current is not None:
+        with_reference(table, load_reference(reference_current, reference_station))
     if water_level is not None:
         from forcemap.host.workbench.depth.water_level import read_gauge, reduce_to_gauge
 
@@ -246,6 +260,18 @@ class Fit:
         from forcemap.host.workbench.terms.time_terms import tide_summary
 
         return tide_summary(self._fitted())
+
+    def relation(self, lat, lon) -> dict[str, np.ndarray]:
+        """With a reference current: each position's relation to its station (`station`), the flood's
+        `ratio`, `offset_s` (the place later than its station by it) and `turn_deg` (its flood's angle
+        from the station's axis, clockwise), the ebb's (`ebb_*`), each with its sd (`*_sd`)."""
+        from forcemap.host.vessel.geodesy import LocalFrame
+        from forcemap.host.workbench.terms.time_terms import relation_at
+
+        model = self._fitted()
+        s = model.survey
+        x, y = LocalFrame(s.lat0, s.lon0).to_local(np.atleast_1d(lat), np.atleast_1d(lon))
+        return relation_at(model, np.column_stack([x, y]))
 
     def diagnose(self, rounds: int = 1, progress: bool = False):
         """Which physical effect this model is missing (`forcemap diagnose`): a `Diagnosis`."""

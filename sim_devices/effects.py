@@ -126,6 +126,23 @@ CATALOGUE: dict[str, EffectSpec] = {
             },
         ),
         EffectSpec(
+            "reference_stream",
+            "world",
+            "a tidal stream that is a reference station's, times a ratio and later by an offset",
+            "the current along the channel (the flow direction in a lake) is river x the scenario's own plus "
+            "ratio(x) r(t - offset(x)): r the NOAA station's prediction (host/data/noaa_sfbay_currents.json), "
+            "ratio = ratio + ratio_east xi and offset = offset_min + offset_east_min xi minutes, xi the "
+            "place's east position over half the survey's width (sim_devices/reference_stream.py)",
+            {
+                "station": "SFB1204",
+                "ratio": 0.8,
+                "ratio_east": 0.25,
+                "offset_min": 20.0,
+                "offset_east_min": 25.0,
+                "river": 0.0,
+            },
+        ),
+        EffectSpec(
             "seiche",
             "world",
             "a lake's standing wave",

@@ -52,10 +52,17 @@ class World:
         self.on = {e.name: e.params for e in effects if e.spec.kind == "world"}
         self.t0 = float(scenario.t0)  # UNIX seconds of t = 0: the tidal stream's astronomy
         self._tide_tables: dict[int, np.ndarray] = {}
+        self.reference_stream = None  # a subordinate station's stream (sim_devices/reference_stream.py)
         rng = np.random.default_rng([seed, 101])
         x0, x1, y0, y1 = scenario.extent
         self.half_span_x = 0.5 * (x1 - x0)
         self.is_river = scenario.kind == "river"
+        if "reference_stream" in self.on:
+            from .reference_stream import ReferenceStream
+
+            self.reference_stream = ReferenceStream(
+                self.on["reference_stream"], self.t0, 0.5 * (x0 + x1), self.half_span_x
+            )
         self._init_geometry()
         self._init_wind(rng)
 
@@ -183,8 +190,10 @@ class World:
 
     def _current(self, x, y, t, ds, d):  # type: ignore[no-untyped-def]
         q = self.discharge_factor(t)
-        tidal = self.on.get("tidal_stream")
+        tidal = self.on.get("tidal_stream") or self.on.get("reference_stream")
         tide = self.oscillation(t)
+        if self.reference_stream is not None:
+            tide = tide + self.reference_stream(x, t)
         if tidal is not None:
             q = q * tidal["river"]
         if self.is_river:

@@ -42,6 +42,8 @@ OPTIONS: dict[str, tuple[str, str]] = {
     "--no-plots": (FLAG, "write no residual plots"),
     "--keep-outliers": (FLAG, "fit the readings the spike test flagged too"),
     "--water-level": (VALUE, "a water-level gauge's record: the depth reduced to its datum"),
+    "--reference-current": (VALUE, "a reference current: the tide on a current related to its stations"),
+    "--reference-station": (VALUE, "the one reference station every place takes"),
     "--reset-history": (FLAG, "move a corrupt workspace history aside"),
     "--from": (VALUE, "the format of the input to import"),
     "--reference": (VALUE, "what an ADCP's water velocity is referenced to: bottom track or GPS"),

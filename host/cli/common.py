@@ -236,7 +236,27 @@ def output_for(given: str | None, first_input: str, suffix: str) -> str:
     return given
 
 
-def add_table(parser: argparse.ArgumentParser) -> None:
+class Tables(argparse.Action):
+    """Several tables: all in ``tables``, the first (whose workspace the survey keeps) in ``table``."""
+
+    def __call__(self, parser, namespace, values, option_string=None):  # type: ignore[no-untyped-def]
+        namespace.tables = list(values)
+        namespace.table = values[0]
+
+
+def add_table(parser: argparse.ArgumentParser, several: bool = False) -> None:
+    """The samples table; with `several`, one or more (days of the same water as one survey)."""
+    if several:
+        parser.add_argument(
+            "table",
+            type=Path,
+            nargs="+",
+            action=Tables,
+            metavar="TABLE",
+            help="samples table(s): .csv, .parquet, or an .mcap log from `forcemap run`; several are "
+            "one survey (days of the same water), kept in the first one's workspace",
+        )
+        return
     parser.add_argument(
         "table",
         type=Path,
@@ -275,12 +295,45 @@ def add_water_level(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_reference_current(parser: argparse.ArgumentParser) -> None:
+    """--reference-current FILE and --reference-station ID (docs/WORKBENCH.md, "A reference current")."""
+    parser.add_argument(
+        "--reference-current",
+        type=Path,
+        metavar="FILE",
+        help="a reference current: stations' harmonic constants (NOAA's fields, JSON) or a station's "
+        "predicted series (CSV: time, speed along the flood axis, flood direction); the tide on a "
+        "current is then each place's ratio and time offset to its nearest station",
+    )
+    parser.add_argument(
+        "--reference-station",
+        metavar="ID",
+        help="with --reference-current: this station for every place (default: each place's nearest)",
+    )
+
+
+def reference_of(args: argparse.Namespace):
+    """The reference current --reference-current names (None without it); a bad file is one line."""
+    path = getattr(args, "reference_current", None)
+    station = getattr(args, "reference_station", None)
+    if path is None:
+        if station is not None:
+            raise CliError("--reference-station needs --reference-current FILE")
+        return None
+    from forcemap.host.workbench.survey.reference import load_reference
+
+    return load_reference(path, station)
+
+
 def load_table(args: argparse.Namespace):
     """The samples table of `args.table` as the workbench's Survey, with --keep-outliers and, when given,
-    the depth reduced to --water-level's gauge datum (a bad gauge file is one line and exit 2)."""
-    from forcemap.host.workbench.survey.table import load_survey
+    the depth reduced to --water-level's gauge datum (a bad gauge file is one line and exit 2) and the
+    reference current of --reference-current."""
+    from forcemap.host.workbench.survey.reference import with_reference
+    from forcemap.host.workbench.survey.several import load_surveys
 
-    survey = load_survey(args.table, keep_outliers=args.keep_outliers)
+    survey = load_surveys(getattr(args, "tables", None) or args.table, keep_outliers=args.keep_outliers)
+    with_reference(survey, reference_of(args))
     gauge = getattr(args, "water_level", None)
     if gauge is None:
         return survey

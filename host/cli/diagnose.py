@@ -9,6 +9,7 @@ from forcemap.host.cli.common import (
     add_json,
     add_keep_outliers,
     add_quiet,
+    add_reference_current,
     add_table,
     add_target,
     add_water_level,
@@ -55,7 +56,7 @@ examples:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
-    add_table(parser)
+    add_table(parser, several=True)
     add_target(parser, "column to diagnose")
     add_effects(parser, "start from baseline + these terms instead of the latest fit")
     parser.add_argument("--model", help="start from this TOML model spec instead of the latest fit")
@@ -71,6 +72,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_quiet(parser)
     add_keep_outliers(parser)
     add_water_level(parser)
+    add_reference_current(parser)
     add_workspace_options(parser)
 
 

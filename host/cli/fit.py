@@ -10,6 +10,7 @@ from forcemap.host.cli.common import (
     add_json,
     add_keep_outliers,
     add_quiet,
+    add_reference_current,
     add_table,
     add_target,
     add_water_level,
@@ -60,7 +61,7 @@ history.json stops the fit until it is fixed or --reset-history moves it aside.
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
-    add_table(parser)
+    add_table(parser, several=True)
     add_target(parser)
     add_effects(parser, "comma-separated covariates or terms to add, e.g. depth,t")
     parser.add_argument("--model", help="TOML model spec (terms, optional target)")
@@ -76,6 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_quiet(parser)
     add_keep_outliers(parser)
     add_water_level(parser)
+    add_reference_current(parser)
     add_workspace_options(parser)
 
 

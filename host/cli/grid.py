@@ -12,6 +12,7 @@ from forcemap.host.cli.common import (
     add_keep_outliers,
     add_output,
     add_quiet,
+    add_reference_current,
     add_table,
     add_water_level,
     add_workspace_options,
@@ -59,7 +60,7 @@ FORMATS = {".tif": "geotiff", ".tiff": "geotiff", ".nc": "netcdf", ".geojson": "
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG.replace("{install}", install_hint("gis")))
-    add_table(parser)
+    add_table(parser, several=True)
     add_output(
         parser, "OUT.tif, OUT.nc, OUT.geojson, or a folder for all three", required=True, type=Path
     )
@@ -85,6 +86,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_quiet(parser)
     add_keep_outliers(parser)
     add_water_level(parser)
+    add_reference_current(parser)
     add_workspace_options(parser, output=False)
 
 

@@ -13,9 +13,11 @@ from forcemap.host.cli.common import (
     add_keep_outliers,
     add_output,
     add_quiet,
+    add_reference_current,
     add_table,
     check_json_output,
     human,
+    reference_of,
     teach,
     write_json,
 )
@@ -54,7 +56,7 @@ MARGIN_M = 120.0
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     teach(parser, EPILOG)
-    add_table(parser)
+    add_table(parser, several=True)
     parser.add_argument(
         "--mission",
         required=True,
@@ -94,6 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "with --season, the map's age is counted to it",
     )
     add_keep_outliers(parser)
+    add_reference_current(parser)
 
 
 def print_table(result, out) -> None:  # type: ignore[no-untyped-def]
@@ -177,7 +180,8 @@ def run(args: argparse.Namespace) -> int:
     from forcemap.host.plan.workspace_io import save_plan
     from forcemap.host.vessel.geodesy import LocalFrame
     from forcemap.host.workbench.errors import WorkbenchError
-    from forcemap.host.workbench.survey.table import load_survey
+    from forcemap.host.workbench.survey.reference import with_reference
+    from forcemap.host.workbench.survey.several import load_surveys
     from forcemap.host.workbench.terms.time_terms import iso
 
     progress = not args.quiet
@@ -194,7 +198,8 @@ def run(args: argparse.Namespace) -> int:
     start = mission_start(args)
     mission = read_mission(args.mission, args.scenario)
     try:
-        survey = load_survey(args.table, keep_outliers=args.keep_outliers)
+        survey = load_surveys(args.tables, keep_outliers=args.keep_outliers)
+        with_reference(survey, reference_of(args))
         age_note = map_age_note(args, float(survey.columns["t"].max())) if args.season else None
         frame = LocalFrame(survey.lat0, survey.lon0)
         wps = frame.points_to_local(mission.latlon)

@@ -9,6 +9,7 @@ from forcemap.host.cli.common import (
     add_keep_outliers,
     add_output,
     add_quiet,
+    add_reference_current,
     add_table,
     add_water_level,
     add_workspace_options,
@@ -39,6 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_quiet(parser)
     add_keep_outliers(parser)
     add_water_level(parser)
+    add_reference_current(parser)
     add_workspace_options(parser)
 
 

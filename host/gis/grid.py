@@ -249,6 +249,22 @@ def layer_bands(model, pred: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return bands
 
 
+def relation_bands(model, xy: np.ndarray) -> dict[str, np.ndarray]:
+    """A current related to a reference current: each place's `ratio` and `offset` (s) to its station,
+    flood and ebb (`ebb_*`), with their sd (`names.RELATION_ATTRS`); none for any other model."""
+    if getattr(model, "relation", None) is None or not len(xy):
+        return {}
+    from forcemap.host.workbench.terms.time_terms import relation_at
+
+    maps = relation_at(model, xy)
+    out = {}
+    for tag in ("", "ebb_"):
+        for key, band in (("ratio", "ratio"), ("offset_s", "offset")):
+            out[tag + band] = maps[tag + key]
+            out[tag + band + "_sd"] = maps[tag + key + "_sd"]
+    return out
+
+
 # a cell is left blank where a new measurement's predicted spread exceeds this share of the measured values' own
 # spread: there the map predicts no better than the survey's average would
 SD_SHARE = 1.0
@@ -335,6 +351,11 @@ def evaluate(grid: MapGrid, model) -> Layer:
 
         layer.datum = map_datum(model.survey, list(model.terms), grid.at)
         layer.bands.update(surface_bands(grid, model.survey))
+    relation = relation_bands(model, grid.local_xy[cells])  # a current on a reference current
+    for name, values in relation.items():
+        full = np.full(grid.ny * grid.nx, np.nan)
+        full[cells] = values
+        layer.bands[name] = full.reshape(grid.ny, grid.nx)
     rows = getattr(model, "rows", None)  # what the model left out for want of a reading
     notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
     held = held_notes(model.survey, getattr(model, "term_specs", ()))  # covariates at their median

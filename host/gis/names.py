@@ -79,11 +79,27 @@ def _split(layer, band: str) -> tuple[str, str]:
     return band, "value"
 
 
+# a current related to a reference current (host/workbench/terms/reference_maps.py): each place's relation
+# to its station, flood and ebb (`ebb_*`), with their posterior sd
+RELATION_ATTRS: dict[str, dict[str, str]] = {
+    "ratio": {"units": "1", "long_name": "the flood's speed at the place over its reference station's "
+              "(a subordinate station's speed ratio)"},
+    "offset": {"units": "s", "long_name": "how much later than its reference station the place's "
+               "flood runs (negative: earlier; a subordinate station's time offset)"},
+}  # fmt: skip
+for _b, _a in list(RELATION_ATTRS.items()):
+    RELATION_ATTRS[f"{_b}_sd"] = {**_a, "long_name": f"posterior standard deviation of: {_a['long_name']}"}
+for _b, _a in list(RELATION_ATTRS.items()):
+    RELATION_ATTRS[f"ebb_{_b}"] = {**_a, "long_name": _a["long_name"].replace("flood", "ebb")}
+
+
 def band_attrs(layer, band: str) -> dict[str, str]:
     """CF attributes of one band of a layer: a `_sd` band is the predictive standard deviation (what a new
     measurement would differ from the mean by), a `mean_sd` band the standard deviation of the mean alone."""
     if layer.vector is None and band in SURFACE_ATTRS:
         return dict(SURFACE_ATTRS[band])
+    if layer.vector is not None and band in RELATION_ATTRS:
+        return dict(RELATION_ATTRS[band])
     base, kind = _split(layer, band)
     if layer.vector is None:
         std, units = SCALAR_STANDARD_NAMES.get(layer.target, (None, ""))

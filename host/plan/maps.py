@@ -18,9 +18,16 @@ from forcemap.host.progress import note
 from forcemap.host.workbench.engine.model import HYPER_SPACING_S, DesignCache, Model, small_blas
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.fits.workspace import current_terms, workspace_dir
+from forcemap.host.workbench.survey import reference
 from forcemap.host.workbench.survey.table import Survey, is_circular
 from forcemap.host.workbench.survey.target_rows import target_rows
-from forcemap.host.workbench.targets.survey_fits import grid_inputs, survey_fits, survey_inputs
+from forcemap.host.workbench.targets.flow_axis import along_reference
+from forcemap.host.workbench.targets.survey_fits import (
+    grid_inputs,
+    mid_time,
+    survey_fits,
+    survey_inputs,
+)
 from forcemap.host.workbench.terms import registry
 from forcemap.host.workbench.terms.registry import parse_term
 from forcemap.host.workbench.terms.spec import BASELINE
@@ -29,7 +36,7 @@ from forcemap.host.workbench.validation.cv import blocked_folds
 GRID_STEP_M = 4.0
 MAX_BASIS = 800  # a current or wind field steering a boat needs no detail finer than ~30 m
 # what a future track is known by: where it is (and so the depth there, from the depth map), and when
-PLANNABLE_INPUTS = {"position", "t", "depth", "utc", "lat"}
+PLANNABLE_INPUTS = {"position", "t", "depth", "utc", "lat", "reference"}
 # a field that changes in time is gridded at times this fraction of its shortest period apart (linear
 # interpolation between them is then within 1 % of the amplitude), at least MIN_STEP_S apart ...
 SLICES_PER_PERIOD = 24
@@ -234,23 +241,40 @@ def fit_field(
     out, sq = [], []
     grams = DesignCache()  # the east and north components share their features
     folds = blocked_folds(X["position"])[0]
+    # a current on a reference: each component as its departure from the stations' prediction
+    station = departures(survey, terms, xy, times)
     with small_blas():
-        for comp in (e, n):
+        for k, comp in enumerate((e, n)):
             m = Model(terms, max_basis=MAX_BASIS, hyper_spacing_s=HYPER_SPACING_S, memory=grams)
-            m.fit(X, comp)
+            m.fit(X, comp - station[0][k])
             pred = [m.predict(G, return_std=True, include_noise=True) for G in grids]
+            pred = [(p[0] + s[k], p[1]) for p, s in zip(pred, station[1], strict=True)]
             shape = GX.shape if times is None else (len(grids), *GX.shape)
             out += [
                 np.reshape([p[0] for p in pred], shape),
                 np.reshape([p[1] for p in pred], shape),
             ]
             if cv:
-                sq.append(float(np.mean((comp - m.cv_predict(folds, return_std=False)[0]) ** 2)))
+                held = m.cv_predict(folds, return_std=False)[0] + station[0][k]
+                sq.append(float(np.mean((comp - held) ** 2)))
     rmse = math.sqrt(sum(sq) / len(sq)) if sq else 0.0  # per component, as the sds are
     times = None if times is None else np.asarray(times, float)
     return Field(
         float(gx[0]), float(gy[0]), step, out[0], out[2], out[1], out[3], list(terms), rmse, times
     )
+
+
+def departures(survey: Survey, terms: list[str], xy: np.ndarray, times) -> tuple:
+    """The stations' (east, north) prediction at the survey's rows and at the grid `xy` at each time
+    (`times`, or mid-survey) where the terms relate the current to a reference (zeros otherwise), as
+    targets/reference_part.py does for the workbench's vector targets."""
+    slices = [None] if times is None else list(times)
+    if survey.reference is None or not along_reference(tuple(terms)):
+        return (0.0, 0.0), [(0.0, 0.0)] * len(slices)
+    rows = reference.station_vector(survey, survey.xy, survey.columns["t"])
+    grid = [reference.station_vector(survey, xy, mid_time(survey) if at is None else at)
+            for at in slices]  # fmt: skip
+    return rows, grid
 
 
 def field_times(terms: list[str], start: float, span_s: float) -> np.ndarray | None:

@@ -22,6 +22,7 @@ from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
 from forcemap.host.report.map_figure import grid_figure, point_figure
 from forcemap.host.report.mission_section import mission_section
+from forcemap.host.report.reference_section import reference_section
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.fits import plots
 from forcemap.host.workbench.fits.fit import calibrated, latest_terms, map_terms, refit_or_restore
@@ -256,7 +257,7 @@ def _target_residuals(ctx: ReportContext, target: str) -> list[str]:
     label = f"residual ({u})" if u else "residual"
     fig = point_figure(ctx.frame[0], ctx.track_of(survey), cv.error, title, label, "RdBu_r", True)
     parts.append(img(fig, "residual map", "map"))
-    extra = {k: v for k, v in sm.X.items() if k != "position"}
+    extra = {k: v for k, v in sm.X.items() if np.ndim(v) == 1}  # position, a reference: not one column
     title = f"{target}: residual against covariates"
     parts.append(
         img(plots.residual_panels(survey, cv.error, extra, title, target), "residual panels")
@@ -336,6 +337,7 @@ SECTIONS: list[Section] = [
     data_quality_section,
     measurements_section,
     maps_section,
+    reference_section,
     residuals_section,
     diagnoses_section,
     rounds_and_advice_section,

@@ -300,7 +300,7 @@ def save_residual_plots(table: Path, result: FitResult, fit_no: int) -> list[Pat
     ws = workspace_dir(table)
     m = result.model
     stem = f"fit-{fit_no:03d}-{m.target}"
-    extra = {k: v for k, v in m.X.items() if k != "position"}
+    extra = {k: v for k, v in m.X.items() if np.ndim(v) == 1}  # position, a reference: not one column
     p1 = plots.save(
         plots.scatter_map(
             m.survey, result.cv.error, f"{m.target}: held-out residuals", "residual", "RdBu_r", True

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from forcemap.host.vessel.geodesy import LocalFrame, wrap_from_minus180
+from forcemap.host.vessel.reference_current import ReferenceCurrent
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.cleaning import check_positions
 from forcemap.host.workbench.survey.table_files import (  # noqa: F401 - part of this API
@@ -149,6 +150,8 @@ class Survey:
     datum: str | None = None
     # each navigation source's measured latency (host/convert/navigation_table.latencies; MCAP only)
     latencies: dict[str, dict] = field(default_factory=dict)
+    # the reference current its tide is related to (`--reference-current`; host/workbench/survey/reference.py)
+    reference: ReferenceCurrent | None = None
     # a subset's survey of origin (None: this is one) and its rows there: a covariate's gaps are measured,
     # and bridged, on every reading the origin has (host/workbench/survey/gaps.py)
     root: Survey | None = field(default=None, repr=False)
@@ -194,6 +197,7 @@ class Survey:
             provenance=dict(self.provenance),
             datum=self.datum,
             latencies=dict(self.latencies),
+            reference=self.reference,
             root=root,
             index=index[mask],
         )

@@ -16,11 +16,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from forcemap.host.workbench.survey.gaps import Gaps, covariate_gaps, target_gaps, too_few
+from forcemap.host.workbench.survey.reference import STALL_M_S, stalled
 from forcemap.host.workbench.survey.spikes import Spikes, target_spikes
 from forcemap.host.workbench.survey.table import MIN_ROWS, Survey
 
 # inputs of a term that are no covariate column
-NOT_COLUMNS = {"position", "t", "utc", "lat"}  # survey_fits.PLACE_AND_TIME
+NOT_COLUMNS = {"position", "t", "utc", "lat", "reference"}  # survey_fits.PLACE_AND_TIME
 
 
 @dataclass
@@ -33,6 +34,7 @@ class TargetRows:
     spikes: Spikes | None  # its spikes (None: left out before, on the survey given)
     covariates: tuple[str, ...] = ()  # the covariates every row has
     left: dict[str, Gaps] = field(default_factory=dict)  # rows of the target a covariate left out
+    stalled: int = 0  # rows a relation to a reference current left out: the speed log stalled
 
     @property
     def n(self) -> int:
@@ -50,6 +52,12 @@ class TargetRows:
                 else f"the other {{used:,}} have it; the map uses {self.n:,} of them (the rest said below)"
             )
             out.append(self.gaps.line(fate))
+        if self.stalled:
+            out.append(
+                f"{self.stalled:,} rows with {self.gaps.what} have the boat slower than {STALL_M_S:g} m/s "
+                "through the water: a speed log reads nothing there (a berth, a stalled log), so the "
+                "relation to the reference current is learned without them"
+            )
         for name, g in self.left.items():
             out.append(
                 f"{g.count:,} rows with {self.gaps.what} have no {name} for longer than its "
@@ -75,9 +83,10 @@ def _spike_name(survey: Survey, target: str) -> str:
 def target_rows(survey: Survey, target: str, covariates: Iterable[str] = ()) -> TargetRows:
     """The rows of `survey` a model of `target` with these covariates is fitted on (kept with the survey:
     the speed, direction and components of one vector share them). Too few: a one-line error."""
-    covs = tuple(sorted(set(covariates) - NOT_COLUMNS))
+    covariates = set(covariates)
+    covs = tuple(sorted(covariates - NOT_COLUMNS))
     name = _spike_name(survey, target)
-    key = (TargetRows, name, covs)
+    key = (TargetRows, name, covs, "reference" in covariates)
     if key in survey.cache:
         return survey.cache[key]
     gaps = target_gaps(survey, target)
@@ -98,6 +107,10 @@ def target_rows(survey: Survey, target: str, covariates: Iterable[str] = ()) -> 
             left[c] = g
     for g in left.values():
         drop |= g.missing
+    stall = stalled(survey, target) if "reference" in covariates else None
+    n_stalled = 0 if stall is None else int((stall & ~drop).sum())
+    if stall is not None:
+        drop |= stall
     if int((~drop).sum()) < MIN_ROWS:
         have = " and ".join([gaps.what, *left]) if left else f"{gaps.what} (its spikes left out)"
         raise too_few(int((~drop).sum()), have)
@@ -109,5 +122,5 @@ def target_rows(survey: Survey, target: str, covariates: Iterable[str] = ()) -> 
     rows = survey.cache[same]
     if not kept:  # checked, and left out (or clean): never looked for again on these rows
         rows.spikes_removed.add(name)
-    found = survey.cache[key] = TargetRows(rows, target, gaps, spikes, covs, left)
+    found = survey.cache[key] = TargetRows(rows, target, gaps, spikes, covs, left, n_stalled)
     return found

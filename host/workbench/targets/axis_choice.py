@@ -65,6 +65,23 @@ class AxisChoice:
         }
 
 
+@dataclass(frozen=True)
+class ReferenceAxis:
+    """The frame of a tide on a reference current: each place's station's flood axis (not chosen: the
+    reference gives it), with the stations the survey's rows take."""
+
+    stations: tuple[str, ...]
+    one_axis: bool = False
+
+    def line(self) -> str:
+        return (
+            "flow axis: each place's reference station's flood axis (" + ", ".join(self.stations) + ")"
+        )
+
+    def to_json(self) -> dict:
+        return {"one_axis": False, "reference": True, "stations": list(self.stations)}
+
+
 def choose_axis(fits, vt, time_terms: tuple[str, ...]) -> AxisChoice:
     """The frame (`SurveyFits.frame_axes` at each place or for the survey) whose components, each modelled
     by the baseline plus `time_terms`, predict the held-out vector better (ties keep the axis at each place)."""

@@ -37,6 +37,11 @@ def uniform(term: str) -> str:
     return registry.uniform(registry.parse_term(term, is_circular))
 
 
+def along_reference(terms: tuple[str, ...]) -> bool:
+    """Whether time terms put a vector along its reference stations' flood axes (a tide on a reference)."""
+    return any(registry.caps(registry.parse_term(t, is_circular)).along_reference for t in terms)
+
+
 def time_part(model, X: dict) -> np.ndarray:
     """The fitted model's time terms (tide, seiche) summed at inputs `X`, in the target's units."""
     n = len(next(iter(X.values())))

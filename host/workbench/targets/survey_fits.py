@@ -15,6 +15,7 @@ from forcemap.host.workbench.engine.model import (
     spaced_rows,
 )
 from forcemap.host.workbench.errors import WorkbenchError
+from forcemap.host.workbench.survey import reference
 from forcemap.host.workbench.survey.gaps import DERIVED_INPUTS, bridged, prepare_column, too_few
 from forcemap.host.workbench.survey.table import (
     MIN_ROWS,
@@ -23,8 +24,8 @@ from forcemap.host.workbench.survey.table import (
     is_circular,
     unit_of,
 )
-from forcemap.host.workbench.targets.axis_choice import AxisChoice, choose_axis
-from forcemap.host.workbench.targets.flow_axis import axis_frame, time_part
+from forcemap.host.workbench.targets.axis_choice import AxisChoice, ReferenceAxis, choose_axis
+from forcemap.host.workbench.targets.flow_axis import along_reference, axis_frame, time_part
 from forcemap.host.workbench.terms.registry import build_term
 from forcemap.host.workbench.terms.spec import BASELINE, parse_terms
 
@@ -162,6 +163,9 @@ class SurveyFits:
         """Whether a vector with time terms is modelled along one axis for the survey or the axis at each
         place (host/workbench/targets/axis_choice.py), chosen once."""
         key = (vt.prefix, vt.aspect, time_terms)
+        if key not in self._axis and along_reference(time_terms):
+            used = reference.stations_used(self.survey)
+            self._axis[key] = ReferenceAxis(tuple(s.id for s in used))  # type: ignore[assignment]
         if key not in self._axis:
             self._axis[key] = choose_axis(self, vt, time_terms)
         return self._axis[key]
@@ -171,6 +175,8 @@ class SurveyFits:
     ) -> tuple[np.ndarray, np.ndarray]:
         """The oscillating flow's axis at each sample, from the frame models fitted on every row."""
         key = (vt.prefix, vt.aspect, time_terms, one_axis)
+        if key not in self._axes and along_reference(time_terms):
+            self._axes[key] = reference.flood_axes(self.survey, self.survey.xy)
         if key not in self._axes:
             me, mn = self.frame(vt, time_terms)
             X = survey_inputs(self.survey, set())
@@ -186,6 +192,8 @@ class SurveyFits:
     ) -> tuple[np.ndarray, np.ndarray]:
         """The flow frame's unit vector at each sample from the frame models refitted without its fold
         (with time terms: in the frame `one_axis` names, by default the one `axis` chose)."""
+        if along_reference(time_terms):  # the reference's axes: nothing learned from the fold
+            return reference.flood_axes(self.survey, self.survey.xy)
         if time_terms and one_axis is None:
             one_axis = self.axis(vt, time_terms).one_axis
         key = (vt.prefix, vt.aspect, np.ascontiguousarray(folds).tobytes(), time_terms, one_axis)
@@ -239,6 +247,8 @@ def frame_direction(
     """Unit vector of the smooth flow at positions `xy` and survey times `t` (default: mid-survey); with
     `time_terms` (a tide, a seiche), the oscillating flow's axis there, which does not change in time (at
     each place or one for the survey, as `SurveyFits.axis` chose)."""
+    if along_reference(time_terms):
+        return reference.flood_axes(survey, xy)
     fits = survey_fits(survey)
     me, mn = fits.frame(vt, time_terms)
     if t is None:
@@ -300,8 +310,9 @@ def covariate(survey: Survey, name: str) -> np.ndarray:
 
 
 # inputs every model can have without a column of their own: where and when (`utc`: UNIX seconds, the
-# tide's clock; `t`: seconds since the survey's first sample; `lat`: degrees, the tide's latitude factors)
-PLACE_AND_TIME = ("position", "t", "utc", "lat")
+# tide's clock; `t`: seconds since the survey's first sample; `lat`: degrees, the tide's latitude factors;
+# `reference`: a reference current's prediction and rate there, survey/reference.py)
+PLACE_AND_TIME = ("position", "t", "utc", "lat", "reference")
 
 
 def survey_inputs(survey: Survey, names: set[str]) -> dict[str, np.ndarray]:
@@ -311,6 +322,8 @@ def survey_inputs(survey: Survey, names: set[str]) -> dict[str, np.ndarray]:
         "utc": survey.columns["t"],
         "lat": survey.columns["lat"],
     }
+    if survey.reference is not None or reference.INPUT in names:
+        X[reference.INPUT] = reference.survey_rows(survey)
     for name in names - set(PLACE_AND_TIME):
         X[name] = covariate(survey, name)
     return X
@@ -333,6 +346,8 @@ def grid_inputs(
         "utc": utc,
         "lat": np.full(len(xy), survey.lat0),
     }
+    if survey.reference is not None or reference.INPUT in names:
+        X[reference.INPUT] = reference.inputs_at(survey, xy, utc)
     for name in names - set(PLACE_AND_TIME):
         if name == "depth":
             X[name] = survey_fits(survey).depth_map.predict({"position": xy})

@@ -17,6 +17,7 @@ from forcemap.host.workbench.engine.model import Model
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.table import NOT_COVARIATES, Survey, is_circular, why_absent
 from forcemap.host.workbench.survey.target_rows import target_rows
+from forcemap.host.workbench.targets import reference_part
 from forcemap.host.workbench.targets.survey_fits import (
     derived_column,
     frame_direction,
@@ -54,6 +55,9 @@ class SurveyModel:
         self.term_specs = self.term_specs or parse_terms(BASELINE, is_circular)
         corrections = [registry.build_term(s, is_circular) for s in data_specs]
         self.vector = survey.vector_target(target)
+        if survey.reference is not None and self.vector is not None and self.vector.family == "current":
+            # a tide on a current with a reference is its relation to the reference
+            self.term_specs = [registry.with_reference(s) for s in self.term_specs]
         self._check_target(survey)
         # the rows first (the target there, its spikes left out, every covariate there): a clock offset is
         # judged on the readings the map will be fitted to
@@ -139,6 +143,9 @@ class SurveyModel:
 
     def _prepare_y(self) -> None:
         s, vt = self.survey, self.vector
+        # the station's own part where the target is modelled as its departure from it (reference_part)
+        self.station_rows = reference_part.rows(self) if reference_part.applies(self) else None
+        dep = 0.0 if self.station_rows is None else self.station_rows
         if vt is None:
             self.measured = self.y_primary = s.column(self.target)  # every row has it (target_rows)
             if np.ptp(self.measured) <= 1e-12 * max(1.0, float(np.abs(self.measured).max())):
@@ -148,7 +155,8 @@ class SurveyModel:
             return
         e, n = s.components(vt)
         if vt.aspect in ("east", "north"):
-            self.measured = self.y_primary = e if vt.aspect == "east" else n
+            self.measured = e if vt.aspect == "east" else n
+            self.y_primary = self.measured - dep
             if np.ptp(self.measured) < 1e-12:
                 raise WorkbenchError(
                     f"target '{self.target}' is constant; there is nothing to model"
@@ -162,7 +170,7 @@ class SurveyModel:
         else:
             self.measured = vt.direction(e, n)
         self.ue, self.un = frame_direction(s, vt, s.xy, s.trel, self.frame_terms)
-        along = e * self.ue + n * self.un
+        along = e * self.ue + n * self.un - dep
         across = -e * self.un + n * self.ue
         self.y_primary, self.y_secondary = (
             (along, across) if self.primary_is_along else (across, along)
@@ -172,7 +180,7 @@ class SurveyModel:
         self, terms: list | None = None, n_basis: Mapping[str, int] | None = None
     ) -> Model:
         """An unfitted model of the primary component; `n_basis` sets GP terms' bases by term name."""
-        built = terms_with_basis(terms or self.term_specs, n_basis)
+        built = terms_with_basis(terms or reference_part.model_terms(self), n_basis)
         return survey_fits(self.survey).model(built, max_basis=self.max_basis)
 
     def fit(
@@ -187,6 +195,7 @@ class SurveyModel:
         names = {i for s in self.term_specs for i in s.inputs}
         self.X = survey_inputs(self.survey, names)
         self._prepare_y()
+        reference_part.fit_relation(self)  # a relation to a reference current first: the rest is left
         primary = self.new_primary(n_basis=n_basis)
         if theta is None:
             self.primary = primary.fit(self.X, self.y_primary)
@@ -200,7 +209,7 @@ class SurveyModel:
                 self.vector,
                 self.primary_is_along,
                 self.y_secondary,
-                self.time_terms,
+                reference_part.secondary_terms(self),
                 self.max_basis,
                 one_axis=axis is not None and axis.one_axis,
             )
@@ -306,6 +315,7 @@ class SurveyModel:
         if sd_p is None:
             sd_p = np.zeros_like(mu_p)
         if self.secondary is None:
+            mu_p, _ = reference_part.add_along(self, mu_p, None, reference_part.cv_part(self, folds))
             mean, lo, hi = self.combine(mu_p, sd_p, primary.noise_std_, interval=interval)
         else:
             mu_s, sd_s = (
@@ -315,6 +325,7 @@ class SurveyModel:
             )
             if sd_s is None:
                 sd_s = np.zeros_like(mu_s)
+            mu_p, mu_s = reference_part.add_along(self, mu_p, mu_s, reference_part.cv_part(self, folds))
             ue, un = self._frame_cv(folds)
             mean, lo, hi = self.combine(
                 mu_p,
@@ -370,9 +381,12 @@ class SurveyModel:
         k = self.sd_scale
         mu_p, sd_p = self.primary.predict(X, return_std=True)
         noise_p = self.primary.noise_std_
+        station = reference_part.part(self, xy, X)
         if self.secondary is None:
+            mu_p, _ = reference_part.add_along(self, mu_p, None, station)
             return {"mean": mu_p, "std": k * np.hypot(sd_p, noise_p), "mean_std": sd_p}
         mu_s, sd_s = self.secondary.predict(X, return_std=True)
+        mu_p, mu_s = reference_part.add_along(self, mu_p, mu_s, station)
         noise_s = self.secondary.noise_std_
         ue, un = frame_direction(self.survey, self.vector, xy, X["t"], self.frame_terms)
         mean, lo, hi, mean_std = self.combine(

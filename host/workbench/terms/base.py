@@ -39,6 +39,8 @@ class Term:
     `grows_basis`: a reduced-rank GP whose basis the hyperparameter search may grow.
     `acts_on_data`: not a sum term but a correction of the survey before the model (`clock_offset`).
     `estimates_period`: a spec without a period gets one from the data before the fit (`seiche`).
+    `along_reference`: a vector with it is modelled along each place's reference station's flood axis
+    (a tide on a reference current, `tide(reference)`).
     """
 
     kind = ""
@@ -52,6 +54,7 @@ class Term:
     grows_basis = False
     acts_on_data = False
     estimates_period = False
+    along_reference = False
 
     def hyper_index(self, name: str) -> int:
         """Position of the hyperparameter `name` in this term's slice of the parameter vector."""

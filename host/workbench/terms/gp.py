@@ -152,8 +152,10 @@ class HilbertGPTerm(Term):
         self.l_max = 4.0 * float(self.L.max())
 
     def angles(self, Z) -> list[np.ndarray]:
-        """u_d = (z_d + L_d) pi / 2 L_d per rotated input axis: feature j is prod_d sin(J_jd u_d) / sqrt(L_d)."""
-        Zr = (Z - self.center) @ self.rot
+        """u_d = (z_d + L_d) pi / 2 L_d per rotated input axis: feature j is prod_d sin(J_jd u_d) / sqrt(L_d).
+        Beyond the box every feature vanishes, as on its edge (an input is held there): the sines'
+        periodic continuation would mirror the map into places no data saw; the GP reverts to its mean."""
+        Zr = np.clip((Z - self.center) @ self.rot, -self.L, self.L)
         return [(Zr[:, d] + self.L[d]) * (math.pi / (2 * self.L[d])) for d in range(Zr.shape[1])]
 
     def features(self, Z):

@@ -14,7 +14,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from forcemap.host.workbench.errors import WorkbenchError
-from forcemap.host.workbench.terms import clock_offset, gp, level, seiche, simple, tide, user
+from forcemap.host.workbench.terms import (
+    clock_offset,
+    gp,
+    level,
+    reference_tide,
+    seiche,
+    simple,
+    tide,
+    user,
+)
 from forcemap.host.workbench.terms.base import Term, TermSpec
 
 IsCircular = Callable[[str], bool]
@@ -36,7 +45,8 @@ class TermKind:
     table into the term string; `periods(spec)` the periods a spec may oscillate at before it meets data;
     `uniform(spec)` the form without variation over the reach (a vector's flow frame fits that);
     `in_time_if(spec)` whether a spec of a kind not in time by class is in time all the same (`gp(t)`);
-    `summary` one line for `--help` and docs/TERMS.md."""
+    `referenced(spec)` what the spec becomes on a survey with a reference current (a harmonic tide
+    becomes its relation to the reference); `summary` one line for `--help` and docs/TERMS.md."""
 
     name: str
     cls: type[Term]
@@ -47,6 +57,7 @@ class TermKind:
     periods: Callable[[TermSpec], list[float]] = field(default=lambda spec: [])
     uniform: Callable[[TermSpec], str] = field(default=str)
     in_time_if: Callable[[TermSpec], bool] = field(default=lambda spec: False)
+    referenced: Callable[[TermSpec], TermSpec] = field(default=lambda spec: spec)
 
 
 KINDS: dict[str, TermKind] = {}
@@ -94,7 +105,13 @@ register(TermKind("tide", tide.TideTerm, tide.parse_tide,
                   lambda s, c: tide.TideTerm(s.options.get("constituents", ()),
                                              spatial="position" in s.inputs),
                   "the astronomical tide's constituents: tide, tide(M2, K1), tide(position)",
-                  periods=tide.spec_periods, uniform=tide.uniform_text))
+                  periods=tide.spec_periods, uniform=tide.uniform_text,
+                  referenced=reference_tide.referenced))
+register(TermKind(reference_tide.KIND, reference_tide.ReferenceTideTerm, reference_tide.parse,
+                  reference_tide.build,
+                  "the tide as a subordinate station of a reference current (--reference-current): "
+                  "tide(reference, position)",
+                  periods=reference_tide.spec_periods, uniform=reference_tide.uniform_text))
 register(TermKind("seiche", seiche.SeicheTerm, seiche.parse_seiche,
                   lambda s, c: seiche.SeicheTerm(s.options.get("period_s"), s.options.get("harmonics", 1)),
                   "an oscillation whose period the data give: seiche, seiche(74 min)",
@@ -177,6 +194,12 @@ def periods_s(spec: TermSpec) -> list[float]:
 def uniform(spec: TermSpec) -> str:
     """The spec's form without variation over the reach, as a term string."""
     return kind_of(spec).uniform(spec)
+
+
+def with_reference(spec: TermSpec) -> TermSpec:
+    """What a spec becomes on a survey with a reference current (a harmonic `tide`: its relation to the
+    reference, `tide(reference, position)`); most kinds stay as they are."""
+    return kind_of(spec).referenced(spec)
 
 
 def from_table(kind: str, where: str, inputs: list[str], table: dict) -> str:

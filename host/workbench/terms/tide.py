@@ -29,6 +29,10 @@ _NAME = re.compile(r"^[A-Za-z0-9]+$")
 def parse_tide(args: list[str] | None, text: str, is_circular=None) -> TermSpec:
     """`tide`, or `tide(...)` with `position` (the spatial form) and constituent names, in any order."""
     args = args or []
+    if any(a.lower() == "reference" for a in args):  # the tide on a reference current
+        from forcemap.host.workbench.terms import reference_tide
+
+        return reference_tide.parse(args, text)
     spatial = any(a.lower() == "position" for a in args)
     names = [a for a in args if a.lower() != "position"]
     for a in names:

@@ -17,6 +17,11 @@ from forcemap.host.workbench.targets.flow_axis import uniform
 from forcemap.host.workbench.targets.survey_fits import survey_fits, survey_inputs
 from forcemap.host.workbench.terms import registry
 from forcemap.host.workbench.terms.base import TermSpec, span_words
+from forcemap.host.workbench.terms.reference_maps import (
+    describe_relation,
+    reference_block,
+    relation_maps,
+)
 from forcemap.host.workbench.terms.seiche import merian, resolve, seiche_block, with_period
 from forcemap.host.workbench.terms.spec import BASELINE
 from forcemap.host.workbench.terms.tide import constituents, describe_fit, ellipses, tide_block
@@ -101,6 +106,8 @@ def tide_summary(sm) -> dict:
         me, mn = survey_fits(sm.survey).frame(sm.vector, sm.frame_terms)
         out["ellipses"] = ellipses(me, mn)
         out["axis"] = sm.axis.to_json()
+    if reference_block(along_across(sm)[0]) is not None:
+        out["reference"] = reference_summary(sm)
     k = seiche_block(sm.primary)
     if k is not None:
         est = sm.seiche_estimate
@@ -113,9 +120,82 @@ def tide_summary(sm) -> dict:
     return out
 
 
+def reference_summary(sm) -> dict:
+    """A tide on a reference in numbers: the file, the stations the survey's rows take, and the relation
+    over the track (median and 5-95 % of the flood's and the ebb's ratio, offset and turn)."""
+    from forcemap.host.workbench.survey import reference
+
+    s = sm.survey
+    xy = s.xy[:: max(1, s.n // 2000)]
+    maps = relation_at(sm, xy)
+    out: dict = {
+        "file": s.reference.source,
+        "chosen": s.reference.chosen,
+        "stations": [st.describe() for st in reference.stations_used(s)],
+    }
+    for key, v in maps.items():
+        if key != "station":
+            out[key] = [float(np.percentile(v, q)) for q in (5, 50, 95)]
+    return out
+
+
+def along_across(sm) -> tuple:
+    """The models that hold a tide on a reference: the relation fitted first (targets/reference_part.py)
+    and nothing across; else a vector's along and across components (a scalar target's own, None)."""
+    if getattr(sm, "relation", None) is not None:
+        return sm.relation, None
+    if sm.secondary is None:
+        return sm.primary, None
+    return (sm.primary, sm.secondary) if sm.primary_is_along else (sm.secondary, sm.primary)
+
+
+def reference_lines(sm) -> list[str]:
+    """A tide on a reference current in words: the reference and its stations, the relation to them."""
+    if reference_block(along_across(sm)[0]) is None:
+        return []
+    from forcemap.host.workbench.survey.reference import describe as describe_reference
+
+    s = sm.survey
+    xy = s.xy[:: max(1, s.n // 2000)]
+    lines = describe_relation(*along_across(sm), xy, relation_base(sm, xy))
+    return [f"tide: {describe_reference(s)}", *lines]
+
+
+def relation_at(sm, xy):  # type: ignore[no-untyped-def]
+    """A fitted `SurveyModel`'s relation to its reference stations at places `xy` (terms/reference_maps.py),
+    with each place's station; a refusal without a tide on a reference."""
+    from forcemap.host.workbench.errors import WorkbenchError
+    from forcemap.host.workbench.survey import reference
+
+    maps = relation_maps(*along_across(sm), xy, relation_base(sm, xy))
+    if maps is None:
+        raise WorkbenchError(
+            "this fit has no tide on a reference current: fit with effects=['tide'] on a survey read "
+            "with reference_current= (--reference-current)"
+        )
+    ref = reference.need(sm.survey)
+    lat, lon = reference.latlon(sm.survey, xy)
+    maps["station"] = np.array([ref.ids[i] for i in ref.station_index(lat, lon)])
+    return maps
+
+
+def relation_base(sm, xy):  # type: ignore[no-untyped-def]
+    """What the along weights of a tide on a reference depart from at places `xy`: the station's
+    prediction on the model's component where the model fits the departure (targets/reference_part.py)."""
+    if getattr(sm, "station_rows", None) is None:
+        return 0.0
+    from forcemap.host.workbench.survey import reference
+
+    aspect = sm.vector.aspect
+    if aspect in ("speed", "dir"):
+        return 1.0
+    ue, un = reference.flood_axes(sm.survey, xy)
+    return ue if aspect == "east" else un
+
+
 def describe(sm) -> list[str]:
     """The fit's time terms in words, for `fit`'s summary."""
-    lines = describe_fit(sm.primary)
+    lines = describe_fit(sm.primary) + reference_lines(sm)
     summary = tide_summary(sm) if lines or sm.seiche_estimate else {"ellipses": []}
     for e in summary["ellipses"]:
         lines.append(
