@@ -6,7 +6,6 @@ parts. A new section is one function and one line in `SECTIONS`.
 
 from __future__ import annotations
 
-import base64
 import functools
 import html
 import importlib.util
@@ -20,7 +19,7 @@ from forcemap.host.extras import install_hint
 from forcemap.host.gis.grid import MapGrid, evaluate, make_grid, project
 from forcemap.host.progress import note
 from forcemap.host.report.diagnose_section import rounds_section
-from forcemap.host.report.map_figure import grid_figure, point_figure
+from forcemap.host.report.map_figure import grid_figure, img, point_figure
 from forcemap.host.report.mission_section import mission_section
 from forcemap.host.report.reference_section import reference_section
 from forcemap.host.workbench.errors import WorkbenchError
@@ -82,13 +81,6 @@ class ReportContext:
         if grid.epsg == 0:
             return survey.columns["x"], survey.columns["y"]
         return project(grid, survey.columns["lat"], survey.columns["lon"])
-
-
-def img(fig, alt: str, cls: str = "") -> str:
-    """An <img> with the figure embedded as base64 PNG (`cls` "map": the page's width)."""
-    data = base64.b64encode(plots.png_bytes(fig)).decode()
-    klass = f' class="{cls}"' if cls else ""
-    return f'<img{klass} alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
 def header_section(ctx: ReportContext) -> list[str]:

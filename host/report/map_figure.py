@@ -3,11 +3,13 @@ scale bar and a true-north arrow, sized to the survey's shape (a long survey get
 
 from __future__ import annotations
 
+import base64
+import html
 import math
 
 import numpy as np
 from forcemap.host.gis.grid import POSITIVE, Layer, MapGrid, true_north
-from forcemap.host.workbench.fits.plots import new_figure
+from forcemap.host.workbench.fits.plots import new_figure, png_bytes
 
 PAGE_WIDTH_IN = 11.0
 
@@ -135,3 +137,10 @@ def grid_figure(grid: MapGrid, layer: Layer, track: tuple[np.ndarray, np.ndarray
     for ax in (a1, a2):
         decorate(ax, grid, north)
     return fig
+
+
+def img(fig, alt: str, cls: str = "") -> str:
+    """An <img> with the figure embedded as base64 PNG (`cls` "map": the page's width)."""
+    data = base64.b64encode(png_bytes(fig)).decode()
+    klass = f' class="{cls}"' if cls else ""
+    return f'<img{klass} alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 from forcemap.host.gis.grid import evaluate, true_north
-from forcemap.host.report.map_figure import decorate, figsize
+from forcemap.host.report.map_figure import decorate, figsize, img
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.fits.fit import map_terms
 from forcemap.host.workbench.survey import reference
@@ -78,7 +78,6 @@ def atlas_figure(grid, layers, hours, track):  # type: ignore[no-untyped-def]
 
 def reference_section(ctx) -> list[str]:  # type: ignore[no-untyped-def]
     """The relation and the atlas, where the latest current fit is on a reference current."""
-    from forcemap.host.report.build import img
 
     survey = ctx.survey
     if survey.reference is None or survey.vector_target("current_speed") is None:
