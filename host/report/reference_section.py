@@ -78,7 +78,6 @@ def atlas_figure(grid, layers, hours, track):  # type: ignore[no-untyped-def]
 
 def reference_section(ctx) -> list[str]:  # type: ignore[no-untyped-def]
     """The relation and the atlas, where the latest current fit is on a reference current."""
-
     survey = ctx.survey
     if survey.reference is None or survey.vector_target("current_speed") is None:
         return []
