@@ -31,7 +31,7 @@ from bench.closed_loop import fly
 from bench.tidal_survey import truth_survey
 from tests.test_plan_tide import later_river
 
-STREAM = ["reference_stream:river=0.5:ratio=1.8:ratio_east=0.3"]
+STREAM = ["reference_stream:river=0.2:ratio=2.2:ratio_east=0.3"]
 STATION = "SFB1204"
 
 
