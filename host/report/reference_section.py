@@ -76,16 +76,6 @@ def atlas_figure(grid, layers, hours, track):  # type: ignore[no-untyped-def]
     return fig
 
 
-def img(fig, alt: str) -> str:
-    """An <img> as wide as the page with the figure embedded as base64 PNG (as build.img's)."""
-    import base64
-
-    from forcemap.host.workbench.fits.plots import png_bytes
-
-    data = base64.b64encode(png_bytes(fig)).decode()
-    return f'<img class="map" alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
-
-
 def reference_section(ctx) -> list[str]:  # type: ignore[no-untyped-def]
     """The relation and the atlas, where the latest current fit is on a reference current."""
     survey = ctx.survey
@@ -104,10 +94,10 @@ def reference_section(ctx) -> list[str]:  # type: ignore[no-untyped-def]
     layers = [evaluate(replace(grid, at=t, layers={}), sm) for t in at]
     parts = ["<h2>The tide on the reference current</h2>"]
     parts += [f"<p>{html.escape(line.strip())}</p>" for line in reference_lines(sm)]
-    parts.append(img(relation_figure(grid, layer, track), "ratio and offset"))
+    parts.append(img(relation_figure(grid, layer, track), "ratio and offset", "map"))
     parts.append(
         f"<p>The local atlas: the current at hours from {html.escape(sid)}'s strongest flood nearest the "
         f"survey's middle ({html.escape(iso(flood))}); any other time with <code>forcemap grid --at</code>.</p>"
     )
-    parts.append(img(atlas_figure(grid, layers, ATLAS_HOURS, track), "the local atlas"))
+    parts.append(img(atlas_figure(grid, layers, ATLAS_HOURS, track), "the local atlas", "map"))
     return parts
