@@ -247,7 +247,8 @@ def estimate(
 def unpinned_first_pass(cal: Calibration) -> Calibration:
     """The calibration of the first pass: the raw instruments (nothing estimated is applied yet)."""
     return dataclasses.replace(
-        cal, stw_gain=None, stw_misalignment_deg=None, rot_unit=None, stw_dead=(), depth_lost=()
+        cal, stw_gain=None, stw_misalignment_deg=None, rot_unit=None, stw_dead=(), depth_lost=(),
+        depth_reject=(),
     )
 
 
