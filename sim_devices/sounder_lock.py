@@ -7,7 +7,8 @@ kind:
 - **held**: the bottom, with the sounder's noise and the heave of a rough sea;
 - **scatter**: returns from anywhere in the water column, uniform from SCATTER_MIN_M to its range;
 - **false bottom**: a return from a layer at a fraction of the depth (a thermocline, a school of
-  fish, aerated water under the hull), the fraction drawn once per episode from FALSE_FRACTION;
+  fish, aerated water under the hull), the fraction drawn once per episode from FALSE_FRACTION, the
+  episode FALSE_RUN pings long on average;
 - **second echo**: the pulse reflected by the bottom, the surface and the bottom again, at twice the
   depth.
 
@@ -36,6 +37,7 @@ PAST_KINDS = ((SCATTER, 0.75), (FALSE_BOTTOM, 0.25))
 ROUGH_EPISODES = 0.015  # episodes started per ping within range, at sea 1
 UNLOCKED_ROUGH = 4.0  # pings: their mean length
 ROUGH_KINDS = ((SECOND_ECHO, 0.5), (FALSE_BOTTOM, 0.3), (SCATTER, 0.2))
+FALSE_RUN = 10.0  # pings: a false bottom's mean episode (a layer holds the sound a while)
 HEAVE_M = 0.15  # the heave's sd at sea 1
 
 
@@ -80,6 +82,7 @@ class LockModel:
             self.kind, self.left = _draw(r, ROUGH_KINDS), _length(r, UNLOCKED_ROUGH)
         if self.kind == FALSE_BOTTOM:
             self.fraction = r.uniform(*FALSE_FRACTION)
+            self.left = _length(r, FALSE_RUN)
 
     def reading(self, depth: float, noisy: float, t: float) -> tuple[float, str]:
         """The reading (m below the transducer) for a bed ``depth`` below it that a held sounder would

@@ -23,10 +23,9 @@ from typing import Any
 
 import numpy as np
 from forcemap.host.fuse import attitude, sounders
-from forcemap.host.fuse.bottom_lost import DepthLost, depth_lost
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.fuse.crossings import MAX_PAIRS, crossing_pairs
-from forcemap.host.fuse.sounding_reasons import LOST, REASONS
+from forcemap.host.fuse.sounding_reasons import LOST, REASONS, Soundings, judge_column
 from forcemap.host.log.qa_records import QaFinding
 from forcemap.host.vessel.geodesy import LocalFrame
 
@@ -67,12 +66,12 @@ def local_xy(lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y])
 
 
-def judged(c: Mapping[str, np.ndarray]) -> DepthLost | None:
-    """The soundings of a table judged (forcemap.host.fuse.bottom_lost), None where too few."""
+def judged(c: Mapping[str, np.ndarray]) -> Soundings | None:
+    """The soundings of a table judged (forcemap.host.fuse.sounding_reasons), None where too few."""
     d, t = raw_depth(c), c["t"]
     if np.isfinite(d).sum() < 10:
         return None
-    return depth_lost(d, t - t[0], local_xy(c["lat"], c["lon"]))
+    return judge_column(d, t - t[0], local_xy(c["lat"], c["lon"]))
 
 
 def reject_runs(t: np.ndarray, codes: np.ndarray) -> tuple[tuple[float, float, int], ...]:
@@ -97,8 +96,7 @@ def lost_finding(
     have = np.isfinite(d)
     codes = np.where(have, found.row_reasons, -1)
     runs = reject_runs(t, codes)
-    n, n_lost = int(have.sum()), int((codes == LOST).sum())
-    share = n_lost / n
+    n = int(have.sum())
     why = ", ".join(
         f"{int((codes == k).sum())} {REASONS[k]}" for k in REASONS if (codes == k).any()
     ) or "none"
@@ -110,8 +108,13 @@ def lost_finding(
             fix="marked: every row stays, bottom_lost gives its sounding's reason (0 held)",
             applied=bool(runs),
         ), (), runs  # fmt: skip
-    spans = [found.row_span(s) for s in found.stretches]
+    spans = [(s.r0, s.r1) for s in found.stretches]
     unix = tuple((float(t[a]), float(t[b])) for a, b in spans)
+    inside = np.zeros(len(t), bool)
+    for a, b in spans:
+        inside[a : b + 1] = True
+    n_in, n_lost = int((inside & have).sum()), int((codes == LOST).sum())
+    share = n_in / n
     where = "; ".join(s.text() for s in found.stretches)
     spread = "; ".join(
         f"{np.nanmin(d[a : b + 1]):.1f}-{np.nanmax(d[a : b + 1]):.1f} m" for a, b in spans
@@ -119,8 +122,9 @@ def lost_finding(
     verdict = "red" if share > LOST_RED else "yellow"
     return QaFinding(
         "depth", "bottom_lost", verdict,
-        f"the bottom lost in {len(spans)} stretch(es): {where} into the log; {n_lost} of {n} "
-        f"soundings ({100 * share:.1f} %) agree with no smooth bed there; rejected in all: {why}",
+        f"the bottom lost in {len(spans)} stretch(es): {where} into the log; {n_in} of {n} "
+        f"soundings ({100 * share:.1f} %) in them, {n_lost} on no layer at all; rejected in all: "
+        f"{why}",
         source, 100 * share, unit="%", threshold=THRESH_LOST,
         evidence=f"the soundings in each stretch read {spread}; most of their windows lie on no "
         "smooth bed (within 3 sd of the bed's own robust scatter), the runs that continue the bed "
@@ -129,7 +133,7 @@ def lost_finding(
         "lost, 2 spike, 3 false bottom, 4 second echo); depth maps leave out every one not held",
         applied=True,
         extra={"stretches": ";".join(f"{a!r}-{b!r}" for a, b in unix),
-               "soundings": str(n_lost)},
+               "soundings": str(n_in), "lost": str(n_lost)},
     ), unix, runs  # fmt: skip
 
 

@@ -24,7 +24,7 @@ me that more of you lie on than chance would put there?
   curve as noise does (68 % within 1 sd: ``peaked``); a cloud of scatter fills a band evenly, and is
   measured nowhere. Nor is a bed's noise ever more than the spike floor (``floor_of``). The bed's sd
   at a reading is the running median over the windows where most readings were measured (a
-  sounder's noise changes slowly; a stretch of scatter takes the quieter of the beds on either side).
+  sounder's noise changes slowly; a stretch of scatter takes the scale of the beds on either side).
 
 K = 3 keeps 99.7 % of a held sounder's Gaussian noise; ALPHA = 1e-3 lets about one reading in a
 thousand of pure scatter pass for a layer (measured: 0 to 7.5e-4 on uniform scatter at every scale).
@@ -238,6 +238,7 @@ def _best_scale(d: np.ndarray, x: np.ndarray, bmax: float, big: float, eff: floa
     hi = max(big / (2.0 * K), lo)
     scales = lo * SCALE_STEP ** np.arange(int(np.log(hi / lo) / np.log(SCALE_STEP)) + 1)
     best = np.full(n, np.nan)
+    top = float(np.max(d))
     for s in scales:
         todo = np.flatnonzero(np.isnan(best))
         w = np.full(n, K * s)
@@ -253,7 +254,9 @@ def _best_scale(d: np.ndarray, x: np.ndarray, bmax: float, big: float, eff: floa
             # the robust sd of the readings in the band (at that scale, the band is 3 to 4 sd wide:
             # the MAD of what it holds is hardly truncated)
             sd = np.maximum(MAD_TO_SD * np.nanmedian(np.where(res <= K * s, res, np.nan), axis=1), lo)
-            found = (logp < np.log(ALPHA)) & (2 * support >= m) & (sd <= floor_of(d[rows]))
+            flank = (res <= FLANK * K * s).sum(axis=1) - support
+            stands = chance(support, flank, m, d[rows], np.full(len(rows), K * s), top, eff)
+            found = (logp < np.log(ALPHA)) & (stands < np.log(ALPHA)) & (sd <= floor_of(d[rows]))
             best[rows[found]] = sd[found]
     return best
 
@@ -270,22 +273,18 @@ def running_median(values: np.ndarray, half: int = HALF) -> np.ndarray:
 
 
 def _filled(values: np.ndarray, default: float) -> np.ndarray:
-    """NaN entries filled from the finite ones on either side, the smaller of the two (a stretch of
-    scatter takes the quieter of the beds around it: a wider band would find layers in it by chance);
-    ``default`` where none is."""
+    """NaN entries interpolated from the finite ones on either side (a stretch of scatter takes the
+    scale of the beds around it); ``default`` where none is."""
     ok = np.flatnonzero(np.isfinite(values))
     if not len(ok):
         return np.full(len(values), default)
-    i = np.arange(len(values))
-    before = values[ok[np.clip(np.searchsorted(ok, i, side="right") - 1, 0, len(ok) - 1)]]
-    after = values[ok[np.clip(np.searchsorted(ok, i, side="left"), 0, len(ok) - 1)]]
-    return np.where(np.isfinite(values), values, np.minimum(before, after))
+    return np.interp(np.arange(len(values)), ok, values[ok])
 
 
 def held_median(values: np.ndarray, held: np.ndarray, default: float) -> np.ndarray:
     """The running median of ``values`` of the ``held`` readings over the windows where most readings
     are held (a few layers found by chance in scatter do not set the scale), and, where they are not,
-    the smaller of the values on either side (``_filled``)."""
+    interpolated from either side (``_filled``)."""
     med = running_median(np.where(held, values, np.nan))
     share = np.convolve(held.astype(float), np.ones(2 * HALF + 1), "same")
     have = np.convolve(np.ones(len(held)), np.ones(2 * HALF + 1), "same")
@@ -334,9 +333,10 @@ def _layer_block(
     for _ in range(GROW):
         res = _curve_fit(d, x, rows, inside, HALF, bmax)[-1]
         inside = valid & (np.abs(res) <= w[:, None])
-        inside[:, HALF] = True  # the layer through the reading
     level, slope, curve, reach, res = _curve_fit(d, x, rows, inside, HALF, bmax)
     support = inside.sum(axis=1)
     flank = (valid & (np.abs(res) <= FLANK * w[:, None])).sum(axis=1) - support
     logp = chance(support, flank, valid.sum(axis=1), d[rows], w, top, eff)
-    return level, slope, curve, reach, support, logp
+    # the layer is the reading's only where the reading lies on it still: a line steep enough to
+    # reach a bed nearby from a reading of scatter grows along the bed, and leaves the reading off it
+    return level, slope, curve, reach, support, np.where(inside[:, HALF], logp, 0.0)

@@ -10,9 +10,8 @@ MIN_RUN disagreeing readings are the stretches named.
 
 Which one the evidence trusts is judged on each source alone, never on the other:
 
-- continuity: the share of its soundings on one seabed (held: on the smooth bed their neighbours
-  support, not rejected as the bottom lost, a spike, a false bottom or a second echo:
-  forcemap.host.fuse.bottom_lost);
+- continuity: the share of its soundings on one seabed (not in a stretch where the bottom was lost,
+  not off the seabed's continuous path: forcemap.host.fuse.bottom_lost);
 - scatter: its ping-to-ping noise on that path;
 - agreement at crossings: where the track revisits itself, the median difference between its own
   soundings of one spot (forcemap.host.fuse.crossings).
@@ -85,8 +84,7 @@ def _evidence(name: str, t: np.ndarray, d: np.ndarray, xy: np.ndarray | None) ->
     crossing, n = np.nan, 0
     if xy is not None:
         pairs = crossing_pairs(xy, t, CROSS_RADIUS_M, CROSS_DT_S, max_pairs=5000)
-        rejected = found.rejected[found.group]
-        keep = rejected[pairs].sum(axis=1) == 0 if len(pairs) else np.zeros(0, bool)
+        keep = found.rows[pairs].sum(axis=1) == 0 if len(pairs) else np.zeros(0, bool)
         pairs = pairs[keep]
         if len(pairs):
             crossing, n = float(np.median(np.abs(d[pairs[:, 0]] - d[pairs[:, 1]]))), len(pairs)

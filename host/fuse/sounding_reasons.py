@@ -2,30 +2,38 @@
 false bottom, a second echo.
 
 The layers come from forcemap.host.fuse.smooth_bed (through each reading, the bed its neighbours
-support). At each reading, the bed is chosen among the layers of its window by physics:
+support, and how surely). At each reading the bed is chosen among the layers of its window by physics:
 
-- echoes come from above the bottom, never from below it, except its multiples: the bed is the deepest
-  layer that is not at twice another's depth (a second echo, the pulse reflected by the surface and
-  the bottom again);
-- a sounder that holds a bottom does not read deeper than it: where more readings of the window lie
-  deeper than a layer (and not at twice its depth) than on it, that layer is no bottom (a thermocline,
-  a school of fish: a false bottom), and the window has none.
+- a second echo (the pulse back from the bottom, the surface and the bottom again) lies at twice
+  another layer's depth, at the reading and at both ends of its own readings: never the bed;
+- nothing echoes from below the bottom: a layer with another layer deeper than it, or more readings
+  deeper than it than on it (over a wider window, DEEPER_HALF; deeper beyond its band and beyond what
+  a bed can climb from its nearest reading, smooth_bed.MAX_SLOPE over the distance, not at twice its
+  depth), is no bottom (a thermocline, a school of fish, a sounder's ringing);
+- of the layers left, the reading's own where it is no shallower than the one most readings lie on
+  (a bed bends: at a valley's side the floor is the best supported, and lower), else that one.
 
-A reading within K sd of the bed is held. The sounder holds the bottom where most readings of the
-window are held; elsewhere (fewer, or no bed at all) it has lost it, and the runs of such readings are
-the lost stretches. Inside them a run of readings that lines up with the bed its neighbours support is
-held, and kept: it continues the bed seen around it. Every other reading is rejected, for one reason:
+A reading within K sd of the bed is held, and its second echo seen. The sounder has lost the bottom
+where no layer can be the bed, or where under half of a window's readings are held or seen and they
+come in runs (the Wald-Wolfowitz test: a sounder locks and unlocks; false echoes over a bottom it
+holds strike ping by ping, however many); stretches less than a window apart are one. Inside a
+stretch a reading is held only on its own layer and where other runs of its window hold the same bed
+(it continues the bed seen before or after it). Outside, a short steep run between two levels that a
+seabed joins is held too (a channel's wall crossed in a few pings). Last, a run of held readings that
+no seabed joins to the deeper runs beside it, and that lies above both, is cut off: a plateau between
+a damped sounder's glides to the depth. Every other reading is rejected, for one reason:
 
 | code | reason | the reading |
 |---:|---|---|
 | 0 | held | on the bed |
-| 1 | lost_bottom | in a lost stretch, on no layer |
+| 1 | lost_bottom | in a lost stretch, on no layer (or on one where no layer can be the bed) |
 | 2 | spike | where the bottom is held, off it and on no layer of its own |
-| 3 | false_bottom | on a layer of its own above the bed (or where there is no bed) |
+| 3 | false_bottom | on a layer of its own above the bed |
 | 4 | second_echo | at twice the bed's depth |
 
 Rows are never dropped: the import marks them (the samples' ``bottom_lost`` column carries the code),
-and depth maps leave out every row whose code is not 0.
+and depth maps leave out every row whose code is not 0. ``judge_column`` runs it all on a table's
+column (forcemap.host.convert.depth_findings at import and at `check`).
 """
 
 from __future__ import annotations
@@ -33,6 +41,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from forcemap.host.fuse.bottom_lost import readings_of
 from forcemap.host.fuse.smooth_bed import ALPHA, BLOCK, HALF, K, Layers, layers, windows
 from scipy.stats import norm
 
@@ -49,6 +58,10 @@ ECHO_SD = 8.0**0.5  # the sd of echo - 2 bed, the echo's own noise twice a sound
 # readings either side over which a layer is no bottom where more lie deeper than on it: a sounder's
 # ringing or a thermocline holds for tens of readings between its glides to the depth
 DEEPER_HALF = 3 * HALF
+LAYER = 3  # readings on a layer: the fewest that make one (two for a line, one that agrees)
+# across the readings rejected between two runs held, the steepest seabed that joins them: 1 in 2
+# (27 deg; bottom_lost.MAX_SLOPE); a wall seen reading by reading is followed to 1 in 1
+CUT_SLOPE = 0.5
 # every STRIDE-th reading of a window offers its layer as the bed (neighbours on one layer offer the
 # same one; HALF is a multiple of it, so the row's own is among them)
 STRIDE = 3
@@ -93,10 +106,12 @@ def _on_line(
 
 
 def _no_deeper(d: np.ndarray, lay: Layers, j: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Whether each candidate layer ``j`` of a row has no more readings deeper than it than on it, over
-    the wider window (DEEPER_HALF): deeper beyond its band and beyond what a bed could descend
-    (max_slope) between its nearest reading and them, and not at twice its depth. A steep bed's far
-    side is no evidence against it; a sounder's ringing between glides to the depth is."""
+    """Whether each candidate layer ``j`` of a row has no more readings deeper than it than on it, and
+    no layer of its own deeper than it (LAYER readings on one: the fewest that make one, two for a
+    line and one that agrees), over the wider window (DEEPER_HALF): deeper beyond its band and beyond what a bed could descend
+    (max_slope; against time, any: nothing counts) between its nearest reading and them, and not at
+    twice its depth. A steep bed's far side is no evidence against it; a sounder's ringing between
+    glides to the depth is."""
     wide, wvalid = windows(len(d), rows, DEEPER_HALF)
     won = _on_line(d, lay, j, wide, wvalid)
     x = lay.x
@@ -107,8 +122,11 @@ def _no_deeper(d: np.ndarray, lay: Layers, j: np.ndarray, rows: np.ndarray) -> n
     line = lay.at(j[:, :, None], xk)
     dk, band = d[wide][:, None, :], K * lay.sd[wide][:, None, :]
     echo = np.abs(dk - 2.0 * line) <= band * ECHO_SD
-    deeper = wvalid[:, None, :] & (dk > line + band + lay.max_slope * gap) & ~echo
-    return deeper.sum(axis=2) <= won.sum(axis=2)
+    slope = lay.max_slope if lay.max_slope > 0 else np.inf  # against time, any bed is in reach
+    with np.errstate(invalid="ignore"):
+        deeper = wvalid[:, None, :] & (dk > line + band + slope * gap) & ~echo
+    layered = (deeper & lay.on[wide][:, None, :]).sum(axis=2)  # deeper readings on a layer
+    return (deeper.sum(axis=2) <= won.sum(axis=2)) & (layered < LAYER)
 
 
 def _bed_block(d: np.ndarray, lay: Layers, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -187,13 +205,14 @@ def _bridges(d: np.ndarray, lay: Layers, held: np.ndarray) -> np.ndarray:
     """The readings between two held ones at different depths (beyond their bands) that a seabed joins
     to both: every step of the chain, from the held reading before through them to the held one
     after, within the readings' bands and what a bed can climb or fall over the distance (max_slope;
-    against time, any). A short steep stretch between two levels (a channel's wall crossed in a few
+    against time, none is joined). A short steep stretch between two levels (a channel's wall crossed in a few
     pings, too short and bent for a layer of its own) is bed; between two readings of one level, a
     reading off the layers is not (a spike goes and comes back), and a false bottom or a second echo
     steps beyond a bed's reach."""
     out = np.zeros(len(d), bool)
-    slope = lay.max_slope if lay.max_slope > 0 else np.inf
-    band, x = K * lay.sd, lay.x
+    if lay.max_slope <= 0:  # against time no reach is known
+        return out
+    slope, band, x = lay.max_slope, K * lay.sd, lay.x
     edges = np.flatnonzero(np.diff(np.r_[0, (~held).astype(int), 0]))
     for a, b in zip(edges[::2], edges[1::2], strict=True):  # not held from a to b - 1
         if a == 0 or b == len(d):
@@ -211,21 +230,27 @@ def _cut_off(d: np.ndarray, lay: Layers, held: np.ndarray) -> np.ndarray:
     """The runs of held readings that no seabed joins to a deeper held run beside them, and that lie
     above the runs on both sides (or on the one side a run at either end of the log has): where the
     step from the last reading of one run to the first of the next exceeds their bands and what a bed
-    can climb or fall over the distance between them (max_slope), a run shallower than both
+    can climb or fall over the distance between them (CUT_SLOPE), a run shallower than both
     neighbours is no bottom (nothing echoes from below the bottom: a sounder's ringing, a plateau
     between its glides to the depth). A wall climbs one way: the run below it is the bed. Against time
     (no slope known), none is cut."""
     cut = np.zeros(len(d), bool)
     if lay.max_slope <= 0:
         return cut
+    x, band = lay.x, K * lay.sd
+    jump = np.r_[False, np.abs(np.diff(d)) > band[1:] + band[:-1] + lay.max_slope * np.diff(x)]
+    slope = min(lay.max_slope, CUT_SLOPE)
     for _ in range(4):  # a run cut off uncovers its neighbours' step; a few rounds settle it
-        edges = np.flatnonzero(np.diff(np.r_[0, (held & ~cut).astype(int), 0]))
-        first, last = edges[::2], edges[1::2] - 1
+        keep = held & ~cut
+        # runs of held readings, split where one steps beyond reach of the one before
+        joined = np.r_[False, keep[:-1] & keep[1:] & ~jump[1:]]  # continues the one before
+        first = np.flatnonzero(keep & ~joined)
+        last = np.flatnonzero(keep & ~np.r_[joined[1:], False])
         if len(first) < 2:
             break
         a, b = last[:-1], first[1:]  # the step from each run to the next
         step = d[b] - d[a]
-        allowed = K * (lay.sd[a] + lay.sd[b]) + lay.max_slope * np.abs(lay.x[b] - lay.x[a])
+        allowed = band[a] + band[b] + slope * np.abs(x[b] - x[a])
         beyond_after = np.r_[step > allowed, False]  # the next run deeper, beyond a bed's reach
         beyond_before = np.r_[False, step < -allowed]  # the run before deeper, beyond its reach
         deeper_after = np.r_[step > 0, True]  # (no run after: nothing says it is not the bottom)
@@ -263,7 +288,7 @@ def judge(d: np.ndarray, x: np.ndarray, along_track: bool) -> Judged:
     held &= ~_cut_off(d, lay, held)
     reason = np.full(n, SPIKE)
     reason[lost_region] = LOST
-    reason[lay.on & ~(d > bed + band)] = FALSE_BOTTOM  # a layer of its own, above the bed or none
+    reason[lay.on & (d < bed - band)] = FALSE_BOTTOM  # a layer of its own, above the bed
     reason[echo] = SECOND_ECHO
     reason[held] = HELD
     return Judged(lay, bed, reason, lost_region, share)
@@ -273,3 +298,74 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """The runs of True: (first, last) index of each."""
     edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2] - 1, strict=True)]
+
+
+@dataclass
+class Stretch:
+    """One stretch where the sounder lost the bottom: readings ``i0`` to ``i1`` (inclusive), their
+    rows ``r0`` to ``r1``, seconds since the start ``t0`` to ``t1``, and the share of them held."""
+
+    i0: int
+    i1: int
+    r0: int
+    r1: int
+    t0: float
+    t1: float
+    held: float
+
+    @property
+    def n(self) -> int:
+        return self.i1 - self.i0 + 1
+
+    def text(self) -> str:
+        return f"{self.t0 / 60:.1f}-{self.t1 / 60:.1f} min ({self.n} soundings, {self.held:.0%} held)"
+
+
+@dataclass
+class Soundings:
+    """A column of soundings judged: per reading (its first row ``first``; ``group``: each row's
+    reading) its reason (-1: no sounding), the bed and its sd, and the lost stretches."""
+
+    group: np.ndarray
+    first: np.ndarray
+    reason: np.ndarray
+    bed: np.ndarray
+    sd: np.ndarray
+    stretches: list[Stretch]
+
+    @property
+    def row_reasons(self) -> np.ndarray:
+        """Per row: its reading's reason (-1 where there is no sounding)."""
+        return self.reason[self.group]
+
+
+def _along(trel: np.ndarray, xy: np.ndarray | None) -> tuple[np.ndarray, bool]:
+    """Where each reading lies along the track: metres travelled where most have a position, else
+    seconds."""
+    if xy is None or np.isfinite(xy).all(axis=1).mean() < 0.5:
+        return np.asarray(trel, float), False
+    step = np.hypot(*np.diff(np.asarray(xy, float), axis=0).T)
+    return np.r_[0.0, np.cumsum(np.nan_to_num(step))], True
+
+
+def judge_column(depth: np.ndarray, trel: np.ndarray, xy: np.ndarray | None = None) -> Soundings:
+    """The soundings of a table's column judged (one per row, NaN where none; ``trel`` each row's
+    time in seconds, ``xy`` its position in metres): rows that repeat the sounder's reading grouped
+    into one (forcemap.host.fuse.bottom_lost.readings_of), each reading's reason, the stretches."""
+    group = readings_of([depth])
+    first = np.flatnonzero(np.diff(group, prepend=-1))
+    d = depth[first]
+    reason = np.where(np.isfinite(d), HELD, -1)
+    bed, sd, region = np.full(len(d), np.nan), np.full(len(d), np.nan), np.zeros(len(d), bool)
+    idx = np.flatnonzero(np.isfinite(d))
+    x, along = _along(trel[first], None if xy is None else xy[first])
+    if len(idx) > 2 * HALF:  # fewer than a window of readings: nothing to judge them against
+        j = judge(d[idx], x[idx], along)
+        reason[idx], bed[idx], sd[idx], region[idx] = j.reason, j.bed, j.layers.sd, j.lost_region
+    t, stretches = trel[first], []
+    for a, b in runs(region[idx]):
+        i0, i1 = int(idx[a]), int(idx[b])
+        r1 = int(np.flatnonzero(group == i1)[-1])
+        held = float(np.mean(reason[idx[a] : idx[b] + 1] == HELD))
+        stretches.append(Stretch(i0, i1, int(first[i0]), r1, float(t[i0]), float(t[i1]), held))
+    return Soundings(group, first, reason, bed, sd, stretches)

@@ -32,7 +32,7 @@ def per_minute(t: np.ndarray, codes: np.ndarray) -> dict[int, dict[str, int]]:
     out: dict[int, dict[str, int]] = {}
     for m in np.unique(minute[have]):
         here = have & (minute == m)
-        row = {"soundings": int(here.sum())}
+        row = {"soundings": int(here.sum()), NAMES[0]: int((codes[here] == 0).sum())}
         row |= {NAMES[k]: int((codes[here] == k).sum()) for k in REASONS}
         out[int(m)] = row
     return out
