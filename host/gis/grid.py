@@ -333,7 +333,8 @@ def evaluate(grid: MapGrid, model) -> Layer:
         from forcemap.host.workbench.depth.water_level import map_datum
 
         layer.datum = map_datum(model.survey, list(model.terms), grid.at)
-        layer.bands.update(surface_bands(grid, model.survey))
+        rows = getattr(model, "rows", None)
+        layer.bands.update(surface_bands(grid, model.survey, rows.soundings if rows else None))
     rows = getattr(model, "rows", None)  # what the model left out for want of a reading
     notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
     if grid.at is not None:

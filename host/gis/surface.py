@@ -14,10 +14,12 @@ SURFACE_BANDS = (
 )  # fmt: skip
 
 
-def surface_bands(grid, survey) -> dict[str, np.ndarray]:
-    """The surface bands of a depth layer on ``grid``'s mapped cells (NaN elsewhere)."""
+def surface_bands(grid, survey, soundings: dict | None = None) -> dict[str, np.ndarray]:
+    """The surface bands of a depth layer on ``grid``'s mapped cells (NaN elsewhere), from the soundings
+    the depth map was fitted on (``soundings``: those its rows' surface accepted,
+    forcemap.host.workbench.depth.accepted; else the survey's, as given)."""
     keep = grid.mask.ravel()
-    s = depth_surface.survey_soundings(survey)
+    s = depth_surface.survey_soundings(survey) if soundings is None else soundings
     surf = depth_surface.build(grid.local_xy[keep], s, grid.resolution)
     values = {
         "surface": surf.depth,
