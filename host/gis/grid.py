@@ -329,12 +329,9 @@ def evaluate(grid: MapGrid, model) -> Layer:
     vt = model.vector if "east" in pred else None
     layer = Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
     if model.target == "depth":
-        from forcemap.host.gis.surface import surface_bands
-        from forcemap.host.workbench.depth.water_level import map_datum
+        from forcemap.host.gis.surface import depth_layer
 
-        layer.datum = map_datum(model.survey, list(model.terms), grid.at)
-        rows = getattr(model, "rows", None)
-        layer.bands.update(surface_bands(grid, model.survey, rows.soundings if rows else None))
+        notes += depth_layer(grid, model, layer)
     rows = getattr(model, "rows", None)  # what the model left out for want of a reading
     notes = [f"{model.target}: {line}" for line in (rows.lines() if rows else [])] + notes
     if grid.at is not None:

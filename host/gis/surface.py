@@ -38,6 +38,20 @@ def surface_bands(grid, survey, soundings: dict | None = None) -> dict[str, np.n
     return out
 
 
+def depth_layer(grid, model, layer) -> list[str]:
+    """A depth layer's datum and surface bands, from the soundings its model was fitted on (the surface's
+    accepted ones, forcemap.host.workbench.depth.accepted), and its note of those the surface rejected:
+    the line `fit` prints, figure for figure."""
+    from forcemap.host.workbench.depth.water_level import map_datum
+
+    layer.datum = map_datum(model.survey, list(model.terms), grid.at)
+    rows = getattr(model, "rows", None)
+    layer.bands.update(surface_bands(grid, model.survey, rows.soundings if rows else None))
+    spikes = getattr(model, "spikes", None)
+    line = spikes.surface_line if spikes is not None else ""
+    return [f"{model.target}: {line}"] if line else []
+
+
 def far_from_soundings(grid, kept_xy: np.ndarray) -> np.ndarray:
     """The grid's cells (flat) farther than its mask distance from every sounding the map was fitted on:
     a cell near only a lost stretch or spikes is not mapped."""

@@ -56,7 +56,8 @@ class Surface:
 
 def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> dict:
     """The soundings the surface is built from: the depth column's rows that are not spikes or lost
-    (one per reading), with their TVU's sd, slope and time, and each row's reading among them."""
+    (one per reading), with their TVU's sd, the bed's slope along the track between them, their local
+    scatter and time, and each row's reading among them."""
     from forcemap.host.fuse.bottom_lost import readings_of
     from forcemap.host.workbench.survey.spikes import target_spikes
 
@@ -78,7 +79,6 @@ def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> 
         depth, survey.xy, tvu.SounderSpec(), cols.get("depth_raw"), cols.get("roll"),
         cols.get("pitch"), position_sd,
     )  # fmt: skip
-    slope = t_.position / max(position_sd, 1e-9)
     sd = t_.sd
     given = cols.get("depth_tvu")  # the export's, from the log's own sounder and position noise
     if given is not None:
@@ -88,11 +88,33 @@ def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> 
         "depth": depth[keep],
         "sd": sd[keep],
         "scatter": local_scatter(depth[keep]),
-        "slope": slope[keep],
+        "slope": bed_slope(depth[keep], survey.xy[keep], position_sd),
         "t": cols["t"][keep],
         "position_sd": position_sd,
         "reading": reading,  # per row of the survey: its sounding here (-1: none)
     }
+
+
+def bed_slope(depth: np.ndarray, xy: np.ndarray, base: float) -> np.ndarray:
+    """The bed's slope (m/m) at each sounding (in time order): the change in depth to the first sounding
+    at least ``base`` metres further along the track (back from the track's end), the median over
+    tvu.SLOPE_WINDOW soundings. From the soundings the surface uses, over a baseline a position error
+    spans: a held row, an echo or a sounding 0.5 m from the last is no measure of the bed's slope."""
+    from forcemap.host.fuse.bottom_lost import running
+
+    n = len(depth)
+    if n < 2:
+        return np.zeros(n)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]
+    ahead = np.searchsorted(s, s + base)
+    other = np.where(ahead < n, ahead, np.searchsorted(s, s - base, side="right") - 1)
+    ds = np.abs(s[np.maximum(other, 0)] - s)
+    raw = np.where(
+        (other >= 0) & (ds > 0),
+        np.abs(depth[np.maximum(other, 0)] - depth) / np.maximum(ds, 1e-9),
+        np.nan,
+    )
+    return np.clip(np.nan_to_num(running(raw, tvu.SLOPE_WINDOW, np.nanmedian)), 0.0, 1.0)
 
 
 def local_scatter(depth: np.ndarray) -> np.ndarray:

@@ -43,13 +43,20 @@ def verdicts(s: dict, cell: float) -> tuple[np.ndarray, np.ndarray]:
     rejected (0 accepted) and the depth chosen on its pass at its nearest node."""
     order = np.argsort(s["t"], kind="stable")
     z, t = s["depth"][order], s["t"][order]
-    var0 = np.fmax(s["sd"], s["scatter"])[order] ** 2  # its TVU, or the soundings' own scatter there
-    snd, node, var, near, where = _pairs(s["xy"][order], s["slope"][order], var0, cell, s["position_sd"])
+    var0 = (
+        np.fmax(s["sd"], s["scatter"])[order] ** 2
+    )  # its TVU, or the soundings' own scatter there
+    snd, node, var, near, where = _pairs(
+        s["xy"][order], s["slope"][order], var0, cell, s["position_sd"]
+    )
     new = np.r_[True, (node[1:] != node[:-1]) | (np.diff(t[snd]) > PASS_GAP_S)]
     start = np.flatnonzero(new)
     p = _Passes(z[snd], var, start)
     guide, far = _locale(where[node[start]], p.sure, p.depth, cell)
     p.choose(guide)
+    # its own variance, where it was read: the TVU's (or the scatter's) and a position error on the slope
+    own = var0[snd] + (s["slope"][order][snd] * s["position_sd"]) ** 2
+    p.plane(s["xy"][order][snd] - where[node], own)
     mine = node == near[snd]  # each sounding on its pass at its nearest node
     unit = (np.cumsum(new) - 1)[mine]
     reason = p.judge(np.flatnonzero(mine), unit, guide[unit], far[unit])
@@ -119,7 +126,9 @@ class _Passes:
             self.chosen[a : a + len(member)] = member == j
             self.mean_j[u], self.W_j[u], self.count_j[u] = h.mean[j], 1.0 / h.post[j], h.count[j]
 
-    def judge(self, pair: np.ndarray, unit: np.ndarray, guide: np.ndarray, far: np.ndarray) -> np.ndarray:
+    def judge(
+        self, pair: np.ndarray, unit: np.ndarray, guide: np.ndarray, far: np.ndarray
+    ) -> np.ndarray:
         """The verdicts of the soundings of ``pair`` (each on its pass ``unit``)."""
         chosen, count = self.chosen[pair], self.member_count[pair]
         out = np.where(count == 1, ALONE, OUTVOTED)
@@ -129,13 +138,45 @@ class _Passes:
         unreached = known & (off > tol + WALL * np.nan_to_num(far))
         vouched = (self.count_j[unit] > 1) | (known & (off <= tol)) | (self.size[unit] == 1)
         out[chosen] = np.where(unreached, UNREACHED, np.where(vouched, 0, ALONE))[chosen]
-        # the chosen depth without the sounding itself (inverse-variance means)
-        v, z = self.var[pair], self.z[pair]
-        rest_w = np.maximum(self.W_j[unit] - 1.0 / v, 1e-300)
-        rest = (self.mean_j[unit] * self.W_j[unit] - z / v) / rest_w
-        beyond = np.abs(z - rest) > tvu.Z95 * np.sqrt(v + 1.0 / rest_w)
-        out[(out == 0) & chosen & beyond & (self.count_j[unit] > 1)] = BEYOND_TVU
+        out[(out == 0) & chosen & self._beyond(pair, unit)] = BEYOND_TVU
         return out
+
+    def plane(self, dxy: np.ndarray, own: np.ndarray) -> None:
+        """The weighted sums of each pass's chosen soundings for a plane of depth through them (``dxy``
+        metres from the node, ``own`` each sounding's variance where it was read)."""
+        self.dxy, self.own = dxy, own
+        w = np.where(self.chosen, 1.0 / own, 0.0)
+        self.sums = np.add.reduceat(_moments(w, dxy, self.z), self.start, axis=0)
+
+    def _beyond(self, pair: np.ndarray, unit: np.ndarray) -> np.ndarray:
+        """Whether each of its pass's chosen soundings departs from the plane the others draw (leave-one-
+        out, weighted; its slopes held to a seabed's by a prior of WALL) by more than its TVU allows: 1.96
+        sds of the two combined. A plane, not their mean: on a slope the others lie deeper on one side,
+        and a pass may turn over the node. Passes of fewer than three chosen soundings are not judged."""
+        v, z, dxy = self.own[pair], self.z[pair], self.dxy[pair]
+        w = np.where(self.chosen[pair], 1.0 / v, 0.0)
+        m = self.sums[unit] - _moments(w, dxy, z)
+        A = np.empty((len(pair), 3, 3))
+        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2] = m[:, 0], m[:, 1], m[:, 2]
+        A[:, 1, 1], A[:, 1, 2], A[:, 2, 2] = m[:, 3], m[:, 4], m[:, 5]
+        A[:, 1, 0], A[:, 2, 0], A[:, 2, 1] = m[:, 1], m[:, 2], m[:, 4]
+        A[:, 0, 0] += 1e-12
+        A[:, 1, 1] += 1.0 / WALL**2
+        A[:, 2, 2] += 1.0 / WALL**2
+        at = np.column_stack([np.ones(len(pair)), dxy])
+        sol = np.linalg.solve(A, np.stack([m[:, 6:9], at], axis=-1))  # coefficients, and A^-1 a
+        pred = np.einsum("ij,ij->i", at, sol[..., 0])
+        var = np.einsum("ij,ij->i", at, sol[..., 1])
+        enough = self.count_j[unit] >= 3
+        return enough & (np.abs(z - pred) > tvu.Z95 * np.sqrt(v + var))
+
+
+def _moments(w: np.ndarray, dxy: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Per sounding: w, w x, w y, w x x, w x y, w y y, w z, w z x, w z y (a weighted plane's sums)."""
+    x, y = dxy[:, 0], dxy[:, 1]
+    return np.column_stack(
+        [w, w * x, w * y, w * x * x, w * x * y, w * y * y, w * z, w * z * x, w * z * y]
+    )
 
 
 def _locale(where: np.ndarray, sure: np.ndarray, depth: np.ndarray, cell: float):
