@@ -2,37 +2,30 @@
 
 `fit`, `diagnose`, `report`, `plan`, `season`, the live view and the API fit depth on the rows
 `target_rows` gives (forcemap.host.workbench.survey.target_rows), and `grid` builds its surface bands
-from the same soundings: the soundings the spike test and the bottom-lost test leave
-(forcemap.host.workbench.survey.spikes), less those the CUBE-like surface
-(forcemap.host.workbench.depth.surface) rejects. Rejected soundings stay in the table, flagged in
-``spike_depth`` with their reason counted and said (a kind of their own in the depth's `Spikes`);
-``--keep-outliers`` keeps them in the fit as it keeps the spikes.
+from the same soundings: those the spike test and the bottom-lost test leave
+(forcemap.host.workbench.survey.spikes), less those the CUBE-like surface rejects
+(forcemap.host.workbench.depth.verdicts says how it judges). Rejected soundings stay in the table,
+flagged in ``spike_depth`` with their reason counted and said (a kind of their own in the depth's
+`Spikes`); ``--keep-outliers`` keeps them in the fit as it keeps the spikes.
 
-The surface is built once per survey (cached with it), at nodes a cell apart: the cell is twice the
-median spacing of successive soundings along the track (at least the position's sd: soundings closer
-than that cannot be told apart in place). A node takes the soundings within CAPTURE (1.5) cells, so a
-pass of the track gives every node it crosses about six soundings, and every sounding's nearest node
-holds its neighbours on either side: a single wild reading there is outvoted by the bed around it.
-grid's default 5 m cell is the map's choice, not the survey's: PacCupStart's soundings are 4.4 m apart
-(a node of 5 m would hold three of a pass, and two that disagree would tie), plaka's 6.2 m.
-
-At its nearest node a sounding is rejected when
-
-- it is alone in a hypothesis of its own while the node holds other soundings (a single wild reading
-  in a smooth ramp: where every hypothesis of a node is a single sounding, none is vouched for);
-- it joined a hypothesis that fewer soundings support than the chosen one (a run of false echoes, a
-  second bottom);
-- it disagrees with the chosen hypothesis (the depth of its other soundings) by more than its TVU
-  allows, 1.96 times the sd of the two combined: a sounding the surface cannot vouch for moves no map.
+The surface is judged once per survey (cached with it) on nodes a cell apart, the cell twice the median
+spacing of successive soundings along the track (at least the position's sd: soundings closer than
+that cannot be told apart in place). A node takes the soundings within 1.5 cells, so a pass over it
+gives it about six, and every sounding's nearest node holds its neighbours on either side: a single
+wild reading is outvoted by the bed around it. grid's default 5 m cell is the map's choice, not the
+survey's: PacCupStart's soundings are 3.5 m apart, plaka's 6.1 m, the synthetic 43,500-row survey's 0.5 m
+(a node of 5 m would hold three of a pass in plaka, and two that disagree would tie).
 
 Why the fit runs on the accepted soundings rather than with a robust (Student-t) likelihood: a wild
 reading is not a heavy tail of the sounder's noise but another process (a second echo, a fish, the
-bottom lost for a ping), and a t-likelihood still lets it pull the map (its weight is small, not
-zero), while costing an iteratively reweighted fit: 6-15 fits on bench/bench_spikes.py's surveys,
-where it left maps 21-31 m off at p99 that removal left within 0.09 m (docs/WORKBENCH.md, "Spikes").
-The depth target's budget (2 Gram products of a 43,500-row survey) has no room for one more fit; the
-surface costs 0.1-0.3 s of CPU. On the real logs the rejection leaves 0.3-3 % of the soundings out
-(docs/SOUNDINGS.md, "One depth surface", has the figures before and after).
+bottom lost for a ping), and a t-likelihood still lets it pull the map (its weight is small, not zero),
+while costing an iteratively reweighted fit. Measured: on bench/bench_spikes.py's surveys it cost 6-15
+fits and left maps 21-31 m off at p99 that removal left within 0.09 m (docs/METHODS.md, "Spikes");
+on the real logs (Student-t, nu = 4, 8 reweighted fits of the spike test's rows) it cost 7-10 times
+the fit on the accepted soundings and moved the map by more than a tenth of their disagreement at
+35 % (PacCupStart) and 74 % (Flensburg 2013-07-31) of the soundings the surface rejects. The surface
+costs 0.01-0.06 s on the real logs, 0.25 s on 43,500 rows. docs/SOUNDINGS.md, "One depth surface for
+every map", has the figures before and after.
 """
 
 from __future__ import annotations
