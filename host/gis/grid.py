@@ -346,11 +346,9 @@ def evaluate(grid: MapGrid, model) -> Layer:
     vt = model.vector if "east" in pred else None
     layer = Layer(model.target, list(model.terms), out, vt and vt.family, vt and vt.prefix)
     if model.target == "depth":
-        from forcemap.host.gis.surface import surface_bands
-        from forcemap.host.workbench.depth.water_level import map_datum
+        from forcemap.host.gis.surface import depth_layer
 
-        layer.datum = map_datum(model.survey, list(model.terms), grid.at)
-        layer.bands.update(surface_bands(grid, model.survey))
+        notes += depth_layer(grid, model, layer)
     relation = relation_bands(model, grid.local_xy[cells])  # a current on a reference current
     for name, values in relation.items():
         full = np.full(grid.ny * grid.nx, np.nan)

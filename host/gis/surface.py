@@ -14,10 +14,12 @@ SURFACE_BANDS = (
 )  # fmt: skip
 
 
-def surface_bands(grid, survey) -> dict[str, np.ndarray]:
-    """The surface bands of a depth layer on ``grid``'s mapped cells (NaN elsewhere)."""
+def surface_bands(grid, survey, soundings: dict | None = None) -> dict[str, np.ndarray]:
+    """The surface bands of a depth layer on ``grid``'s mapped cells (NaN elsewhere), from the soundings
+    the depth map was fitted on (``soundings``: those its rows' surface accepted,
+    forcemap.host.workbench.depth.accepted; else the survey's, as given)."""
     keep = grid.mask.ravel()
-    s = depth_surface.survey_soundings(survey)
+    s = depth_surface.survey_soundings(survey) if soundings is None else soundings
     surf = depth_surface.build(grid.local_xy[keep], s, grid.resolution)
     values = {
         "surface": surf.depth,
@@ -34,6 +36,20 @@ def surface_bands(grid, survey) -> dict[str, np.ndarray]:
         full[keep] = values[name]
         out[name] = full.reshape(grid.ny, grid.nx)
     return out
+
+
+def depth_layer(grid, model, layer) -> list[str]:
+    """A depth layer's datum and surface bands, from the soundings its model was fitted on (the surface's
+    accepted ones, forcemap.host.workbench.depth.accepted), and its note of those the surface rejected:
+    the line `fit` prints, figure for figure."""
+    from forcemap.host.workbench.depth.water_level import map_datum
+
+    layer.datum = map_datum(model.survey, list(model.terms), grid.at)
+    rows = getattr(model, "rows", None)
+    layer.bands.update(surface_bands(grid, model.survey, rows.soundings if rows else None))
+    spikes = getattr(model, "spikes", None)
+    line = spikes.surface_line if spikes is not None else ""
+    return [f"{model.target}: {line}"] if line else []
 
 
 def far_from_soundings(grid, kept_xy: np.ndarray) -> np.ndarray:

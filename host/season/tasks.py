@@ -26,6 +26,7 @@ from forcemap.host.workbench.depth.water_level import reduce_to_gauge
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.gaps import target_gaps
 from forcemap.host.workbench.survey.table import Survey, load_survey
+from forcemap.host.workbench.survey.target_rows import target_rows
 from forcemap.host.workbench.targets.survey_fits import HYPER_SPACING_S, MIN_HYPER_ROWS
 from forcemap.host.workbench.validation.cv import blocked_folds
 
@@ -186,6 +187,9 @@ def _targets(s: Survey) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[
         except WorkbenchError:  # the log does not measure it
             gaps = None
         ok = np.zeros(s.n, bool) if gaps is None else ~gaps.missing
+        if name == "depth" and ok.any():
+            ok, line = _depth_rows(s)
+            notes += [line] if line else []
         has.update({c: bool(ok.any()) for c in cols})
         if gaps is not None and ok.any() and gaps.count:
             notes.append(gaps.line(f"the season's {name} uses the other {{used:,}}"))
@@ -194,6 +198,17 @@ def _targets(s: Survey) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[
             Y[ok] = np.column_stack(s.components(vt) if vt else [s.columns[cols[0]]])[ok]
         out[name] = (Y, ok)
     return out, has, notes
+
+
+def _depth_rows(s: Survey) -> tuple[np.ndarray, str]:
+    """The rows every depth map of ``s`` is fitted on (`target_rows`: its spikes, the bottom lost and the
+    soundings the depth surface rejects left out, unless it keeps outliers), and what was left out."""
+    try:
+        rows = target_rows(s, "depth")
+    except WorkbenchError:  # too few soundings left: none of them
+        return np.zeros(s.n, bool), ""
+    said = rows.spikes.lines() if rows.spikes is not None and not s.keep_outliers else []
+    return rows.used, "the season's depth leaves out " + "; ".join(said) if said else ""
 
 
 def read_placed(path: str, frame: Frame) -> tuple[Survey, np.ndarray]:
@@ -273,7 +288,9 @@ def depth_cv(path: str, frame: Frame, season, k: int = 5) -> dict | Rejected:
     y = s.columns.get("depth")
     if y is None or not np.isfinite(y).any():
         return Rejected(path, f"{path}: no depth for the blocked CV")
-    ok = np.isfinite(y)  # the rows that have depth (`workbench.gaps.target_gaps`)
+    ok = _depth_rows(s)[0]  # the rows every depth map is fitted on (`workbench.target_rows`)
+    if not ok.any():
+        return Rejected(path, f"{path}: too few soundings left for the blocked CV")
     s, Z, y = s.subset(ok), Z[ok], y[ok]
     folds, _ = blocked_folds(s.xy, k)
     feats = frame.space_features

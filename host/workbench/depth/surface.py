@@ -56,7 +56,9 @@ class Surface:
 
 def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> dict:
     """The soundings the surface is built from: the depth column's rows that are not spikes or lost
-    (one per reading), with their TVU's sd, slope and time."""
+    (one per reading), with their TVU's sd, the bed's slope along the track between them, their local
+    scatter and time, and each row's reading among them."""
+    from forcemap.host.fuse.bottom_lost import readings_of
     from forcemap.host.workbench.survey.spikes import target_spikes
 
     depth = survey.columns["depth"]
@@ -65,14 +67,18 @@ def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> 
         found = target_spikes(survey, "depth")  # a survey whose spikes are still in it
         if found is not None:
             keep &= ~found.flagged
-    held = np.r_[False, (depth[1:] == depth[:-1]) & keep[1:] & keep[:-1]]
-    keep &= ~held  # a table sampled faster than its sounder holds a reading over several rows
+    # a table sampled faster than its sounder holds a reading over several rows: one sounding (where
+    # most rows repeat the one before, as the spike test counts readings; a coarse sounder over a flat
+    # bed repeats its value too, reading after reading, and each is a sounding)
+    group = readings_of([depth])
+    held = np.r_[False, (group[1:] == group[:-1]) & keep[1:] & keep[:-1]]
+    reading = np.where(keep, np.cumsum(keep & ~held) - 1, -1)  # a held row is its reading's
+    keep &= ~held
     cols = survey.columns
     t_ = tvu.table_tvu(
         depth, survey.xy, tvu.SounderSpec(), cols.get("depth_raw"), cols.get("roll"),
         cols.get("pitch"), position_sd,
     )  # fmt: skip
-    slope = t_.position / max(position_sd, 1e-9)
     sd = t_.sd
     given = cols.get("depth_tvu")  # the export's, from the log's own sounder and position noise
     if given is not None:
@@ -81,10 +87,47 @@ def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> 
         "xy": survey.xy[keep],
         "depth": depth[keep],
         "sd": sd[keep],
-        "slope": slope[keep],
+        "scatter": local_scatter(depth[keep]),
+        "slope": bed_slope(depth[keep], survey.xy[keep], position_sd),
         "t": cols["t"][keep],
         "position_sd": position_sd,
+        "reading": reading,  # per row of the survey: its sounding here (-1: none)
     }
+
+
+def bed_slope(depth: np.ndarray, xy: np.ndarray, base: float) -> np.ndarray:
+    """The bed's slope (m/m) at each sounding (in time order): the change in depth to the first sounding
+    at least ``base`` metres further along the track (back from the track's end), the median over
+    tvu.SLOPE_WINDOW soundings. From the soundings the surface uses, over a baseline a position error
+    spans: a held row, an echo or a sounding 0.5 m from the last is no measure of the bed's slope."""
+    from forcemap.host.fuse.bottom_lost import running
+
+    n = len(depth)
+    if n < 2:
+        return np.zeros(n)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]
+    ahead = np.searchsorted(s, s + base)
+    other = np.where(ahead < n, ahead, np.searchsorted(s, s - base, side="right") - 1)
+    ds = np.abs(s[np.maximum(other, 0)] - s)
+    raw = np.where(
+        (other >= 0) & (ds > 0),
+        np.abs(depth[np.maximum(other, 0)] - depth) / np.maximum(ds, 1e-9),
+        np.nan,
+    )
+    return np.clip(np.nan_to_num(running(raw, tvu.SLOPE_WINDOW, np.nanmedian)), 0.0, 1.0)
+
+
+def local_scatter(depth: np.ndarray) -> np.ndarray:
+    """Each sounding's local scatter (1 sd, m): 1.4826 x the median absolute departure from the running
+    median of the spike test's WINDOW soundings along the track, over its SCALE_WINDOW soundings (what the
+    sounder does there, which its stated accuracy may understate: heave, a coarse resolution, waves)."""
+    from forcemap.host.fuse.bottom_lost import running
+    from forcemap.host.workbench.survey.spikes import MAD_TO_STD, SCALE_WINDOW, WINDOW
+
+    if not len(depth):
+        return np.zeros(0)
+    departure = np.abs(depth - running(depth, WINDOW, np.nanmedian))
+    return MAD_TO_STD * running(departure, SCALE_WINDOW, np.nanmedian)
 
 
 def build(nodes: np.ndarray, s: dict, cell: float) -> Surface:
@@ -121,10 +164,35 @@ def build(nodes: np.ndarray, s: dict, cell: float) -> Surface:
 def _node(z: np.ndarray, var: np.ndarray) -> tuple[float, float, int, int, float]:
     """One node's hypotheses from its soundings in time order: (depth, sd, hypotheses, soundings,
     support) of the one most soundings support."""
-    mean: list[float] = []
-    post: list[float] = []  # the hypothesis mean's variance
-    count: list[int] = []
-    own: list[float] = []  # the sum of its soundings' inverse variances
+    h = hypotheses(z, var)
+    j, count = h.chosen, h.count
+    total = len(z)
+    return h.mean[j], (count[j] / h.own[j]) ** 0.5, len(h.mean), total, count[j] / total
+
+
+@dataclass
+class Hypotheses:
+    """One node's hypotheses: each one's depth, the variance of that depth, its soundings' count and
+    the sum of their inverse variances; which one each sounding joined, and the one chosen."""
+
+    mean: list[float]
+    post: list[float]
+    count: list[int]
+    own: list[float]
+    member: list[int]  # per sounding, in the order given
+
+    @property
+    def chosen(self) -> int:
+        """The hypothesis most soundings support (ties: the smaller variance)."""
+        return max(range(len(self.mean)), key=lambda h: (self.count[h], -self.post[h]))
+
+
+def hypotheses(z: np.ndarray, var: np.ndarray) -> Hypotheses:
+    """A node's soundings (in time order, their propagated variances) sorted into hypotheses: each joins
+    the one whose depth it is nearest in units of their combined sd, within GATE (a Kalman update), or
+    starts its own."""
+    out = Hypotheses([], [], [], [], [])
+    mean, post, count, own = out.mean, out.post, out.count, out.own
     for zi, vi in zip(z.tolist(), var.tolist(), strict=True):
         j, score = -1, GATE
         for h in range(len(mean)):
@@ -132,16 +200,16 @@ def _node(z: np.ndarray, var: np.ndarray) -> tuple[float, float, int, int, float
             if s <= score:
                 j, score = h, s
         if j < 0:
+            out.member.append(len(mean))
             mean.append(zi)
             post.append(vi)
             count.append(1)
             own.append(1.0 / vi)
             continue
+        out.member.append(j)
         w = post[j] / (post[j] + vi)
         mean[j] += w * (zi - mean[j])
         post[j] = post[j] * vi / (post[j] + vi)
         count[j] += 1
         own[j] += 1.0 / vi
-    j = max(range(len(mean)), key=lambda h: (count[h], -post[h]))
-    total = sum(count)
-    return mean[j], (count[j] / own[j]) ** 0.5, len(mean), total, count[j] / total
+    return out

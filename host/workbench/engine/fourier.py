@@ -85,6 +85,27 @@ def _combos(term) -> list[tuple[float, np.ndarray]]:
     return _combos_of(J.tobytes(), J.shape)
 
 
+def _lower_combos(term) -> tuple[tuple[np.ndarray, np.ndarray], list[tuple[float, np.ndarray]]]:
+    """The lower triangle's (row, column) indices (row-major) and `_combos`' flat table indices there."""
+    J = np.ascontiguousarray(term.J, dtype=np.int32)
+    return _lower_combos_of(J.tobytes(), J.shape)
+
+
+@functools.lru_cache(maxsize=2)
+def _lower_combos_of(J_bytes: bytes, shape: tuple[int, int]):
+    J = np.frombuffer(J_bytes, np.int32).reshape(shape)
+    low = np.tril_indices(shape[0])
+    sizes = [2 * int(J[:, d].max()) + 1 for d in range(shape[1])]
+    out = []
+    for combo in itertools.product((0, 1), repeat=shape[1]):
+        flat = np.zeros(len(low[0]), np.int32)
+        for d, plus in enumerate(combo):
+            a, b = J[low[0], d], J[low[1], d]
+            flat = flat * sizes[d] + (a + b if plus else np.abs(a - b))
+        out.append((-1.0 if sum(combo) % 2 else 1.0, flat))
+    return low, out
+
+
 @functools.lru_cache(maxsize=2)
 def _combos_of(J_bytes: bytes, shape: tuple[int, int]) -> list[tuple[float, np.ndarray]]:
     J = np.frombuffer(J_bytes, np.int32).reshape(shape)
@@ -141,15 +162,21 @@ def _sine_products(term, F: np.ndarray, tops: list[int]) -> np.ndarray:
 
 
 def gram_of_table(term, T: np.ndarray) -> np.ndarray:
-    """The Gram matrix from its cosine table (the sums over some rows): the signed gather of every product."""
+    """The Gram matrix from its cosine table (the sums over some rows): the signed gather of every product,
+    over the lower triangle (the matrix is symmetric: its table indices are) and mirrored."""
     T = np.ascontiguousarray(T).ravel()
-    G = np.zeros((len(term.J), len(term.J)))
-    for sign, flat in _combos(term):
+    low, combos = _lower_combos(term)
+    acc = np.zeros(len(low[0]))
+    for sign, flat in combos:
         if sign > 0:
-            G += T[flat]
+            acc += T[flat]
         else:
-            G -= T[flat]
-    return G * _scale(term)
+            acc -= T[flat]
+    acc *= _scale(term)
+    G = np.empty((len(term.J), len(term.J)))
+    G[low] = acc
+    G.T[low] = acc
+    return G
 
 
 def transpose_products(term, Z: np.ndarray, W: np.ndarray, rows: int = 4096) -> np.ndarray:
@@ -183,14 +210,19 @@ def transpose_products(term, Z: np.ndarray, W: np.ndarray, rows: int = 4096) -> 
     return np.column_stack([t[J[:, 0], J[:, 1]] for t in tables])
 
 
-def variance_table(term, C: np.ndarray) -> np.ndarray:
+def variance_table(term, C: np.ndarray, lower: bool = False) -> np.ndarray:
     """The table D with phi' C phi = sum_pq D[p, q] cos(p u_1) cos(q u_2); C may also be a symmetric matrix's
-    lower triangle with its off-diagonal entries doubled (phi_j phi_k and phi_k phi_j share a table entry)."""
+    lower triangle with its off-diagonal entries doubled (phi_j phi_k and phi_k phi_j share a table entry),
+    then only that triangle is read (``lower``)."""
     sizes = [2 * int(term.J[:, d].max()) + 1 for d in range(term.J.shape[1])]
     size = math.prod(sizes)
     D = np.zeros(size)
-    w = np.ascontiguousarray(C).ravel()
-    for sign, flat in _combos(term):
+    if lower:
+        low, combos = _lower_combos(term)
+        w = np.asarray(C)[low]
+    else:
+        combos, w = _combos(term), np.ascontiguousarray(C).ravel()
+    for sign, flat in combos:
         D += sign * np.bincount(flat.ravel(), weights=w, minlength=size)
     return (D * _scale(term)).reshape(sizes)
 
@@ -284,7 +316,7 @@ def posterior_tables(term, cols: tuple[slice, np.ndarray], post: dict) -> None:
     post["cov_slow"] = rows
     if len(slow):
         post["cross_table"] = linear_table(term, rows[:, fcols].T)
-    post["table"] = variance_table(term, weights)
+    post["table"] = variance_table(term, weights, lower=True)
 
 
 def variance(

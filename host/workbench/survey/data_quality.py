@@ -25,9 +25,8 @@ from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.host.workbench.errors import WorkbenchError
 from forcemap.host.workbench.survey.gaps import target_gaps
 from forcemap.host.workbench.survey.instruments import Instruments, source_name
-from forcemap.host.workbench.survey.spikes import target_spikes
 from forcemap.host.workbench.survey.table import Survey
-from forcemap.host.workbench.survey.target_rows import target_rows
+from forcemap.host.workbench.survey.target_rows import target_flags, target_rows
 from forcemap.host.workbench.terms import clock_offset
 
 # speed from positions over this span is compared with SOG
@@ -133,7 +132,7 @@ def conflicts(survey: Survey, inst: Instruments) -> list[DataFinding]:
 def spikes(survey: Survey, targets: list[str]) -> list[DataFinding]:
     out, seen = [], set()
     for target in targets:
-        found = target_spikes(survey, target)
+        found = target_flags(survey, target)
         if found is None or not found.count or found.name in seen:
             continue
         seen.add(found.name)

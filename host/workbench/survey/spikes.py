@@ -47,6 +47,8 @@ Z = 6.0
 MAD_TO_STD = 1.4826
 # least departure (SI) that is physically a spike, by family; depth also scales with the depth
 LOST_WHY = "the bottom lost (soundings scattered more than a seabed can, no bottom under them)"
+# the soundings the depth surface rejects (forcemap.host.workbench.depth.accepted)
+SURFACE_WHY = "disagreeing with the depth surface (a depth most soundings around do not support)"
 FLOORS = {"depth": 0.5, "current": 0.5, "wind": 8.0}  # gusts of a few m/s within seconds are wind
 DEPTH_FLOOR_SHARE = 0.05
 
@@ -64,6 +66,11 @@ class Spikes:
     kept: bool = False  # --keep-outliers: flagged, but left in the fit
     lost: np.ndarray | None = None  # depth: the rows where the bottom was lost (bottom_lost.py)
     stretches: tuple[LostStretch, ...] = ()  # ... and its stretches
+    # depth: the soundings the depth surface rejects (forcemap.host.workbench.depth.accepted), what it
+    # says of them and its figures
+    surface: np.ndarray | None = None
+    surface_line: str = ""
+    surface_json: dict | None = None
 
     @property
     def count(self) -> int:
@@ -83,9 +90,12 @@ class Spikes:
         f = self.flagged
         if self.name == "depth":
             lost = self.lost if self.lost is not None else np.zeros(len(f), bool)
-            shallow, deep = f & ~lost & (self.departure < 0), f & ~lost & (self.departure > 0)
+            surface = self.surface if self.surface is not None else np.zeros(len(f), bool)
+            spike = f & ~lost & ~surface
+            shallow, deep = spike & (self.departure < 0), spike & (self.departure > 0)
             out = [
                 (int(lost.sum()), LOST_WHY, lost),
+                (int(surface.sum()), SURFACE_WHY, surface),
                 (
                     int(shallow.sum()),
                     "false shallow echoes (fish, weed, a thermocline, wake)",
@@ -105,6 +115,9 @@ class Spikes:
             idx = np.flatnonzero(mask)
             if why == LOST_WHY:
                 out.append(self._lost_line(n, why))
+                continue
+            if why == SURFACE_WHY:
+                out.append(self.surface_line)
                 continue
             t = self.trel[idx] / 60.0
             read = self.reference[idx] + self.departure[idx] if self.name == "depth" else None
@@ -148,6 +161,7 @@ class Spikes:
                 {"start_s": s.t0, "end_s": s.t1, "soundings": s.n, "on_seabed": s.share}
                 for s in self.stretches
             ],
+            "surface": self.surface_json,
         }
 
     def advice(self) -> str:

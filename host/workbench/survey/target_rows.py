@@ -1,8 +1,9 @@
 """The rows that have a target: the one home every command fits a target's model on.
 
 A model of a target (and every map, diagnosis, grid, plan and season made from it) is fitted on the rows
-that have the target (a wind or current vector: both components), less the target's spikes (unless the
-survey keeps outliers), less the rows where a covariate of its terms is missing for longer than its own
+that have the target (a wind or current vector: both components), less the target's spikes (for depth
+also the soundings the depth surface rejects, host/workbench/depth/accepted.py; unless the survey keeps
+outliers), less the rows where a covariate of its terms is missing for longer than its own
 correlation time (host/workbench/survey/gaps.py). Nothing is filled into a target. The rows stay in the
 table: a row without current still has its depth, and the depth's model uses it. What was left out is
 counted and said with its times into the survey, as the spikes are; the one refusal is too few rows
@@ -35,6 +36,10 @@ class TargetRows:
     covariates: tuple[str, ...] = ()  # the covariates every row has
     left: dict[str, Gaps] = field(default_factory=dict)  # rows of the target a covariate left out
     stalled: int = 0  # rows a relation to a reference current left out: the speed log stalled
+    # depth: the soundings of the surface every depth map is made of (depth/accepted.py), for grid's bands
+    soundings: dict | None = None
+    used: np.ndarray | None = None  # bool per row of the survey given: the rows used
+
 
     @property
     def n(self) -> int:
@@ -80,6 +85,21 @@ def _spike_name(survey: Survey, target: str) -> str:
     return vt.prefix if vt else target
 
 
+def target_flags(survey: Survey, target: str) -> Spikes | None:
+    """The readings of ``target`` left out of its fits (cached with the survey): its spikes, and for
+    depth the soundings the depth surface rejects, a kind of their own
+    (forcemap.host.workbench.depth.accepted: every depth map fits and grids the same soundings)."""
+    spikes = target_spikes(survey, target)
+    if spikes is None or spikes.name != "depth":
+        return spikes
+    key = (TargetRows, "flags", spikes.name)
+    if key not in survey.cache:
+        from forcemap.host.workbench.depth.accepted import with_rejected
+
+        survey.cache[key] = with_rejected(survey, spikes)
+    return survey.cache[key]
+
+
 def target_rows(survey: Survey, target: str, covariates: Iterable[str] = ()) -> TargetRows:
     """The rows of `survey` a model of `target` with these covariates is fitted on (kept with the survey:
     the speed, direction and components of one vector share them). Too few: a one-line error."""
@@ -94,7 +114,7 @@ def target_rows(survey: Survey, target: str, covariates: Iterable[str] = ()) -> 
         raise too_few(gaps.n - gaps.count, gaps.what)
     drop, spikes = gaps.missing.copy(), None
     if name not in survey.spikes_removed:
-        spikes = target_spikes(survey, target)
+        spikes = target_flags(survey, target)
         if spikes is not None and spikes.count:
             survey.columns[spikes.column] = spikes.flagged.astype(float)
             if not survey.keep_outliers:
@@ -122,5 +142,9 @@ def target_rows(survey: Survey, target: str, covariates: Iterable[str] = ()) -> 
     rows = survey.cache[same]
     if not kept:  # checked, and left out (or clean): never looked for again on these rows
         rows.spikes_removed.add(name)
-    found = survey.cache[key] = TargetRows(rows, target, gaps, spikes, covs, left, n_stalled)
+    found = survey.cache[key] = TargetRows(rows, target, gaps, spikes, covs, left, n_stalled, used=~drop)
+    if spikes is not None and spikes.name == "depth":
+        from forcemap.host.workbench.depth.accepted import accepted
+
+        found.soundings = accepted(survey).soundings
     return found

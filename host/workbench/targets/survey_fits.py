@@ -24,6 +24,7 @@ from forcemap.host.workbench.survey.table import (
     is_circular,
     unit_of,
 )
+from forcemap.host.workbench.survey.target_rows import target_rows
 from forcemap.host.workbench.targets.axis_choice import AxisChoice, ReferenceAxis, choose_axis
 from forcemap.host.workbench.targets.flow_axis import along_reference, axis_frame, time_part
 from forcemap.host.workbench.terms.registry import build_term
@@ -89,15 +90,14 @@ class SurveyFits:
 
     @functools.cached_property
     def depth_map(self) -> Model:
-        """The baseline model of depth over position, fitted on the rows that have depth: maps evaluate
-        depth terms on it."""
+        """The baseline model of depth over position, fitted on the rows a depth map is fitted on (its
+        spikes and the soundings the depth surface rejects left out: `target_rows`): maps evaluate depth
+        terms on it."""
         s = self.survey
-        depth = s.column("depth")
-        ok = np.isfinite(depth)
-        if ok.sum() < MIN_ROWS:
-            raise too_few(int(ok.sum()), "depth")
-        prepare_column(s.subset(ok), "depth", "covariate")  # not constant
-        return self.model(BASELINE).fit({"position": s.xy[ok], "t": s.trel[ok]}, depth[ok])
+        s.column("depth")  # a clear error where the table has none
+        s = target_rows(s, "depth").survey
+        prepare_column(s, "depth", "covariate")  # not constant
+        return self.model(BASELINE).fit({"position": s.xy, "t": s.trel}, s.columns["depth"])
 
     def frame(self, vt: VectorTarget, time_terms: tuple[str, ...] = ()) -> tuple[Model, Model]:
         """Smooth models of a vector's east and north components (see `flow_frame`); with `time_terms`
