@@ -34,7 +34,7 @@ Written by hand: kept.
 Hand-written text before the markers.
 
 <!-- bench:tiny -->
-Recorded by hand at `abc1234` (2026-01-01): the old figure, 42.
+Recorded by hand at `abc1234` (2026-01-01): the old figure, the-old-figure-marker.
 <!-- /bench:tiny -->
 
 Hand-written text after the markers.
@@ -90,12 +90,12 @@ def test_a_run_rewrites_its_section_and_nothing_else(page):
     assert outside(text) == outside(PAGE)  # every hand-written byte kept
     i, j = results.section_span(text, "tiny")
     body = text[i:j]
-    assert "| 1 | 2 |" in body and "42" not in body
+    assert "| 1 | 2 |" in body and "the-old-figure-marker" not in body
     assert re.search(r"Measured at `[^`]+`, \d{4}-\d\d-\d\d \d\d:\d\d UTC", body)
     assert FAKE[0].command in body and "s of CPU" in body
     # the figures it replaced are in the archive, with the benchmark's name
     archive = page.with_name("ARCHIVE.md").read_text()
-    assert "### `tiny`, replaced" in archive and "the old figure, 42." in archive
+    assert "### `tiny`, replaced" in archive and "the old figure, the-old-figure-marker." in archive
     # the index names every benchmark, its section's anchor and when it was measured
     index = text[text.index("<!-- bench-index -->") : text.index("<!-- /bench-index -->")]
     assert "[`tiny`](#a-tiny-table)" in index and "[`fails`](#fails)" in index
