@@ -68,7 +68,7 @@ BENCHES: tuple[Bench, ...] = (
           "`forcemap demo` twice, idle and with both cores spinning: the same numbers"),
     Bench("fresh_demo", "bench/clean_run.sh {tmp}/run demo 2", 8,
           "the README's first command from a fresh clone and venv beside two busy loops: install, demo wall and CPU",
-          output="{tmp}/run/log"),
+          output="{tmp}/run/log", tail=9),
     Bench("suite", "bench/clean_run.sh {tmp}/run", 40,
           "the README's second command (the test suite) from a fresh clone: result, time, CPU, largest modules",
           output="{tmp}/run/log", tail=60),
