@@ -371,7 +371,7 @@ class Simulation(MissionLink):
         self._flush(2**62)
         self.track = truth_files.track_arrays(self.rows, self.extra)
         if self.truth_dir is not None:
-            truth_files.write_all(self.truth_dir, self.meta(), self.world, self.truth_table(), self.sounder)  # type: ignore[arg-type]
+            truth_files.write_all(self.truth_dir, self.meta(), self.world, self.truth_table())  # type: ignore[arg-type]
             truth_files.write_pulses(Path(self.truth_dir) / "pulses.npz", self.boots, self.pulses)
             truth_files.write_mission(Path(self.truth_dir), self.mission, self.geo)
 

@@ -53,10 +53,6 @@ KINDS: dict[str, str] = {
     "from 3 to 70 m",
     "beyond_range": "the sounder's range is `range` m (default 90) and the sea is rough: where the bed "
     "is deeper, it loses the bottom and its returns scatter from 3 m to its range",
-    "lock_loss": "the sounder's range is `range` m (default 90) and the sea is `sea` rough (0-1, "
-    "default 1): past its range it locks and unlocks, short runs of the bottom between scatter and "
-    "false bottoms; within it a rough sea brings second echoes, false bottoms and spikes (truth: "
-    "truth/soundings.csv)",
     "speed_log": "NMEA bus: the speed log reads STW / `gain` (default 1.06) and its axis is turned "
     "`misalign` deg (default 2) clockwise from the compass's: HCHDG reads heading - misalign",
     "dead_log": "NMEA bus: the speed log reads 0.00 kn from `at` for `for` s",
@@ -144,7 +140,6 @@ def parse_one(spec: str) -> Fault:
             "false_echoes": "depth",
             "bottom_lost": "depth",
             "beyond_range": "depth",
-            "lock_loss": "depth",
             **dict.fromkeys(BUS_KINDS, "nmea"),
         }.get(kind, "all"),
     )
@@ -162,9 +157,7 @@ def parse_one(spec: str) -> Fault:
             f.cause = int(v)
         elif k in ("gain", "misalign") and kind == "speed_log":
             f.params[k] = float(v)
-        elif (k == "range" and kind in ("beyond_range", "lock_loss")) or (
-            k == "sea" and kind == "lock_loss"
-        ):
+        elif k == "range" and kind == "beyond_range":
             f.params[k] = float(v)
         else:
             raise ValueError(f"fault {kind} has no parameter {k!r}")

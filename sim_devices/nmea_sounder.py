@@ -8,8 +8,6 @@ import random
 import pynmea2
 from forcemap.host.fuse.attitude import reading_over_slope
 
-from .sounder_lock import LockModel
-
 BAUD_BYTES_PER_S = 480.0  # 4800 baud, 8N1: ten bits a byte
 LOST_RANGE = (3.0, 70.0)  # m: the returns of a sounder that has lost the bottom
 
@@ -49,7 +47,6 @@ class Sounder:
         bottom_lost: tuple[float, float] | None = None,
         beam_deg: float | None = None,
         rough_range: float | None = None,
-        lock: LockModel | None = None,
     ) -> None:
         self.rng = random.Random(seed)
         self.offset = offset_m
@@ -67,8 +64,6 @@ class Sounder:
         # beyond this depth below the transducer, in a rough sea, the bottom is lost (None: never)
         self.rough_range = rough_range
         self.lost_times: list[float] = []  # s since the run's start, of every sounding lost
-        # a sounder that locks and unlocks past its range and in rough water (sounder_lock.py)
-        self.lock = lock
 
     def _false_echo(self, depth: float) -> bool:
         """In deep water a weak bottom return loses to a school of fish or the thermocline:
@@ -92,12 +87,7 @@ class Sounder:
         d = max(below + self.rng.gauss(0.0, self.noise), 0.1)
         lost = self.bottom_lost
         beyond = self.rough_range is not None and depth - self.offset > self.rough_range
-        if self.lock is not None:
-            d, _ = self.lock.reading(depth - self.offset, d, t)
-            if self.lock.pings[-1].past:
-                self.lost_soundings += 1
-                self.lost_times.append(t)
-        elif lost is not None and lost[0] <= t < lost[1]:
+        if lost is not None and lost[0] <= t < lost[1]:
             self.lost_soundings += 1
             self.lost_times.append(t)
             d = self.rng.uniform(*LOST_RANGE)
@@ -121,11 +111,10 @@ def make_sounder(
     seed: int, table: dict, faults: list, duration: float, heel: dict | None
 ) -> Sounder:
     """The scenario's sounder (its ``[sounder]`` table) with the run's faults (false echoes, the
-    bottom lost, a range in a rough sea, a lock that comes and goes) and the `heel` effect's beam."""
+    bottom lost, a range in a rough sea) and the `heel` effect's beam."""
     echoes = [f.rate for f in faults if f.kind == "false_echoes"]
     rough = [f.params.get("range", 90.0) for f in faults if f.kind == "beyond_range"]
     lost = [(f.start(duration), f.end(duration)) for f in faults if f.kind == "bottom_lost"]
-    lock = [f.params for f in faults if f.kind == "lock_loss"]
     return Sounder(
         seed,
         float(table.get("offset_m", 0.2)),
@@ -134,10 +123,7 @@ def make_sounder(
         bottom_lost=lost[0] if lost else None,
         beam_deg=float(heel["beam_deg"]) if heel else None,
         rough_range=min(rough) if rough else None,
-        lock=LockModel(
-            float(lock[0].get("range", 90.0)), float(lock[0].get("sea", 1.0)), seed + 1
-        ) if lock else None,
-    )  # fmt: skip
+    )
 
 
 def heel_roll(heel: dict | None, app_speed: float, app_angle: float) -> float:

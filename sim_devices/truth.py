@@ -99,11 +99,8 @@ def write_fields(
     )  # fmt: skip
 
 
-def write_all(
-    truth_dir: str | Path, meta: dict[str, Any], world: World, table: np.ndarray, sounder: Any = None
-) -> Path:
-    """Write the truth files into ``truth_dir`` (created if needed): effects.json, fields.npz,
-    samples.csv, water_level.csv, and a locking sounder's soundings.csv."""
+def write_all(truth_dir: str | Path, meta: dict[str, Any], world: World, table: np.ndarray) -> Path:
+    """Write the three truth files into ``truth_dir`` (created if needed)."""
     d = Path(truth_dir)
     d.mkdir(parents=True, exist_ok=True)
     (d / "effects.json").write_text(json.dumps(meta, indent=2, default=float) + "\n")
@@ -111,8 +108,6 @@ def write_all(
     write_samples(d / "samples.csv", table)
     if len(table):
         write_gauge(d / "water_level.csv", world, float(meta["t0"]), float(meta["duration"]))
-    if sounder is not None:
-        write_soundings(d, sounder, float(meta["t0"]))
     return d
 
 
@@ -129,7 +124,6 @@ def write_gauge(
 
 def effects_meta(sim: Any) -> dict[str, Any]:
     """What effects.json holds about a finished `engine.Simulation`."""
-    lock = sim.sounder.lock
     return {
         "scenario": sim.scenario.name,
         "scenario_path": sim.scenario.path,
@@ -157,41 +151,10 @@ def effects_meta(sim: Any) -> dict[str, Any]:
             "bottom_lost_soundings": sim.sounder.lost_soundings,
             "bottom_lost_stretches": _stretches(sim.sounder.lost_times),
             "sounder_beam_deg": sim.sounder.beam_deg,
-            "sounder_range_m": sim.sounder.rough_range or (lock.range_m if lock else None),
-            "sounder_lock": lock_meta(lock),
+            "sounder_range_m": sim.sounder.rough_range,
             "nmea_bus": sorted(sim.bus_faults) if sim.nmea_bus else None,
         },
     }
-
-
-def lock_meta(lock: Any) -> dict[str, Any] | None:
-    """The locking sounder's parameters and pings of each kind (None: no such sounder)."""
-    if lock is None:
-        return None
-    past = [p for p in lock.pings if p.past]
-    return {
-        "range_m": lock.range_m,
-        "sea": lock.sea,
-        "pings": lock.counts(),
-        "past_range_pings": len(past),
-        "held_past_range": sum(p.kind == "held" for p in past),
-    }
-
-
-def write_soundings(folder: Path, sounder: Any, t0: float) -> None:
-    """soundings.csv, every ping of a locking sounder (none without one): ``t`` (UNIX s), the true
-    ``depth`` and the ``reading`` below the surface (the transducer's offset added, as the samples'
-    depth), its ``kind`` and ``past`` (1: the bed past the sounder's range)."""
-    lock, offset = sounder.lock, sounder.offset
-    if lock is None:
-        return
-    with open(folder / "soundings.csv", "w") as f:
-        f.write("t,depth,reading,kind,past\n")
-        for p in lock.pings:
-            f.write(
-                f"{t0 + p.t:.3f},{p.depth + offset:.3f},{round(p.reading, 2) + offset:.2f},"
-                f"{p.kind},{int(p.past)}\n"
-            )
 
 
 def _stretches(times: list[float], gap: float = 1.5) -> list[list[float]]:

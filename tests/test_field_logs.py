@@ -39,10 +39,9 @@ PACCUP_SHARE = dict.fromkeys(
     ).split(),
     1.0,
 )
-# issues 37, 61: every row says what became of its sounding (0 held; 235 rejected: the bottom lost,
-# spikes, false bottoms and second echoes, most of them in the Golden Gate channel from 32 min), and
-# each sounding held has its TVU
-PACCUP_LOST = 235
+# issue 37: every row says whether the bottom was lost there (the Golden Gate channel: 266 soundings
+# from 32.1 to 36.5 min), and each sounding where it was not has its TVU
+PACCUP_LOST = 266
 PACCUP_SHARE |= {"bottom_lost": 1.0, "depth_tvu": (PACCUP_ROWS - PACCUP_LOST) / PACCUP_ROWS}
 # every row has a yaw rate: the smoothed heading's rate (docs/NAVIGATION.md) is defined from the
 # first heading on; the live pipeline's slope needed two headings, so its first two rows had none

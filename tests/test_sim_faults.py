@@ -108,8 +108,7 @@ def test_default_set_and_parsing() -> None:
     sources = {f.kind for f in fl.parse("sources")}
     quality = {"poor_gnss", "dgps_gnss"} | set(fl.CAL_KINDS)
     # the faults of real logs (issue 28), in no set either
-    logs = {"no_variation", "checksum_variant", "position_jump", "bottom_lost", "beyond_range",
-            "lock_loss"}  # fmt: skip
+    logs = {"no_variation", "checksum_variant", "position_jump", "bottom_lost", "beyond_range"}
     # the navigation faults of issue 29 (two receivers of three sentences, a late compass): no set
     nav = {"nav_receivers", "late_compass"}
     assert kinds | sources | quality | logs | nav == set(fl.KINDS)

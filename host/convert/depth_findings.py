@@ -4,10 +4,9 @@ Each check reads the first pass's samples (and every depth source's readings) an
 finding (forcemap.host.log.qa_records) with its number and evidence; what is safe is applied in the
 second pass through the calibration (forcemap.host.convert.self_calibration):
 
-- ``bottom_lost``: the stretches where the soundings stop agreeing with any smooth bed, and every
-  other sounding rejected with its reason (a spike, a false bottom, a second echo;
-  forcemap.host.fuse.bottom_lost); each row's reason in ``bottom_lost`` (every row kept, 0 held),
-  and depth maps leave out the rejected;
+- ``bottom_lost``: the stretches where the soundings stop agreeing with any seabed
+  (forcemap.host.fuse.bottom_lost), their rows marked ``bottom_lost`` (every row kept) and left out of
+  depth maps;
 - ``sounders``: every other depth source against the one the samples use (forcemap.host.fuse.sounders):
   their offset, where they disagree, which one the evidence trusts;
 - ``tilt``: where the log has the hull's roll and pitch, the beam angle that makes the soundings agree
@@ -23,15 +22,15 @@ from typing import Any
 
 import numpy as np
 from forcemap.host.fuse import attitude, sounders
+from forcemap.host.fuse.bottom_lost import depth_lost
 from forcemap.host.fuse.calibration import Calibration
 from forcemap.host.fuse.crossings import MAX_PAIRS, crossing_pairs
-from forcemap.host.fuse.sounding_reasons import LOST, REASONS, Soundings, judge_column
 from forcemap.host.log.qa_records import QaFinding
 from forcemap.host.vessel.geodesy import LocalFrame
 
 THRESH_LOST = (
-    "no stretch where most soundings agree with no smooth bed: green; the bottom lost for up to 25 % "
-    "of the soundings: yellow; more: red (QRev's invalid-ensemble share)"
+    "no stretch where the soundings scatter or climb and fall more than a seabed can: green; lost "
+    "for up to 25 % of the soundings: yellow; more: red (QRev's invalid-ensemble share)"
 )
 LOST_RED = 0.25
 BEAMS = np.arange(0.0, 61.0, 1.0)  # deg: the beam angles tried
@@ -66,55 +65,25 @@ def local_xy(lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y])
 
 
-def judged(c: Mapping[str, np.ndarray]) -> Soundings | None:
-    """The soundings of a table judged (forcemap.host.fuse.sounding_reasons), None where too few."""
-    d, t = raw_depth(c), c["t"]
-    if np.isfinite(d).sum() < 10:
-        return None
-    return judge_column(d, t - t[0], local_xy(c["lat"], c["lon"]))
-
-
-def reject_runs(t: np.ndarray, codes: np.ndarray) -> tuple[tuple[float, float, int], ...]:
-    """The runs of rows whose sounding was rejected, with one reason each: (first, last UNIX s, code)."""
-    change = np.flatnonzero(np.diff(np.r_[-9, codes, -9]))
-    return tuple(
-        (float(t[a]), float(t[b - 1]), int(codes[a]))
-        for a, b in zip(change[:-1], change[1:], strict=True)
-        if codes[a] > 0
-    )
-
-
 def lost_finding(
     c: Mapping[str, np.ndarray], source: str
-) -> tuple[QaFinding | None, tuple[tuple[float, float], ...], tuple[tuple[float, float, int], ...]]:
-    """The bottom lost: a finding, its stretches in UNIX seconds, and the runs of rows rejected for
-    each reason (for the rows to mark)."""
-    found = judged(c)
-    if found is None:
-        return None, (), ()
+) -> tuple[QaFinding | None, tuple[tuple[float, float], ...]]:
+    """The bottom lost: a finding and its stretches in UNIX seconds (for the rows to mark)."""
     d, t = raw_depth(c), c["t"]
     have = np.isfinite(d)
-    codes = np.where(have, found.row_reasons, -1)
-    runs = reject_runs(t, codes)
-    n = int(have.sum())
-    why = ", ".join(
-        f"{int((codes == k).sum())} {REASONS[k]}" for k in REASONS if (codes == k).any()
-    ) or "none"
+    if have.sum() < 10:
+        return None, ()
+    found = depth_lost(d, t - t[0], local_xy(c["lat"], c["lon"]))
+    n_lost, n = int((found.rows & have).sum()), int(have.sum())
+    share = n_lost / n
     if not found.stretches:
         return QaFinding(
             "depth", "bottom_lost", "green",
-            f"the sounder held the bottom: no stretch of {n} soundings where most agree with no "
-            f"smooth bed; rejected: {why}", source, 0.0, unit="%", threshold=THRESH_LOST,
-            fix="marked: every row stays, bottom_lost gives its sounding's reason (0 held)",
-            applied=bool(runs),
-        ), (), runs  # fmt: skip
-    spans = [(s.r0, s.r1) for s in found.stretches]
+            f"the sounder held the bottom: no stretch of {n} soundings scatters or climbs and falls "
+            "more than a seabed can", source, 0.0, unit="%", threshold=THRESH_LOST,
+        ), ()  # fmt: skip
+    spans = [found.row_span(s) for s in found.stretches]
     unix = tuple((float(t[a]), float(t[b])) for a, b in spans)
-    inside = np.zeros(len(t), bool)
-    for a, b in spans:
-        inside[a : b + 1] = True
-    n_in, n_lost = int((inside & have).sum()), int((codes == LOST).sum())
-    share = n_in / n
     where = "; ".join(s.text() for s in found.stretches)
     spread = "; ".join(
         f"{np.nanmin(d[a : b + 1]):.1f}-{np.nanmax(d[a : b + 1]):.1f} m" for a, b in spans
@@ -122,19 +91,15 @@ def lost_finding(
     verdict = "red" if share > LOST_RED else "yellow"
     return QaFinding(
         "depth", "bottom_lost", verdict,
-        f"the bottom lost in {len(spans)} stretch(es): {where} into the log; {n_in} of {n} "
-        f"soundings ({100 * share:.1f} %) in them, {n_lost} on no layer at all; rejected in all: "
-        f"{why}",
-        source, 100 * share, unit="%", threshold=THRESH_LOST,
-        evidence=f"the soundings in each stretch read {spread}; most of their windows lie on no "
-        "smooth bed (within 3 sd of the bed's own robust scatter), the runs that continue the bed "
-        "around them held",
-        fix="marked: every row stays, bottom_lost gives its sounding's reason (0 held, 1 the bottom "
-        "lost, 2 spike, 3 false bottom, 4 second echo); depth maps leave out every one not held",
+        f"the bottom lost in {len(spans)} stretch(es): {where} into the log; {n_lost} of {n} "
+        f"soundings ({100 * share:.1f} %)", source, 100 * share, unit="%", threshold=THRESH_LOST,
+        evidence=f"the soundings in each stretch read {spread}; its seabed path jumps from ping to "
+        "ping or climbs and falls faster than 1 in 2 against the distance travelled",
+        fix="marked: the rows stay, with bottom_lost = 1, and are left out of depth maps",
         applied=True,
         extra={"stretches": ";".join(f"{a!r}-{b!r}" for a, b in unix),
-               "soundings": str(n_in), "lost": str(n_lost)},
-    ), unix, runs  # fmt: skip
+               "soundings": str(n_lost)},
+    ), unix  # fmt: skip
 
 
 def _pair_error(c1: np.ndarray, pairs: np.ndarray) -> np.ndarray:
@@ -306,13 +271,11 @@ def estimate(
     source = columns.get("depth", "").split(";")[0].strip()
     out: list[QaFinding] = []
     upd: dict[str, Any] = {}
-    lost, unix, runs = lost_finding(c, source)
+    lost, unix = lost_finding(c, source)
     if lost is not None:
         out.append(lost)
     if unix:
         upd["depth_lost"] = unix
-    if runs:
-        upd["depth_reject"] = runs
     tilt, beam = tilt_finding(c, source, pinned)
     if tilt is not None:
         out.append(tilt)

@@ -310,8 +310,7 @@ def _per_s(m: dict[str, Any]) -> dict[str, Any]:
 def unpinned_first_pass(cal: Calibration) -> Calibration:
     """The calibration of the first pass: the raw instruments (nothing estimated is applied yet)."""
     return dataclasses.replace(
-        cal, stw_gain=None, stw_misalignment_deg=None, rot_unit=None, stw_dead=(), depth_lost=(),
-        depth_reject=(),
+        cal, stw_gain=None, stw_misalignment_deg=None, rot_unit=None, stw_dead=(), depth_lost=()
     )
 
 

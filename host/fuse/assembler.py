@@ -241,8 +241,8 @@ class SampleAssembler:
 
     def _sounding(self, row: Sample, t: float) -> None:
         """The depth corrected for the transducer's tilt where the beam angle is known, with the
-        hull's attitude at the sounding's own time (the reading kept as ``depth_raw``), and each
-        row marked with the reason the import rejected its sounding (0: held)."""
+        hull's attitude at the sounding's own time (the reading kept as ``depth_raw``), and the rows
+        in a stretch where the bottom was lost marked."""
         cal = self.cal
         if row.depth is not None and row.roll is not None and cal.sounder_beam_deg is not None:
             sounding = self.depth.at(t)
@@ -252,8 +252,8 @@ class SampleAssembler:
             row.depth = float(
                 attitude.corrected(row.depth, cal.depth_offset_m, roll, pitch, cal.sounder_beam_deg)
             )
-        if cal.depth_reject:
-            row.bottom_lost = float(cal.depth_code(row.t))
+        if cal.depth_lost:
+            row.bottom_lost = float(any(a <= row.t <= b for a, b in cal.depth_lost))
 
     def _true_wind(self, row: Sample, p: Pending, st: Any, labels: dict[str, str]) -> None:
         if row.app_wind_speed is not None and row.app_wind_angle is not None:
@@ -362,7 +362,7 @@ class SampleAssembler:
             fed["depth_raw"] = labels["depth"]
             if att and row.depth_raw is not None:
                 fed["depth"] = f"{labels['depth']} + {att} (tilt corrected)"
-            fed["bottom_lost"] = "import: each sounding's reason, 0 held (qa.depth.bottom_lost)"
+            fed["bottom_lost"] = "import: the bottom lost (qa.depth.bottom_lost)"
         app, stw = labels.get("app"), labels.get("stw")
         wind = f"{app} + {hdg} + {vel}" if app else labels.get("wind_from_instrument", "")
         for c in ("wind_speed", "wind_dir", "wind_east", "wind_north"):

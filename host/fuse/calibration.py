@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import bisect
-import functools
 import math
 import tomllib
 from dataclasses import asdict, dataclass, field
@@ -83,15 +81,7 @@ class Calibration:
     sounder_accuracy_m: float | None = None
     sounder_accuracy_share: float | None = None
     depth_lost: tuple[tuple[float, float], ...] = ()  # UNIX-second stretches the bottom was lost
-    # UNIX-second runs of rows whose sounding the import rejected, and why (sounding_reasons' codes)
-    depth_reject: tuple[tuple[float, float, int], ...] = ()
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
-
-    def depth_code(self, t: float) -> int:
-        """The reason the import rejected the sounding of a row at ``t`` (0: held)."""
-        starts, ends, codes = _spans(self.depth_reject)
-        k = bisect.bisect_right(starts, t) - 1
-        return codes[k] if k >= 0 and t <= ends[k] else 0
 
     def as_metadata(self) -> dict[str, str]:
         """Flat string map for MCAP metadata."""
@@ -100,15 +90,6 @@ class Calibration:
         out = {k: repr(v) if not isinstance(v, str) else v for k, v in d.items()}
         out["wheels"] = repr([(w.pulses_per_m, w.angle_deg) for w in self.wheels])
         return out
-
-
-@functools.lru_cache(maxsize=4)
-def _spans(
-    runs: tuple[tuple[float, float, int], ...],
-) -> tuple[list[float], list[float], list[int]]:
-    """Runs sorted by their start, as three lists (a bisect finds a row's run)."""
-    ordered = sorted(runs)
-    return [a for a, _, _ in ordered], [b for _, b, _ in ordered], [c for _, _, c in ordered]
 
 
 def _num(

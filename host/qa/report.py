@@ -117,27 +117,21 @@ def computed_findings(
     """The checks computed on the samples themselves (``recorded``: the log's own findings, whose
     bottom lost is not estimated again; ``calibration``: its boat file, for the sounder)."""
     from forcemap.host.convert.depth_findings import local_xy, lost_finding
-    from forcemap.host.qa.rejections import rejected_finding
     from forcemap.host.qa.soundings import s44_finding
 
     recorded = recorded or []
     depth_src = _first(columns, "depth")
     out: list[QaFinding | None] = [checks.time_finding(c)]
-    estimated = False
     if not any(f.check == "bottom_lost" for f in recorded) and np.isfinite(c["depth"]).any():
-        lost, _, runs = lost_finding(c, depth_src)
-        marked = np.isfinite(c["bottom_lost"]).any()
-        if lost is not None and marked:  # a table an import marked: its marks stand
-            n = int((np.nan_to_num(c["bottom_lost"]) > 0).sum())
-            fix = f"the table marks {n} rows rejected (bottom_lost > 0): depth maps leave them out"
+        lost, _ = lost_finding(c, depth_src)
+        marked = np.nan_to_num(c["bottom_lost"]) > 0
+        if lost is not None and lost.applied and marked.any():  # a table an import marked
+            fix = f"the table marks {int(marked.sum())} rows bottom_lost = 1: depth maps leave them out"
             lost = QaFinding(**{**asdict(lost), "fix": fix, "applied": False})
-        elif lost is not None:  # judged now: the rows are not marked in the file
+        elif lost is not None and lost.applied:  # estimated now: the rows are not marked in the file
             lost = _not_applied(lost)
-            c = {**c, "bottom_lost": _marks(c, runs)}
-            estimated = True
+            c = {**c, "bottom_lost": _marks(c, lost)}
         out.append(lost)
-    if np.isfinite(c["depth"]).any():
-        out.append(rejected_finding(c, depth_src, estimated))
     if np.isfinite(c["depth"]).any() and np.isfinite(c["lat"]).any():
         out.append(s44_finding(c, local_xy(c["lat"], c["lon"]), depth_src, recorded, calibration))
     out.append(checks.position_finding(c, _first(columns, "lat")))
@@ -148,11 +142,13 @@ def computed_findings(
     return [f for f in out if f is not None]
 
 
-def _marks(c: Mapping[str, np.ndarray], runs: tuple[tuple[float, float, int], ...]) -> np.ndarray:
-    """Each row's reason from the runs of rows judged (UNIX s; 0 held, NaN without a sounding)."""
-    out = np.where(np.isfinite(c["depth"]), 0.0, np.nan)
-    for a, b, code in runs:
-        out[(c["t"] >= a) & (c["t"] <= b)] = code
+def _marks(c: Mapping[str, np.ndarray], f: QaFinding) -> np.ndarray:
+    """The rows inside a bottom-lost finding's stretches (UNIX s)."""
+    out = np.zeros(len(c["t"]))
+    for span in f.extra.get("stretches", "").split(";"):
+        if span:
+            a, b = (float(x) for x in span.split("-", 1))
+            out[(c["t"] >= a) & (c["t"] <= b)] = 1.0
     return out
 
 

@@ -1,11 +1,10 @@
-"""A depth survey graded against IHO S-44: the share of the soundings kept whose TVU meets each order
-(Exclusive, Special, 1a/1b, 2), and where they miss Order 1a/1b (the time, the depth and the term that
-costs most), as one ``qa.depth.s44`` finding.
+"""A depth survey graded against IHO S-44: the share of soundings whose TVU meets Order 1a/1b and Special,
+and where they do not (the time, the depth and the term that costs most), as one ``qa.depth.s44`` finding.
 
-Each sounding's TVU comes from forcemap.host.fuse.tvu (sounder, attitude, position x slope, water level;
-the bed's slope from the soundings kept). Soundings rejected (the bottom lost, a spike, a false bottom, a
-second echo: ``bottom_lost`` > 0) are no measurement of the bed: they are left out of the shares and
-counted. S-44 asks that 95 % of the soundings meet an order's TVU: that is the green line for Order 1a/1b.
+Each sounding's TVU comes from forcemap.host.fuse.tvu (sounder, attitude, position x slope, water level).
+Soundings in a stretch where the bottom was lost have no TVU (they are no measurement of the bed): they
+are left out of the shares and counted. S-44 asks that 95 % of the soundings meet an order's TVU: that
+is the green line for Order 1a/1b.
 """
 
 from __future__ import annotations
@@ -53,18 +52,17 @@ def s44_finding(
     sd_pos, pos_from = tvu.position_sd(recorded, source)
     spec = tvu.spec_of(calibration)
     offset = float((calibration or {}).get("depth_offset_m", 0.0) or 0.0)
-    kept = np.where(lost, np.nan, depth)  # the bed's slope from the soundings kept
     t_ = tvu.table_tvu(
-        kept, xy, spec, c.get("depth_raw"), c.get("roll"), c.get("pitch"), sd_pos, 0.0, offset
+        depth, xy, spec, c.get("depth_raw"), c.get("roll"), c.get("pitch"), sd_pos, 0.0, offset
     )
     u = t_.tvu
     use = have & ~lost & np.isfinite(u)
     if not use.any():
         return None
     code = tvu.order_met(u, depth)
-    shares = {o: float(((code >= 1) & (code <= k))[use].mean()) for o, k in tvu.ORDER_CODES.items()}
     order1 = (code >= 1) & (code <= tvu.ORDER_CODES["1a/1b"])
-    s1, ss = shares["1a/1b"], shares["special"]
+    special = (code >= 1) & (code <= tvu.ORDER_CODES["special"])
+    s1, ss = float(order1[use].mean()), float(special[use].mean())
     largest = t_.largest()
     miss = use & ~order1
     where = _stretches(miss[use], c["t"][use], largest[use])
@@ -75,18 +73,14 @@ def s44_finding(
     verdict = "green" if s1 >= MEET_SHARE else ("yellow" if s1 >= 0.5 else "red")
     msg = (
         f"IHO S-44: {100 * s1:.1f} % of {int(use.sum())} soundings meet Order 1a/1b, "
-        f"{100 * ss:.1f} % Special, {100 * shares['exclusive']:.1f} % Exclusive, "
-        f"{100 * shares['2']:.1f} % Order 2 (TVU {np.nanpercentile(u[use], 5):.2f}-"
+        f"{100 * ss:.1f} % Special (TVU {np.nanpercentile(u[use], 5):.2f}-"
         f"{np.nanpercentile(u[use], 95):.2f} m at 95 %, largest term: {names[np.argmax(counts)]})"
     )
     if where:
         msg += "; not Order 1a/1b: " + ", ".join(where) + " into the survey"
     msg += deep
     if lost.any():
-        msg += (
-            f"; {int((have & lost).sum())} soundings rejected (the bottom lost, spikes, false "
-            "bottoms, second echoes) left out"
-        )
+        msg += f"; {int((have & lost).sum())} soundings where the bottom was lost left out"
     return QaFinding(
         "depth", "s44", verdict, msg, source, 100 * s1, unit="%",
         threshold="95 % of the soundings within Order 1a/1b's TVU, sqrt(0.5^2 + (0.013 d)^2) m "
@@ -98,6 +92,5 @@ def s44_finding(
         fix="" if verdict == "green" else "the largest term says what to improve: a sounder with a "
         "stated accuracy in boat.toml [sounder], the hull's attitude (roll, pitch), a better fix",
         extra={"special_share": repr(100 * ss), "order_1b_share": repr(100 * s1),
-               "exclusive_share": repr(100 * shares["exclusive"]),
-               "order_2_share": repr(100 * shares["2"]), "soundings": str(int(use.sum()))},
+               "soundings": str(int(use.sum()))},
     )  # fmt: skip

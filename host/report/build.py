@@ -131,7 +131,6 @@ def qa_section(ctx: ReportContext) -> list[str]:
         "estimates applied at import are marked.</p>",
         "<table><tr><th>category</th><th>verdict</th><th>finding</th><th>fix</th></tr>",
     ]
-    rejected = None
     for cat, fs in rep.by_category().items():
         for f in fs:
             mark = " (applied)" if f.applied else ""
@@ -139,26 +138,7 @@ def qa_section(ctx: ReportContext) -> list[str]:
                 f"<tr><td>{html.escape(cat.replace('_', ' '))}</td><td>{f.verdict}</td>"
                 f"<td>{html.escape(f.message)}</td><td class=small>{html.escape(f.fix)}{mark}</td></tr>"
             )
-            rejected = f if (cat, f.check) == ("depth", "rejected") else rejected
-    return parts + ["</table>"] + _rejected_minutes(rejected)
-
-
-def _rejected_minutes(f) -> list[str]:  # type: ignore[no-untyped-def]
-    """The soundings rejected, per reason, in each minute where any was (check's qa.depth.rejected)."""
-    import json
-
-    table = json.loads(f.extra.get("per_minute", "{}")) if f is not None else {}
-    names = ("lost_bottom", "spike", "false_bottom", "second_echo")
-    rows = [(m, r) for m, r in table.items() if sum(r[k] for k in names)]
-    if not rows:
-        return []
-    head = "".join(f"<th>{k.replace('_', ' ')}</th>" for k in names)
-    out = ["<h3>Soundings rejected, per minute</h3>",
-           f"<table><tr><th>minute</th><th>soundings</th>{head}</tr>"]  # fmt: skip
-    for m, r in rows:
-        cells = "".join(f"<td>{r[k]}</td>" for k in names)
-        out.append(f"<tr><td>{m}</td><td>{r['soundings']}</td>{cells}</tr>")
-    return out + ["</table>"]
+    return parts + ["</table>"]
 
 
 def measurements_section(ctx: ReportContext) -> list[str]:
