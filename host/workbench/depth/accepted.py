@@ -21,10 +21,10 @@ reading is not a heavy tail of the sounder's noise but another process (a second
 bottom lost for a ping), and a t-likelihood still lets it pull the map (its weight is small, not zero),
 while costing an iteratively reweighted fit. Measured: on bench/bench_spikes.py's surveys it cost 6-15
 fits and left maps 21-31 m off at p99 that removal left within 0.09 m (docs/METHODS.md, "Spikes");
-on the real logs (Student-t, nu = 4, 8 reweighted fits of the spike test's rows) it cost 7-10 times
-the fit on the accepted soundings and moved the map by more than a tenth of their disagreement at
-35 % (PacCupStart) and 74 % (Flensburg 2013-07-31) of the soundings the surface rejects. The surface
-costs 0.01-0.06 s on the real logs, 0.25 s on 43,500 rows. docs/SOUNDINGS.md, "One depth surface for
+on the real logs (Student-t, nu = 4, 8 reweighted fits of the rows the spike test and the import's
+judgement leave) it cost 8-15 times the fit on the accepted soundings and moved the map by more than a
+tenth of their disagreement at 12 % (PacCupStart) and 74 % (Flensburg 2013-07-31) of the soundings the
+surface rejects. The surface costs 0.01-0.06 s on the real logs, 0.25 s on 43,500 rows. docs/SOUNDINGS.md, "One depth surface for
 every map", has the figures before and after.
 """
 
