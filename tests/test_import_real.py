@@ -261,10 +261,17 @@ def test_every_real_file_is_covered():
         p.name
         for p in REAL.rglob("*")
         if p.is_file()
-        and p.relative_to(REAL).parts[0] != "adcp"
+        and p.relative_to(REAL).parts[0] not in ("adcp", "tides")
         and p.suffix.lower() not in (".md", ".csv")
     }
-    assert data == set(NMEA) | set(TLOG) | {"ardusub_4.1_bluerov_small.BIN"}
+    assert data == set(NMEA) | set(TLOG) | {"ardusub_4.1_bluerov_small.BIN"} | set(COUNTED_ELSEWHERE)
+
+
+# logs whose sentences are not yet counted by hand here, and the tests that read them whole; tides/ holds
+# station constants, read by tests/test_reference_current.py
+COUNTED_ELSEWHERE = {
+    "duxbury.nmea.gz": "tests/test_qa_real.py (import, export, check), tests/test_sfbay_cross_day.py",
+}
 
 
 @pytest.mark.parametrize("name", sorted(NMEA))

@@ -123,7 +123,8 @@ def _columns(path) -> dict[str, np.ndarray]:
 
 
 def test_the_corpus_is_all_there():
-    assert len(LOGS) == 13 and CHECKSUMS in LOGS and "nmea/sfbay/swift-day1.nmea.gz" in LOGS
+    assert len(LOGS) == 14 and CHECKSUMS in LOGS and "nmea/sfbay/swift-day1.nmea.gz" in LOGS
+    assert "nmea/sfbay/duxbury.nmea.gz" in LOGS
 
 
 @pytest.mark.parametrize("log", LOGS)
