@@ -16,7 +16,7 @@ from forcemap.sim_devices.fields import World
 EFFECT_NAMES = [
     "depth_current", "dam_release", "gusts", "bank_shelter",
     "wheel_misalignment", "anemometer_upwash", "heel", "compass_deviation", "clock_offset", "tide",
-    "tidal_stream", "seiche", "stage",
+    "tidal_stream", "reference_stream", "seiche", "stage",
 ]  # fmt: skip
 
 
