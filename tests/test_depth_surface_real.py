@@ -45,7 +45,10 @@ LOGS = {
         "96 soundings of 35-80 m in 10-20 m of fjord, in runs at the edges of the bottom-lost stretches "
         "that test does not find (the lost-bottom work's); without them 1.16 x"
     ),
-    "nmea/irene/irene_2014-06-27_geneva.nmea": f"{BASIS} (58 m), the shelf's edge it cannot follow",
+    "nmea/irene/irene_2014-06-27_geneva.nmea": (
+        "the shelf's edge needs a lengthscale under the map's shortest (58 m over its box; fitted on "
+        "every row it sits there, noise 0.54 m; on the fit's rows, one per 5 s, 225 m and 0.80 m)"
+    ),
     "nmea/sfbay/swift-day1.nmea.gz": None,
     "nmea/sfbay/duxbury.nmea.gz": (
         "not yet examined: the second San Francisco Bay day came with the reference current in the same stop "

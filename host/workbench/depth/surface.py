@@ -75,20 +75,18 @@ def survey_soundings(survey: Survey, position_sd: float = tvu.POSITION_SD_M) -> 
     reading = np.where(keep, np.cumsum(keep & ~held) - 1, -1)  # a held row is its reading's
     keep &= ~held
     cols = survey.columns
-    t_ = tvu.table_tvu(
-        depth, survey.xy, tvu.SounderSpec(), cols.get("depth_raw"), cols.get("roll"),
-        cols.get("pitch"), position_sd,
-    )  # fmt: skip
-    sd = t_.sd
+    slope = bed_slope(depth[keep], survey.xy[keep], position_sd)
+    att = tvu.attitude_sd(depth, cols.get("depth_raw"), cols.get("roll"), cols.get("pitch"))[keep]
+    sd = tvu.sounding_tvu(depth[keep], tvu.SounderSpec(), att, slope, position_sd).sd
     given = cols.get("depth_tvu")  # the export's, from the log's own sounder and position noise
     if given is not None:
-        sd = np.where(np.isfinite(given), given / tvu.Z95, sd)
+        sd = np.where(np.isfinite(given[keep]), given[keep] / tvu.Z95, sd)
     return {
         "xy": survey.xy[keep],
         "depth": depth[keep],
-        "sd": sd[keep],
+        "sd": sd,
         "scatter": local_scatter(depth[keep]),
-        "slope": bed_slope(depth[keep], survey.xy[keep], position_sd),
+        "slope": slope,
         "t": cols["t"][keep],
         "position_sd": position_sd,
         "reading": reading,  # per row of the survey: its sounding here (-1: none)
