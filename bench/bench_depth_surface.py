@@ -35,6 +35,7 @@ LOGS = [
     "nmea/irene/irene_2013-08-03_flensburg.nmea",
     "nmea/irene/irene_2014-06-27_geneva.nmea",
     "nmea/sfbay/swift-day1.nmea.gz",
+    "nmea/sfbay/duxbury.nmea.gz",
 ]
 WINDOW_S = 300.0
 
