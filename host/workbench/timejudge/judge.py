@@ -133,6 +133,14 @@ def kind_of(form: Form, span_s: float, sd_s: float | None) -> str:
     return "periodic" if form.period_s + 2.0 * (sd_s or 0.0) <= span_s else "drift"
 
 
+def determined(best: Form, sd_s: float | None) -> bool:
+    """Whether the best form's shape is one the record can name: no period (a drift), a tidal period, or a
+    period whose profile likelihood falls on both sides of its peak (`refined_period` gives it an sd). A
+    period the profile leaves open (on the Gulf of Finland's 0.6-m rise, 14,156 s in a 14,843-s record, the
+    drift of 15,062 s as likely) is one rise or fall, whatever the rest of a cycle would be: a drift."""
+    return best.period_s is None or sd_s is not None or is_tidal(best.period_s)
+
+
 def is_tidal(period_s: float, sd_s: float = 0.0) -> bool:
     """Whether a period (within two sd) lies in a tidal band."""
     return any(lo - 2 * sd_s <= period_s <= hi + 2 * sd_s for lo, hi in TIDAL_BANDS)
@@ -192,7 +200,7 @@ def judge_time(
             sd = max(sd, bootstrap_period_sd(d, ta, tb, period, rp, proj, seed))
         best = replace(best, period_s=period)
         columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
-    best = replace(best, name=kind_of(best, span, sd))
+    best = replace(best, name=kind_of(best, span, sd) if determined(best, sd) else "drift")
     n_evidence, at = evidence(d, rp, columns)
     covered = (float(min(ta.min(), tb.min())), float(max(ta.max(), tb.max())))
     fitted = FittedChange(best.name, best.period_s, span, covered)
