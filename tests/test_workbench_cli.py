@@ -230,7 +230,13 @@ def test_diagnose_json_contract(survey_csv, tmp_path, capsys):
     assert set(d["baseline"]) == {"terms", "cv_rmse"}
     keys = {"covariate", "cv_rmse", "improvement", "explanation"}
     keys |= {"identifiable", "confounded_with", "null_gains", "rows", "time"}
+    keys |= {"improvement_sd", "p_value", "credited", "why"}
     assert d["candidates"] and all(set(c) == keys for c in d["candidates"])
+    # one scale: each effect with its sd, the verdict and what decided it
+    assert all(c["why"] and c["improvement_sd"] >= 0 for c in d["candidates"])
+    best = d["candidates"][0]
+    assert best["credited"] and best["p_value"] <= d["rounds"][0]["threshold"]
+    assert 0 < best["improvement_sd"] < best["improvement"]
     assert all(c["time"] is None for c in d["candidates"] if c["covariate"] != "t")  # the revisits judge t
     assert d["rounds"][0]["candidates"] == d["candidates"]
     assert d["rounds"][0]["added"] == ("gp(depth, matern32)" if d["missing_effect_found"] else None)

@@ -19,6 +19,7 @@ from forcemap.host.workbench.terms import clock_offset
 from forcemap.host.workbench.terms.registry import build_term, parse_term
 from forcemap.host.workbench.validation.cv import (
     CVResult,
+    gain_sd,
     paired_test,
     random_folds,
     repeated_blocked_folds,
@@ -169,10 +170,16 @@ class Evaluator:
         gain, p = paired_test(self.base_b.error**2, cv.error**2, self.groups)
         return cv, gain, p
 
-    def random(self, model: Model) -> tuple[float, float]:
-        """Gain and p-value of `model` on random folds, where the field around every held-out sample is known."""
+    def gain_sd(self, cv: CVResult) -> float:
+        """The sd of `blocked`'s gain for held-out predictions `cv` (the block the paired unit)."""
+        return gain_sd(self.base_b.error**2, cv.error**2, self.groups)
+
+    def random(self, model: Model) -> tuple[float, float, float]:
+        """Gain, p-value and the gain's sd of `model` on random folds, where the field around every held-out
+        sample is known."""
         cv = self.sm.cv(self.rfold, primary=model, secondary_cv=self.sec_r, interval=False)
-        return paired_test(self.base_r.error**2, cv.error**2, self.blocks)
+        base_sq, cand_sq = self.base_r.error**2, cv.error**2
+        return (*paired_test(base_sq, cand_sq, self.blocks), gain_sd(base_sq, cand_sq, self.blocks))
 
     def with_term(self, term: str) -> Model:
         """The current model plus the term `term` (written as a user writes it: `water_level`, `tide`,
@@ -213,8 +220,8 @@ class Evaluator:
                 self._time = (time_verdict(self.sm, threshold=threshold),)
         return self._time[0]
 
-    def clock(self) -> tuple[str, float, float, float]:
-        """(term, cv_rmse, gain, p) of correcting a clock offset between the boat-frame reading and the
+    def clock(self) -> tuple[str, float, float, float, float]:
+        """(term, cv_rmse, gain, p, the gain's sd) of correcting a clock offset between the boat-frame reading and the
         heading and ground velocity.
 
         The offset acts in turns wherever they are, not at places: the paired unit is a stretch of track
@@ -227,15 +234,21 @@ class Evaluator:
         model.fit(theta=sm.primary.theta_, n_basis=sm.primary.n_basis_)
         cv = self.blocked_cv(model)
         stretches = (self.survey.trel // clock_offset.PAIRED_STRETCH_S).astype(int)
-        gain, p = paired_test(self.base_b.error**2, cv.error**2, np.tile(stretches, REPEATS))
-        return clock_offset.describe(tau), cv.rmse, gain, p
+        paired = (self.base_b.error**2, cv.error**2, np.tile(stretches, REPEATS))
+        gain, p = paired_test(*paired)
+        return clock_offset.describe(tau), cv.rmse, gain, p, gain_sd(*paired)
 
     def pair_gain(self, first: str, then: str) -> float:
         """Blocked-CV gain of adding `then` to the model that already has `first`."""
+        return self.pair(first, then)[0]
+
+    def pair(self, first: str, then: str) -> tuple[float, float]:
+        """Blocked-CV gain of adding `then` to the model that already has `first`, and its sd."""
         X = dict(self.sm.X)
         X.update(survey_inputs(self.survey, {first, then}))
         y = self.sm.y_primary
         a = self.sm.primary.extended(build_term(parse_term(first, is_circular), is_circular), X, y)
         ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, y)
         cv_a, cv_ab = self.blocked_cv(self.sm, a), self.blocked_cv(self.sm, ab)
-        return paired_test(cv_a.error**2, cv_ab.error**2, self.groups)[0]
+        a_sq, ab_sq = cv_a.error**2, cv_ab.error**2
+        return paired_test(a_sq, ab_sq, self.groups)[0], gain_sd(a_sq, ab_sq, self.groups)

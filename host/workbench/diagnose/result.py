@@ -47,6 +47,9 @@ class Candidate:
     time: object = field(default=None, repr=False)  # the revisits' TimeVerdict
     blocked_p: float | None = None  # the blocked-CV p-value, when the revisits' p-value is the candidate's
     rows: int | None = None  # judged on this many rows, those that have it (None: the model's own)
+    gain_sd: float = math.nan  # the sd of `improvement` (over the blocks, or the crossings at revisits)
+    blocked_sd: float = math.nan  # the sd of `blocked_gain`
+    why: str = ""  # why it is credited or not, in a few words (the table's last column)
     hypers: object = field(
         default=None, repr=False
     )  # the extended model's theta, for the null's refits
@@ -56,6 +59,7 @@ class Candidate:
         what they showed (`revisit_note`)."""
         self.revisit, self.time = True, verdict
         self.improvement, self.p_value = verdict.improvement, verdict.p_value
+        self.gain_sd = verdict.improvement_sd
         self.note = revisit_note(verdict, held)
 
     def to_json(self) -> dict:
@@ -63,6 +67,10 @@ class Candidate:
             "covariate": self.covariate,
             "cv_rmse": self.cv_rmse,
             "improvement": self.improvement,
+            "improvement_sd": _finite(self.gain_sd),
+            "p_value": _finite(self.p_value),
+            "credited": self.significant,
+            "why": self.why,
             "explanation": self.explanation,
             "identifiable": self.identifiable,
             "confounded_with": self.confounded_with,
@@ -70,6 +78,11 @@ class Candidate:
             "rows": self.rows,
             "time": None if self.time is None else dataclasses.asdict(self.time),
         }
+
+
+def _finite(x: float) -> float | None:
+    """A number for the JSON contract: null where it is not finite."""
+    return float(x) if math.isfinite(x) else None
 
 
 @dataclass
@@ -154,24 +167,22 @@ class Round:
                 out.append(line)
         if self.advice:
             out.append(f"  survey advice: {self.advice}")
-        out += [
-            "",
-            f"{'rank':>4}  {'covariate':<22} {'cv_rmse':>9} {'gain':>7} {'null max':>8} {'p':>8}  note"
-            + (f"  (cv_rmse in {u})" if u else ""),
+        return out + ["", *self.table()]
+
+    def table(self) -> list[str]:
+        """One line per candidate, on one scale: the effect it is credited with (the relative drop of the
+        error) and its sd, its p-value, whether it is credited, and why."""
+        out = [
+            f"{'rank':>4}  {'covariate':<22} {'effect':>7} {'± sd':>6} {'p':>8}  {'credited':<8}  why"
         ]
         for i, c in enumerate(self.candidates, 1):
-            notes = []
-            if c.consequence:
-                notes.append("consequence: credited with its random-fold gain")
-            if c.identifiable is False:
-                notes.append(f"confounded with {', '.join(c.confounded_with)}")
+            why = [c.why] if c.why else []
             if c.rows is not None:
-                notes.append(f"judged on the {c.rows:,} rows that have it")
-            null = f"{max(c.null_gains):>+8.1%}" if c.null_gains else f"{'':>8}"
-            mark = "*" if c.significant else " "
+                why.append(f"judged on the {c.rows:,} rows that have it")
+            sd = f"{c.gain_sd:>6.1%}" if math.isfinite(c.gain_sd) else f"{'':>6}"
             out.append(
-                f"{i:>4}{mark} {c.covariate:<22} {c.cv_rmse:>9.4g} {c.improvement:>+7.1%} {null} "
-                f"{c.p_value:>8.1e}  {'; '.join(notes)}"
+                f"{i:>4}  {c.covariate:<22} {c.improvement:>+7.1%} {sd} {c.p_value:>8.1e}  "
+                f"{'yes' if c.significant else 'no':<8}  {'; '.join(why)}"
             )
         return out
 

@@ -170,8 +170,9 @@ def diagnose_round(
             c.time_proxies = proxies
     threshold = alpha / max(len(results), 1)
     _judge(evs, results, threshold, seconds)
-    if any(c.covariate == "t" and c.time is not None and not c.revisit for c in results):
-        results.sort(key=lambda c: -c.improvement)  # time now carries its blocks' gain: rank it by that
+    # ranked again by what the rule credits: time judged on its blocks carries their gain, and a candidate
+    # beside time what it adds given it
+    results.sort(key=lambda c: -c.improvement)
     results = _evidence_first(results)
     others = [c.covariate for c in results if c.identifiable is False]
     what = _component(ev.sm)
@@ -216,21 +217,23 @@ def _evaluate_all(
 
 def _evaluate(ev: Evaluator, name: str) -> Candidate:
     if name == clock_offset.NAME:
-        term, rmse, gain, p = ev.clock()
-        c = Candidate(name, term, rmse, gain, p, gain, None, False)
+        term, rmse, gain, p, sd = ev.clock()
+        c = Candidate(name, term, rmse, gain, p, gain, None, False, gain_sd=sd, blocked_sd=sd)
         c.note = clock_offset.scan_offset(ev.sm.survey, ev.sm.vector).edge_note()
         return c
     if name != "t":
         derived_column(ev.survey, name)
     model = ev.extended(name)
     cv, gain_b, p_b = ev.blocked(model)
-    gain, p, gain_r = gain_b, p_b, None
+    gain, p, gain_r, sd = gain_b, p_b, None, ev.gain_sd(cv)
     is_consequence = name in ev.consequences
     if is_consequence:
-        gain_r, p_r = ev.random(model)
+        gain_r, p_r, sd_r = ev.random(model)
         gain, p = min(gain_b, gain_r), max(p_b, p_r)
+        sd = sd_r if gain_r < gain_b else sd
     spec = str(parse_term(name, is_circular))
-    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence)
+    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence, gain_sd=sd)
+    c.blocked_sd = ev.gain_sd(cv)
     c.hypers = model.theta_
     if name == "t":
         _judged_at_revisits(ev, c)
@@ -251,7 +254,7 @@ def _judged_at_revisits(ev: Evaluator, c: Candidate) -> None:
     smooth = smooth_time_term(ev.target)
     if smooth != c.term:  # under depth, time is the water level
         cv, c.blocked_gain, c.blocked_p = ev.blocked(ev.with_term(smooth))
-        c.term, c.cv_rmse = smooth, cv.rmse
+        c.term, c.cv_rmse, c.blocked_sd = smooth, cv.rmse, ev.gain_sd(cv)
 
 
 def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
@@ -264,14 +267,15 @@ def _advise_time_term(ev: Evaluator, c: Candidate) -> None:
             c.time.fitted_period_s, c.time.fitted_period_sd_s = est.period_s, est.period_sd_s
             term = time_term(c.time, ev.target)
     cv, c.blocked_gain, c.blocked_p = ev.as_next_round(term)
-    c.term, c.cv_rmse = term, cv.rmse
+    c.term, c.cv_rmse, c.blocked_sd = term, cv.rmse, ev.gain_sd(cv)
 
 
 def _judged_on_blocks(c: Candidate) -> None:
     """Time the revisits could not tell but the blocks' rule found (a short survey's few stretches): the
     candidate carries the blocks' gain and p-value, and says what the revisits showed."""
     c.revisit = False
-    c.improvement, c.p_value = c.blocked_gain, c.blocked_p
+    c.improvement, c.p_value, c.gain_sd = c.blocked_gain, c.blocked_p, c.blocked_sd
+    c.why = "judged on blocks: too few revisits to tell"
     c.note = f"judged on blocks: the revisits alone could not tell (p = {c.time.p_value:.2g}; {c.note})"
 
 
@@ -286,6 +290,7 @@ def _judge(
         ev = evs[c.covariate]
         c.significant = False
         gain, p = c.improvement, c.p_value
+        said = ["consequence: its random-fold gain"] if c.consequence else []
         if c.revisit:
             # judged at the revisits, where the place is the same and only the time differs: the null is
             # the exchange of whole stretches' times, the significance its p-value, with no floor
@@ -293,15 +298,22 @@ def _judge(
                 c.take_time_verdict(*found)
             if c.p_value <= threshold:
                 c.identifiable, c.significant = True, True
+                c.why = f"at {c.time.pairs:,} revisit pairs ({c.time.crossings} crossings)"
                 _advise_time_term(ev, c)
                 continue
             gain, p = c.blocked_gain, c.blocked_p  # else the blocks' evidence, under their own rule
-        if gain < FLOOR or p > threshold or screened >= SCREEN:
+            said.append(f"revisits p {c.time.p_value:.1e}, then the blocks' rule")
+        elif c.covariate == "t":
+            said.append("too few revisits, the blocks' rule")
+        stop = _screened_out(gain, p, threshold, screened)
+        c.why = "; ".join([*said, stop] if stop else said)
+        if stop:
             continue
         screened += 1
         if c.covariate == clock_offset.NAME:
             # a correction of the target, not a covariate: nothing to shift, nothing position could predict
             c.identifiable, c.significant = True, True
+            c.why = "a correction of the data: beats the blocks' rule"
             continue
         values = survey_inputs(ev.survey, {c.covariate})[c.covariate]
         scale = identify.map_length_scale(ev)
@@ -309,6 +321,7 @@ def _judge(
             c.predictability = identify.smooth_along_track(ev.survey, c.covariate, values, scale)
             if c.predictability >= identify.SMOOTH_SHARE:
                 c.identifiable, c.one_pass, c.confounded_with = False, True, ["position"]
+                c.why = "stands in for position: one pass"
                 continue
         t0 = time.perf_counter()
         stand_in, c.predictability = identify.predict_from_model_inputs(ev, c.covariate, values)
@@ -321,11 +334,33 @@ def _judge(
         if not c.identifiable:
             c.confounded_with = identify.confounders(ev)
         c.significant = c.identifiable and beats_null(gain, c.null_gains)
+        c.why = _judged_why(c, said)
     seconds.update(identifiability=t_ident, null=t_null)
     for c in results:
         if c.revisit and c.significant and c.time.p_value > threshold:
             _judged_on_blocks(c)
     _credited_given_time(evs, results)
+
+
+def _screened_out(gain: float, p: float, threshold: float, screened: int) -> str:
+    """Why the blocks' rule stops a candidate before its null and identifiability: a gain under the floor,
+    a p-value above the threshold, or the null's budget spent on stronger ones; "" when it goes on."""
+    if gain < FLOOR:
+        return f"under the {FLOOR:.0%} floor"
+    if p > threshold:
+        return f"p above {threshold:.1e}"
+    return f"after the {SCREEN} strongest: not screened" if screened >= SCREEN else ""
+
+
+def _judged_why(c: Candidate, said: list[str]) -> str:
+    """Why a screened candidate is credited or not: what position can tell of it, and its null."""
+    if c.identifiable is False:
+        got = f"stands in for {', '.join(c.confounded_with)} (it keeps {c.replaced_gain:.0%} replaced)"
+    elif not c.significant:
+        got = f"time-shifted copies gain {max(c.null_gains, default=0.0):.0%}"
+    else:
+        got = "beats its time-shifted copies and position's stand-in"
+    return "; ".join([*said, got])
 
 
 def _credited_given_time(evs: dict[str, Evaluator], results: list[Candidate]) -> None:
@@ -349,7 +384,7 @@ def _credited_given_time(evs: dict[str, Evaluator], results: list[Candidate]) ->
             continue
         if registry.caps(parse_term(c.covariate, is_circular)).acts_on_data:
             continue  # a correction of the data (a clock offset) acts in turns, not in time
-        left = evs[c.covariate].pair_gain("t", c.covariate)
+        left, left_sd = evs[c.covariate].pair("t", c.covariate)
         why = (
             f"{c.covariate} is derived from the target's own direction, and the {vt.prefix} changes in time"
             if c.covariate in own
@@ -358,8 +393,11 @@ def _credited_given_time(evs: dict[str, Evaluator], results: list[Candidate]) ->
         c.note = "; ".join(
             filter(None, [c.note, f"{why}: once time is in the model it adds {left:+.0%} (credited with that)"])
         )
-        c.improvement = min(c.improvement, left)
+        if left < c.improvement:
+            c.improvement, c.gain_sd = left, left_sd
         c.significant = c.improvement >= FLOOR
+        shared = f"shares {max(c.blocked_gain - left, 0.0):.0%} with t, adds {left:+.0%} given it"
+        c.why = "; ".join([c.why, shared] if c.significant else [shared, f"under the {FLOOR:.0%} floor"])
 
 
 def _evidence_first(results: list[Candidate]) -> list[Candidate]:

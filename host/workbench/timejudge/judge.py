@@ -41,6 +41,7 @@ from forcemap.host.workbench.timejudge.forms import (
     periodic_columns,
 )
 from forcemap.host.workbench.timejudge.revisits import RevisitPairs
+from forcemap.host.workbench.validation.cv import gain_sd
 
 __all__ = ["M2_S", "Form", "TimeVerdict", "judge_time"]
 
@@ -105,6 +106,7 @@ class TimeVerdict:
     change_span_s: tuple[float, float] = (0.0, 0.0)
     start_s: float = 0.0  # the first judged row's time (every time here is in s since the survey's start)
     unit: str = ""  # of the differences and the change (time_candidate.time_verdict sets it)
+    improvement_sd: float = 0.0  # the sd of `improvement`, a crossing the paired unit (`cv_share`)
 
     @property
     def improvement(self) -> float:
@@ -207,6 +209,7 @@ def judge_time(
     change = fitted(d, columns)
     change_sd = fitted.sd(d, columns, rp, seed) if change else 0.0
     turns = best.name == "drift" and best.period_s is not None and fitted.turns(d, columns, rp, seed)
+    share, share_sd = cv_share(d, rp, columns)
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -214,7 +217,8 @@ def judge_time(
         stretch_s=rp.stretch_s,
         radius_m=rp.radius_m,
         rms_difference=rms,
-        share=cv_share(d, rp, columns),
+        share=share,
+        improvement_sd=share_sd,
         p_value=p,
         permutations=len(null),
         best=best,
@@ -332,9 +336,10 @@ def indistinct(forms: list[Form], best: Form, n_eff: int) -> list[str]:
     return out
 
 
-def cv_share(d: np.ndarray, rp: RevisitPairs, A: np.ndarray, k: int = 5) -> float:
+def cv_share(d: np.ndarray, rp: RevisitPairs, A: np.ndarray, k: int = 5) -> tuple[float, float]:
     """A form's share of the differences, cross-validated: its coefficients fitted on the pairs away from
-    a fold of stretches, judged on the pairs that touch it (pooled over the folds)."""
+    a fold of stretches, judged on the pairs that touch it (pooled over the folds); and the sd of the
+    relative drop of their RMS it gives (`TimeVerdict.improvement`), a crossing the paired unit."""
     fold = rp.stretch % k
     fa, fb = fold[rp.pairs[:, 0]], fold[rp.pairs[:, 1]]
     resid = np.zeros_like(d)
@@ -345,4 +350,5 @@ def cv_share(d: np.ndarray, rp: RevisitPairs, A: np.ndarray, k: int = 5) -> floa
             continue
         w, *_ = np.linalg.lstsq(A[~test], d[~test], rcond=None)
         resid[test] = d[test] - A[test] @ w
-    return float(1.0 - (resid * resid).sum() / (d * d).sum())
+    base_sq, cand_sq = (d * d).sum(axis=1), (resid * resid).sum(axis=1)
+    return float(1.0 - cand_sq.sum() / base_sq.sum()), gain_sd(base_sq, cand_sq, rp.crossing_index())

@@ -13,7 +13,6 @@ crossline folds the independent units: a difference within twice its sd over the
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -22,6 +21,7 @@ from forcemap.host.workbench.depth.water_level import crossline_errors, level_es
 from forcemap.host.workbench.survey.table import family
 from forcemap.host.workbench.targets.target_model import SurveyModel
 from forcemap.host.workbench.terms import registry
+from forcemap.host.workbench.validation.cv import clustered_sd
 
 
 @dataclass
@@ -99,14 +99,3 @@ def check_level(sm, radius_m: float, errors, progress: bool = False) -> LevelChe
         sd_difference=clustered_sd(e0 - e1, errors[1]),
         range_m=float(np.ptp(estimate)),
     )
-
-
-def clustered_sd(x: np.ndarray, cluster: np.ndarray) -> float:
-    """The sd of the mean of `x` when its values are correlated within each cluster and independent between
-    clusters (the sandwich estimator over the clusters' sums); infinite with fewer than two clusters."""
-    _, k = np.unique(cluster, return_inverse=True)
-    n_clusters = int(k.max()) + 1
-    if n_clusters < 2:
-        return math.inf
-    sums = np.bincount(k.ravel(), weights=x - x.mean())
-    return float(np.sqrt((sums * sums).sum() * n_clusters / (n_clusters - 1)) / len(x))

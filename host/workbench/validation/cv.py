@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -231,3 +232,27 @@ def paired_test(
         return improvement, 1.0
     p = float(stats.wilcoxon(d, alternative="greater").pvalue)
     return improvement, p
+
+
+def clustered_sd(x: np.ndarray, cluster: np.ndarray) -> float:
+    """The sd of the mean of `x` when its values are correlated within each cluster and independent between
+    clusters (the sandwich estimator over the clusters' sums); infinite with fewer than two clusters."""
+    _, k = np.unique(cluster, return_inverse=True)
+    n_clusters = int(k.max()) + 1
+    if n_clusters < 2:
+        return math.inf
+    sums = np.bincount(k.ravel(), weights=x - x.mean())
+    return float(np.sqrt((sums * sums).sum() * n_clusters / (n_clusters - 1)) / len(x))
+
+
+def gain_sd(base_sq: np.ndarray, cand_sq: np.ndarray, groups: np.ndarray) -> float:
+    """The sd of `paired_test`'s relative RMSE drop 1 - sqrt(mean(cand_sq) / mean(base_sq)), its errors
+    correlated within a group and independent between groups: the delta method on the ratio R of the two
+    means, whose linearisation (cand_sq - R base_sq) / mean(base_sq) is summed over the groups (a cluster
+    sandwich, as `clustered_sd`)."""
+    mb = float(np.mean(base_sq))
+    if mb <= 0:
+        return math.inf
+    ratio = float(np.mean(cand_sq)) / mb
+    sd_ratio = clustered_sd((cand_sq - ratio * base_sq) / mb, groups)
+    return sd_ratio / (2.0 * math.sqrt(ratio)) if ratio > 0 else math.inf
