@@ -59,6 +59,19 @@ def test_river_base_world_matches_the_issue() -> None:
     ] == pytest.approx(160.0)
 
 
+def test_a_world_without_an_effect_holds_its_current_and_depth_constant_in_time() -> None:
+    """The null surveys of diagnose's tests (and issue 59's power bench) need nothing in time to find: on
+    the river and the lake without an effect, the current and the depth at every place are the same at
+    every time of a survey, and the water level stays at rest (the wind's gusts are its own business)."""
+    for name in ("river", "lake"):
+        w = World(scenario.load(name), [], 3600.0, seed=3)
+        xx, yy = grid(w)
+        first = np.array(w.current(xx, yy, np.zeros_like(xx)))
+        for t in (600.0, 1800.0, 3599.0):
+            assert np.array_equal(np.array(w.current(xx, yy, np.full_like(xx, t))), first), (name, t)
+        assert np.all(w.water_level(np.linspace(0, 3600, 50)) == 0.0), name
+
+
 def test_depth_current_slows_the_bars() -> None:
     sc = scenario.load("river")
     base = World(sc, [], 600.0)
