@@ -58,16 +58,22 @@ class AnchorWriter:
             self._fd = None
 
 
-def read_anchor(path: str | os.PathLike[str]) -> tuple[int, int, float] | None:
-    """The clock file's (virtual_ns, host monotonic ns, speed), or None while it is missing or short.
+def read_anchor(
+    path: str | os.PathLike[str], fd: int | None = None
+) -> tuple[int, int, float] | None:
+    """The clock file's (virtual_ns, host monotonic ns, speed), or None while it is missing or short;
+    from ``fd`` (the file open already) when given.
 
     Read until two reads agree, so an anchor rewritten in place (`AnchorWriter`) is never read half old,
     half new."""
     previous = None
     for _ in range(5):
         try:
-            with open(path, "rb") as f:
-                raw = f.read(CLOCK_SIZE)
+            if fd is not None:
+                raw = os.pread(fd, CLOCK_SIZE, 0)
+            else:
+                with open(path, "rb") as f:
+                    raw = f.read(CLOCK_SIZE)
         except OSError:
             return None
         if len(raw) < CLOCK_SIZE:
@@ -128,11 +134,38 @@ class SimClock:
         self._last = 0
         self._lock = threading.Lock()
         self._ack: int | None = None  # the lockstep FIFO's write end, once open
+        self._fd: int | None = None  # in lockstep: the clock file, open (`_read_locked_step`)
+        self._fd_at = 0
+
+    def _read_locked_step(self, host: int) -> tuple[int, int, float] | None:
+        """In lockstep the anchor moves at every chunk, rewritten in place: read through a descriptor
+        kept open (two preads, where opening the file each time took about ten system calls, each a
+        hand-over of the GIL that a busy machine makes slow: issue 58), opened again every
+        ``reread_s`` so a clock file replaced (a new simulator) is followed."""
+        if self._fd is not None and host - self._fd_at >= self._reread_ns:
+            os.close(self._fd)
+            self._fd = None
+        if self._fd is None:
+            try:
+                self._fd = os.open(self.path, os.O_RDONLY)
+            except OSError:
+                return None
+            self._fd_at = host
+        return read_anchor(self.path, self._fd)
 
     def _current_anchor(self) -> tuple[int, int, float]:
         host = time.monotonic_ns()
         lockstep = self._anchor is not None and self._anchor[2] == LOCKSTEP
-        if self._anchor is None or lockstep or host - self._read_at >= self._reread_ns:
+        if lockstep:
+            anchor = self._read_locked_step(host)
+            if anchor is not None:
+                self._anchor = anchor
+            self._read_at = host
+            return self._anchor
+        if self._fd is not None:  # lockstep ended: the simulator re-anchors by replacing the file
+            os.close(self._fd)
+            self._fd = None
+        if self._anchor is None or host - self._read_at >= self._reread_ns:
             anchor = read_anchor(self.path)
             deadline = time.monotonic() + self._wait_s
             while anchor is None and self._anchor is None:

@@ -5,6 +5,10 @@
 3. `forcemap export` writes the samples table;
 4. `forcemap fit` fits the paper's baseline; `forcemap diagnose` names what it is missing;
 5. `forcemap fit --effects ...` refits with that term; `forcemap report` writes the HTML report.
+
+The simulator and the daemon are new interpreters; the steps after them are children forked from this
+one (`demo_steps.py`), side by side where one does not need another's output, with the transcript of one
+after another.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from forcemap.host.cli.common import (
     format_duration,
     parse_duration,
 )
+from forcemap.host.cli.demo_steps import Step, warm_up
 from forcemap.host.errors import CliError
 from forcemap.host.extras import install_hint
 
@@ -97,13 +102,6 @@ def _step(title: str) -> None:
     print(f"\n== {title}", flush=True)
 
 
-def _run(cmd: list[str]) -> None:
-    print("$ forcemap " + " ".join(cmd[3:]), flush=True)
-    res = subprocess.run(cmd)
-    if res.returncode != 0:
-        raise SystemExit(f"demo: step failed (exit {res.returncode}): forcemap {' '.join(cmd[3:])}")
-
-
 LOCKSTEP_SOURCES = ("bridge", "depth", "mavlink")  # the ports the demo's daemon reads
 
 
@@ -146,6 +144,7 @@ def survey(args: argparse.Namespace, out: Path) -> list[Path]:
     try:
         print("$ forcemap " + " ".join(sim_cmd[3:]), flush=True)
         sim = subprocess.Popen(sim_cmd, stdout=subprocess.PIPE, text=True)
+        warm_up()  # the steps' imports, once, while the survey runs (`demo_steps.Step` forks from here)
         sim_out, _ = sim.communicate()
         if sim.returncode != 0:
             raise SystemExit(f"demo: the simulator failed (exit {sim.returncode})")
@@ -227,46 +226,58 @@ def run(args: argparse.Namespace) -> int:
         f"{format_duration(args.duration)} at x{args.speed:g}"
     )
     mcaps = survey(args, out)
-    _run(_forcemap("log", "info", str(mcaps[0])))
+    steps: list[Step] = []
 
-    _step("2/5 samples table")
+    def start(*argv: str) -> Step:
+        steps.append(Step(list(argv)))
+        return steps[-1]
+
     table = out / "survey.csv"
-    _run(_forcemap("export", *map(str, mcaps), "-o", str(table)))
-
-    _step("3/5 the paper's baseline: zero-mean GP on position, Matern 3/2")
     base_json = out / "fit-baseline.json"
-    _run(_forcemap("fit", str(table), "--target", args.target, "--json", str(base_json)))
-
-    _step("4/5 what is the model missing?")
     diag_json = out / "diagnosis.json"
-    _run(_forcemap("diagnose", str(table), "--target", args.target, "--json", str(diag_json)))
-    diag = json.loads(diag_json.read_text())
-
-    before = json.loads(base_json.read_text())["cv_rmse"]
-    after = before
-    found = None
-    if diag["missing_effect_found"]:
-        found = diag["candidates"][0]["covariate"]
-        _step(f"5/5 add '{found}' and refit")
-        fit_json = out / "fit-refit.json"
-        _run(
-            _forcemap(
-                "fit",
-                str(table),
-                "--target",
-                args.target,
-                "--effects",
-                found,
-                "--json",
-                str(fit_json),
+    try:
+        # `log info` reads the log, `export` writes the table: side by side
+        info = start("log", "info", str(mcaps[0]))
+        export = start("export", *map(str, mcaps), "-o", str(table))
+        if export.wait() == 0:
+            # both from the baseline terms (diagnose's start without a fit: the same terms), side by side
+            fit = start("fit", str(table), "--target", args.target, "--json", str(base_json))
+            diagnose = start(
+                "diagnose", str(table), "--target", args.target, "--json", str(diag_json)
             )
-        )
-        after = json.loads(fit_json.read_text())["cv_rmse"]
-    else:
-        _step("5/5 no missing effect found; nothing to add")
+        info.show()
 
-    report = out / "report.html"
-    _run(_forcemap("report", str(table), "-o", str(report)))
+        _step("2/5 samples table")
+        export.show()
+
+        _step("3/5 the paper's baseline: zero-mean GP on position, Matern 3/2")
+        fit.show()
+
+        _step("4/5 what is the model missing?")
+        diagnose.show()
+        diag = json.loads(diag_json.read_text())
+
+        before = json.loads(base_json.read_text())["cv_rmse"]
+        after = before
+        found = None
+        if diag["missing_effect_found"]:
+            found = diag["candidates"][0]["covariate"]
+            _step(f"5/5 add '{found}' and refit")
+            fit_json = out / "fit-refit.json"
+            refit = start(
+                "fit", str(table), "--target", args.target, "--effects", found, "--json",
+                str(fit_json),
+            )  # fmt: skip
+            refit.show()
+            after = json.loads(fit_json.read_text())["cv_rmse"]
+        else:
+            _step("5/5 no missing effect found; nothing to add")
+
+        report = out / "report.html"
+        start("report", str(table), "-o", str(report)).show()
+    finally:
+        for s in steps:
+            s.stop()
 
     print("\n== summary")
     print(f"hidden phenomenon    : {args.phenomena}")
