@@ -114,6 +114,8 @@ BENCHES: tuple[Bench, ...] = (
     Bench("time_truth", "python -m bench.bench_time_truth fjord_level lake_drift geneva_seiche plaka_level "
           "fjord_tide fjord_seiche --gains 0,1", 6,
           "what the revisits see of an injected change, and what a judge that knew it could see"),
+    Bench("time_power", "python -m bench.bench_time_power", 12,
+          "the time judge's power against the bound: shapes in time put into four real logs, and their nulls"),
     Bench("heading_confound", "python -m bench.bench_heading_confound lake_drift geneva_seiche fjord_tide "
           "nmea/irene/irene_2013-08-03_flensburg.nmea", 4,
           "the heading and time confounded on a race course"),

@@ -243,11 +243,13 @@ class Evaluator:
         return self.pair(first, then)[0]
 
     def pair(self, first: str, then: str) -> tuple[float, float]:
-        """Blocked-CV gain of adding `then` to the model that already has `first`, and its sd."""
+        """Blocked-CV gain of adding `then`'s term to the model that already has the term `first` (a
+        covariate, for its default term, or a term as a user writes it), and the gain's sd."""
+        first_spec = parse_term(first, is_circular)
         X = dict(self.sm.X)
-        X.update(survey_inputs(self.survey, {first, then}))
+        X.update(survey_inputs(self.survey, {*first_spec.inputs, then}))
         y = self.sm.y_primary
-        a = self.sm.primary.extended(build_term(parse_term(first, is_circular), is_circular), X, y)
+        a = self.sm.primary.extended(build_term(first_spec, is_circular), X, y)
         ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, y)
         cv_a, cv_ab = self.blocked_cv(self.sm, a), self.blocked_cv(self.sm, ab)
         a_sq, ab_sq = cv_a.error**2, cv_ab.error**2
