@@ -44,7 +44,7 @@ from forcemap.host.workbench.timejudge.candidate import judged_pairs, revisits_o
 from forcemap.host.workbench.timejudge.judge import M2_S, judge_time
 from forcemap.host.workbench.timejudge.revisits import RevisitPairs
 
-from bench.bench_time_truth import components, oracle_p, through_map
+from bench.bench_time_truth import component_models, oracle_p, through_map
 from bench.inject_cases import FJORD, FLENSBURG_31, GENEVA, GENEVA_2008
 
 LOGS = (GENEVA, GENEVA_2008, FLENSBURG_31, FJORD)
@@ -122,7 +122,7 @@ def judge_log(log: str, cases: Path, n_shapes: int, n_nulls: int, seed: int) -> 
     rng = np.random.default_rng(seed)
     own = judge_time(d0, rp, xy, hd, threshold=THRESHOLD)
     rows = [dict(log=log, shape="as recorded", kind="log", p=own.p_value, bound=np.nan, form=own.best.name)]
-    models = [m for m, _ in components(sm, _no_truth(s), s.trel + s.t0)]
+    models = component_models(sm)
     every = shapes(n_shapes, rng, float(np.ptp(s.trel)))
     for i in range(n_nulls):
         moved, t_rows = exchange(rp, s.trel, rng)
@@ -146,13 +146,6 @@ def _through_maps(models: list[SurveyModel], todo: list[Shape], t_rows: np.ndarr
     unit = np.column_stack([sh.along(t_rows) for sh in todo])
     ang = np.radians([sh.toward_deg for sh in todo])
     return [through_map(m, unit * trig(ang)) for m, trig in zip(models, (np.sin, np.cos), strict=True)]
-
-
-def _no_truth(s) -> pd.DataFrame:
-    """A truth of zeros: `components` needs one to fit the component models."""
-    t = s.trel + s.t0
-    z = np.zeros(len(t))
-    return pd.DataFrame({"t": t, "current_east": z, "current_north": z, "level": z})
 
 
 def _truth(s, sh: Shape) -> pd.DataFrame:

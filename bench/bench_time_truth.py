@@ -77,16 +77,21 @@ def is_level(truth: pd.DataFrame) -> bool:
     return bool(np.ptp(truth.level) > 0)
 
 
-def components(sm: SurveyModel, truth: pd.DataFrame, t: np.ndarray):
-    """The judged components' models (a vector's east and north models with `sm`'s terms, or `sm`) and
-    the injected part on each at UNIX times `t`."""
+def component_models(sm: SurveyModel) -> list[SurveyModel]:
+    """The judged components' models: a vector's east and north models with `sm`'s terms, or `sm`."""
     if sm.vector is None:
-        return [(sm, np.interp(t, truth.t, truth.level))]
-    out = []
-    for aspect in ("east", "north"):
-        m = SurveyModel(sm.survey, sm.vector.column(aspect), [str(x) for x in sm.term_specs], max_basis=600)
-        out.append((m.fit(), np.interp(t, truth.t, truth[f"current_{aspect}"])))
-    return out
+        return [sm]
+    terms = [str(x) for x in sm.term_specs]
+    return [
+        SurveyModel(sm.survey, sm.vector.column(aspect), terms, max_basis=600).fit()
+        for aspect in ("east", "north")
+    ]
+
+
+def components(sm: SurveyModel, truth: pd.DataFrame, t: np.ndarray):
+    """The judged components' models (`component_models`) and the injected part on each at UNIX times `t`."""
+    cols = ["level"] if sm.vector is None else ["current_east", "current_north"]
+    return [(m, np.interp(t, truth.t, truth[c])) for m, c in zip(component_models(sm), cols, strict=True)]
 
 
 def through_map(m: SurveyModel, Y: np.ndarray) -> np.ndarray:

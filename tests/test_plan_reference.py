@@ -11,25 +11,17 @@ current. The plan from the reference predicts each line at its own time and must
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
-from forcemap.host.api import read_survey
-from forcemap.host.plan.boat_model import BoatModel
-from forcemap.host.plan.maps import survey_maps
-from forcemap.host.plan.mission_io import read_mission, write_outputs
-from forcemap.host.plan.planner import plan_mission
 from forcemap.host.vessel import scenario as sc
-from forcemap.host.vessel.geodesy import LocalFrame
-from forcemap.host.workbench.survey.reference import load_reference, with_reference
-from forcemap.host.workbench.survey.table import load_survey
+from forcemap.host.workbench.survey.reference import load_reference
 from forcemap.sim_devices.reference_stream import REFERENCE
 
-from bench.closed_loop import fly
 from bench.tidal_survey import truth_survey
 from tests.test_plan_tide import later_river
+from tests.test_plan_tide import plan_and_fly as tide_plan_and_fly
 
 STREAM = ["reference_stream:river=0.5:ratio=1.8:ratio_east=0.3"]
 STATION = "SFB1204"
@@ -43,25 +35,11 @@ def strongest(after: float, span_s: float = 86400.0) -> float:
 
 
 def plan_and_fly(table: Path, effect: str, start: float, scenario: Path, out: Path):  # type: ignore[no-untyped-def]
-    """Fit the current (the tide on the reference, or the mean), plan the lawnmower from `start`, fly it
-    in the true river then."""
-    tb = out / f"{effect or 'mean'}.csv"
-    shutil.copy(table, tb)
-    ref = {"reference_current": REFERENCE, "reference_station": STATION} if effect else {}
-    read_survey(tb, **ref).fit("current_speed", effects=effect, record=True)
-    survey = load_survey(tb)
-    if effect:
-        with_reference(survey, load_reference(REFERENCE, STATION))
-    m = read_mission("lawnmower_perpendicular", "river")
-    frame = LocalFrame(survey.lat0, survey.lon0)
-    wps, lines = frame.points_to_local(m.latlon), frame.points_to_local(m.lines_latlon)
-    lo, hi = wps.min(axis=0) - 120.0, wps.max(axis=0) + 120.0
-    maps = survey_maps(tb, survey, (lo[0], hi[0], lo[1], hi[1]), False, start, 3 * 3600.0)
-    result = plan_mission(wps, m.speeds, lines, maps, BoatModel())
-    p = result.planned
-    path = write_outputs(out / f"planned-{effect or 'mean'}", frame.points_to_latlon(p.plan.wps),
-                         p.plan.speeds, frame.points_to_latlon(p.plan.lines), p.to_json(), effect)[0]  # fmt: skip
-    return maps, fly(path, str(scenario), 5, STREAM, 1.5 * p.track.duration + 120)
+    """The lawnmower across the river, planned from the tide on the reference (or the mean current) and
+    flown in the true river at `start`."""
+    return tide_plan_and_fly(
+        table, effect, start, scenario, out, STREAM, "lawnmower_perpendicular", (REFERENCE, STATION)
+    )
 
 
 @pytest.mark.slow

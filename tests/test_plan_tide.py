@@ -23,6 +23,7 @@ from forcemap.host.plan.mission_io import read_mission, write_outputs
 from forcemap.host.plan.planner import plan_mission
 from forcemap.host.vessel import scenario as sc
 from forcemap.host.vessel.geodesy import LocalFrame
+from forcemap.host.workbench.survey.reference import load_reference, with_reference
 from forcemap.host.workbench.survey.table import load_survey
 
 from bench.closed_loop import fly
@@ -42,13 +43,27 @@ def later_river(folder: Path, start: float) -> Path:
     return path
 
 
-def plan_and_fly(table: Path, effect: str, start: float, scenario: Path, out: Path):  # type: ignore[no-untyped-def]
-    """Fit the current with `effect`, plan the lawnmower from `start`, fly it in the true river then."""
+def plan_and_fly(  # type: ignore[no-untyped-def]
+    table: Path,
+    effect: str,
+    start: float,
+    scenario: Path,
+    out: Path,
+    stream: list[str] = TIDE,
+    mission: str = "lawnmower",
+    reference: tuple[Path, str] | None = None,
+):
+    """Fit the current with `effect` (on a `reference` current and station, if given, when there is an
+    effect), plan the `mission` from `start`, fly it in the true river with `stream` then."""
     tb = out / f"{effect or 'mean'}.csv"
     shutil.copy(table, tb)
-    read_survey(tb).fit("current_speed", effects=effect, record=True)
+    use = reference if effect else None
+    ref = {"reference_current": use[0], "reference_station": use[1]} if use else {}
+    read_survey(tb, **ref).fit("current_speed", effects=effect, record=True)
     survey = load_survey(tb)
-    m = read_mission("lawnmower", "river")
+    if use:
+        with_reference(survey, load_reference(*use))
+    m = read_mission(mission, "river")
     frame = LocalFrame(survey.lat0, survey.lon0)
     wps, lines = frame.points_to_local(m.latlon), frame.points_to_local(m.lines_latlon)
     lo, hi = wps.min(axis=0) - 120.0, wps.max(axis=0) + 120.0
@@ -57,7 +72,7 @@ def plan_and_fly(table: Path, effect: str, start: float, scenario: Path, out: Pa
     p = result.planned
     path = write_outputs(out / f"planned-{effect or 'mean'}", frame.points_to_latlon(p.plan.wps),
                          p.plan.speeds, frame.points_to_latlon(p.plan.lines), p.to_json(), effect)[0]  # fmt: skip
-    return maps, fly(path, str(scenario), 5, TIDE, 1.5 * p.track.duration + 120)
+    return maps, fly(path, str(scenario), 5, stream, 1.5 * p.track.duration + 120)
 
 
 @pytest.mark.slow

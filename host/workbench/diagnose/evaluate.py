@@ -221,8 +221,8 @@ class Evaluator:
         return self._time[0]
 
     def clock(self) -> tuple[str, float, float, float, float]:
-        """(term, cv_rmse, gain, p, the gain's sd) of correcting a clock offset between the boat-frame reading and the
-        heading and ground velocity.
+        """(term, cv_rmse, gain, p, the gain's sd) of correcting a clock offset between the boat-frame
+        reading and the heading and ground velocity.
 
         The offset acts in turns wherever they are, not at places: the paired unit is a stretch of track
         about one turn long, not a spatial block."""
@@ -243,13 +243,11 @@ class Evaluator:
         return self.pair(first, then)[0]
 
     def pair(self, first: str, then: str) -> tuple[float, float]:
-        """Blocked-CV gain of adding `then`'s term to the model that already has the term `first` (a
-        covariate, for its default term, or a term as a user writes it), and the gain's sd."""
-        first_spec = parse_term(first, is_circular)
+        """Blocked-CV gain of adding `then` to the model that already has `first`, and the gain's sd."""
         X = dict(self.sm.X)
-        X.update(survey_inputs(self.survey, {*first_spec.inputs, then}))
+        X.update(survey_inputs(self.survey, {first, then}))
         y = self.sm.y_primary
-        a = self.sm.primary.extended(build_term(first_spec, is_circular), X, y)
+        a = self.sm.primary.extended(build_term(parse_term(first, is_circular), is_circular), X, y)
         ab = a.extended(build_term(parse_term(then, is_circular), is_circular), X, y)
         cv_a, cv_ab = self.blocked_cv(self.sm, a), self.blocked_cv(self.sm, ab)
         a_sq, ab_sq = cv_a.error**2, cv_ab.error**2

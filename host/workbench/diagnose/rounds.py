@@ -224,15 +224,15 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
         derived_column(ev.survey, name)
     model = ev.extended(name)
     cv, gain_b, p_b = ev.blocked(model)
-    gain, p, gain_r, sd = gain_b, p_b, None, ev.gain_sd(cv)
+    sd_b = ev.gain_sd(cv)
+    gain, p, gain_r, sd = gain_b, p_b, None, sd_b
     is_consequence = name in ev.consequences
     if is_consequence:
         gain_r, p_r, sd_r = ev.random(model)
         gain, p = min(gain_b, gain_r), max(p_b, p_r)
-        sd = sd_r if gain_r < gain_b else sd
+        sd = sd_r if gain_r < gain_b else sd_b
     spec = str(parse_term(name, is_circular))
-    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence, gain_sd=sd)
-    c.blocked_sd = ev.gain_sd(cv)
+    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence, gain_sd=sd, blocked_sd=sd_b)
     c.hypers = model.theta_
     if name == "t":
         _judged_at_revisits(ev, c)
@@ -274,7 +274,7 @@ def _judged_on_blocks(c: Candidate) -> None:
     candidate carries the blocks' gain and p-value, and says what the revisits showed."""
     c.revisit = False
     c.improvement, c.p_value, c.gain_sd = c.blocked_gain, c.blocked_p, c.blocked_sd
-    c.why = "judged on blocks: too few revisits to tell"
+    c.why = f"credited on blocks: the revisits alone could not tell (p {c.time.p_value:.1e})"
     c.note = f"judged on blocks: the revisits alone could not tell (p = {c.time.p_value:.2g}; {c.note})"
 
 
