@@ -119,9 +119,7 @@ class Lockstep:
             return
         self.set_clock(t_ns)
         before = self.ports.bytes_written[source]
-        # no settling of the pty's count (a spin of up to 1 ms a chunk, 63,049 chunks in the demo): the
-        # next write waits until the reader says it has read every byte of this one
-        self.ports.write(source, data, settle=False)
+        self.ports.write(source, data)
         self.sent[source] += self.ports.bytes_written[source] - before
         self.chunks += 1
         if not self._until(lambda: self.acked[source] >= self.sent[source]):

@@ -44,12 +44,12 @@ class PortSet:
     def clock_path(self) -> str:
         return str(self.dir / "clock")
 
-    def write(self, source: str, data: bytes, settle: bool = True) -> None:
+    def write(self, source: str, data: bytes) -> None:
         port = self.ports.get(source)
         if port is None:
             return
         try:
-            n = port.write(data, settle)
+            n = port.write(data)
         except BlockingIOError:  # nobody is reading: the bytes are lost, as on a real port
             n = None
         if n is None:

@@ -75,36 +75,27 @@ class UsbCdc:
         """True while there is room in the FIFO (like POLLOUT on the board's USB-CDC stream)."""
         return self.limit is None or self.unread() < self.limit
 
-    def write(self, frame: bytes, settle: bool = True) -> int | None:
+    def write(self, frame: bytes) -> int | None:
         """Write a frame. If it does not fit, write what fits and return None, like the board's
         write that gives up after its timeout and drops the rest: the host sees a truncated frame.
-        ``settle=False``: the caller knows the host reads every byte before the next write (lockstep), so
-        the count of unread bytes need not be waited for.
         """
-        if self.limit is None:  # a UART: nothing to count, nothing cut
-            n = self._write(frame, 0, settle=False)
-            self.frames_written += 1
-            return n
         before = self.unread()
-        room = self.limit - before
+        room = len(frame) if self.limit is None else self.limit - before
         if len(frame) > room:
             if room > 0:
-                self._write(frame[:room], before, settle)
+                self._write(frame[:room], before)
             self.frames_dropped += 1
             return None
-        n = self._write(frame, before, settle)
+        n = self._write(frame, before)
         self.frames_written += 1
         return n
 
-    def _write(self, data: bytes, before: int, settle: bool) -> int:
+    def _write(self, data: bytes, before: int) -> int:
         n = os.write(self.master, data)
         self.bytes_written += n
-        if not settle:
-            return n
         # The kernel moves pty bytes to the slave side from a worker thread: until it has run,
         # FIONREAD undercounts and a host that stopped reading would look like one that reads.
-        # Yield until the count moves (our bytes landed, or the host read), for at most 1 ms. A spin:
-        # in lockstep, which waits for the host's word that it read them, there is nothing to wait for.
+        # Yield until the count moves (our bytes landed, or the host read), for at most 1 ms.
         deadline = time.monotonic() + _SETTLE_S
         while self.unread() == before and time.monotonic() < deadline:
             os.sched_yield()
