@@ -38,6 +38,9 @@ candidates, it beats by 5 % the same term on time-shifted copies of itself (its 
 predicted from position does not keep its gain (identifiable); else the survey advice says what survey
 would tell it apart. A finding is added and the survey diagnosed again, up to --rounds times.
 
+With --reference-current, the stations' predicted current is one more form a change in time can take at
+the revisits: a tide that follows it is named as the station's tide and advised tide(reference, position).
+
 Boat kinematics (sog, cog, crab = heading - cog, throttle) respond to the current and wind being mapped, so at a
 held-out place they carry the answer: they are credited only with the gain that survives random folds,
 where the field around each held-out sample is known. Instrument errors that grow with boat speed or

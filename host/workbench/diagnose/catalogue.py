@@ -200,7 +200,12 @@ def explain(
     )
 
 
-KIND_NAMES = {"drift": "a steady drift", "tide": "a tide", "periodic": "another period"}
+KIND_NAMES = {
+    "drift": "a steady drift",
+    "tide": "a tide",
+    "periodic": "another period",
+    "reference": "the reference station's tide",
+}
 
 
 def _hours(seconds: float) -> str:
@@ -223,7 +228,9 @@ def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
         return "the wind changes in time: gusts, a veer or a front passing"
     level = family == "depth"
     what = "the water level changes during the survey" if level else f"the {family} changes in time"
-    if form.name == "tide" and not short_for_tide:
+    if form.name == "reference":
+        cause = f"{what}: a tide, as the reference station predicts it ({reference_words(verdict)})"
+    elif form.name == "tide" and not short_for_tide:
         cause = f"{what}: a tide (the revisits' differences follow a period of {_hours(form.period_s)}{sd})"
     elif form.name in ("tide", "periodic"):
         cause = (
@@ -244,17 +251,49 @@ def time_form_cause(verdict, family: str, short_for_tide: bool) -> str:
         cause = (
             f"{what}: a steady rise or fall (a river's stage, a discharge changing, a slow drift)"
         )
-    if short_for_tide and form.name != "tide":
+    if short_for_tide and form.name not in ("tide", "reference"):
         cause += (
             f"; a record of {_hours(verdict.span_s)} cannot tell a tide (12.42 h) from it: in tidal water "
             "the term tide predicts beyond the survey"
         )
     others = [k for k in verdict.indistinct if not (short_for_tide and k == "tide")]
+    if form.name == "reference":
+        better = fits_better(verdict, others)
+        others = [k for k in others if k not in better]
+        if better:
+            cause += (
+                f"; {' and '.join(kind_named(verdict, k) for k in better)} "
+                f"{'fits' if len(better) == 1 else 'fit'} the revisits better: "
+                "what the station does not predict here is left for the next round"
+            )
     if others:
         cause += f"; the revisits cannot tell it from {' or '.join(kind_named(verdict, k) for k in others)}"
     if level:
         cause += "; or give a gauge's record with --water-level"
     return cause
+
+
+def reference_words(verdict) -> str:
+    """A reference form's station, and the place's ratio to it and offset, as its coefficients give them
+    (linearised: the term tide(reference) fits both, and maps them)."""
+    offset = verdict.offset_s / 60.0
+    when = f"{abs(offset):.0f} min {'later' if offset >= 0 else 'earlier'}"
+    return f"station {verdict.station}: what the map leaves follows {verdict.ratio:.2f} x its current, {when}"
+
+
+def fits_better(verdict, kinds: list[str]) -> list[str]:
+    """The kinds among `kinds` whose best member the revisits prefer to the best form by more than
+    `judge.TELL_APART` in log-likelihood."""
+    from forcemap.host.workbench.timejudge.judge import TELL_APART, log_lik
+
+    n_eff = max(verdict.crossings, 2)
+    top = log_lik(verdict.best.share, n_eff)
+    out = []
+    for kind in kinds:
+        members = [f.share for f in verdict.forms if f.name == kind]
+        if members and log_lik(max(members), n_eff) - top >= TELL_APART:
+            out.append(kind)
+    return out
 
 
 def kind_named(verdict, kind: str) -> str:

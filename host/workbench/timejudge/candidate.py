@@ -32,6 +32,9 @@ MIN_CROSSINGS = 5
 TIDE_SPAN_SHARE = 0.25
 # a boat that moves less than this in a stretch holds its place (a mooring's swing, a GNSS's wander)
 STATION_M = 10.0
+# what a change that follows the reference station advises: its ratio and offset mapped (`fit --effects
+# tide` with a reference fits the same)
+REFERENCE_TERM = "tide(reference, position)"
 
 
 def judged_values(sm) -> np.ndarray:
@@ -134,7 +137,9 @@ def time_verdict(
     found = revisits_of(sm, radius_m)
     if found is None:
         return None
-    verdict = judge_time(*judged_pairs(sm, found), threshold=threshold)
+    verdict = judge_time(
+        *judged_pairs(sm, found), threshold=threshold, reference=reference_form(sm, found)
+    )
     # a vector is judged on its east and north components
     verdict.unit = "m/s" if sm.vector is not None else unit_of(sm.target)
     return verdict, found.held
@@ -150,6 +155,25 @@ def judged_pairs(sm, found: Revisits) -> tuple:
     return values[v[:, 1]] - values[v[:, 0]], rp, sm.survey.xy[rows], hd
 
 
+def reference_form(sm, found: Revisits):
+    """The survey's reference current as a form for the revisits `found` of a current's model `sm`; None
+    without a reference, for another target (a station predicts the current, not the wind or a depth), or
+    where the model maps the place's relation to it already (a single relation over the reach leaves its
+    map to find)."""
+    from forcemap.host.workbench.timejudge.reference_form import ReferenceForm
+
+    s = sm.survey
+    if getattr(s, "reference", None) is None or family(sm.target) != "current":
+        return None
+    if REFERENCE_TERM in {str(t) for t in sm.term_specs}:
+        return None
+    rows = found.rows
+    utc0 = float(s.t0 + found.rp.start_s)
+    return ReferenceForm(
+        s.reference, s.columns["lat"][rows], s.columns["lon"][rows], utc0, found.rp
+    )
+
+
 def time_term(verdict: TimeVerdict, target: str) -> str:
     """The term a verdict advises for `target`: a tide, a periodic term (a seiche, at the fit's own period
     where it agrees: `fitted_seiche`), or a smooth change (a drift, a stage: `water_level` under depth, a
@@ -159,6 +183,8 @@ def time_term(verdict: TimeVerdict, target: str) -> str:
     if fam == "wind":
         return smooth
     kind = verdict.best.name
+    if kind == "reference":
+        return REFERENCE_TERM
     if kind == "tide" and short_for_a_tide(verdict):
         kind = "drift"
     if kind == "periodic":

@@ -188,11 +188,12 @@ class FittedChange:
     columns with (the survey's duration)."""
 
     def __init__(
-        self, kind: str, period_s: float | None, scale_s: float, span: tuple[float, float]
+        self, kind: str, period_s: float | None, scale_s: float, span: tuple[float, float], basis=None
     ) -> None:
         self.amplitude = kind != "drift"
         grid = np.linspace(span[0], span[1], 200)
-        self.basis = form_basis(grid, max(scale_s, 1e-9), period_s)
+        # `basis`: the form's own functions of time, where the ladder's do not give them (a reference's)
+        self.basis = form_basis(grid, max(scale_s, 1e-9), period_s) if basis is None else basis(grid)
 
     def __call__(self, d: np.ndarray, A: np.ndarray) -> float:
         """The change the columns `A` fit to the differences `d` (least squares)."""

@@ -40,6 +40,7 @@ from forcemap.host.workbench.timejudge.forms import (
     pair_shares,
     periodic_columns,
 )
+from forcemap.host.workbench.timejudge.reference_form import ReferenceForm, ratio_and_offset
 from forcemap.host.workbench.timejudge.revisits import RevisitPairs
 from forcemap.host.workbench.validation.cv import gain_sd
 
@@ -65,7 +66,7 @@ TELL_APART = 2.0
 class Form:
     """One shape a change in time can take, fitted to the revisit differences."""
 
-    name: str  # "drift", "tide", "periodic"
+    name: str  # "drift", "tide", "periodic", "reference"
     period_s: float | None
     share: float  # share of the differences' sum of squares it explains
     p_value: float
@@ -104,9 +105,16 @@ class TimeVerdict:
     departure: float = 0.0
     departure_sd: float = 0.0
     change_span_s: tuple[float, float] = (0.0, 0.0)
-    start_s: float = 0.0  # the first judged row's time (every time here is in s since the survey's start)
+    start_s: float = (
+        0.0  # the first judged row's time (every time here is in s since the survey's start)
+    )
     unit: str = ""  # of the differences and the change (time_candidate.time_verdict sets it)
     improvement_sd: float = 0.0  # the sd of `improvement`, a crossing the paired unit (`cv_share`)
+    # a best form that follows the reference station (`reference_form`): the station, and the place's ratio
+    # to it and its offset (s, the place later) from the form's coefficients
+    station: str = ""
+    ratio: float = 0.0
+    offset_s: float = 0.0
 
     @property
     def improvement(self) -> float:
@@ -120,6 +128,7 @@ class TimeVerdict:
 
 def form_at(ladder: FormLadder, i: int, share: float, p: float) -> Form:
     """The ladder's form i, named by its kind (`kind_of`): the drift, or a periodic change."""
+    share, p = float(share), float(p)
     form = Form("drift", None if i == 0 else float(ladder.periods[i - 1]), share, p)
     return Form(kind_of(form, ladder.span, None), form.period_s, share, p)
 
@@ -168,10 +177,12 @@ def judge_time(
     permutations: int = PERMUTATIONS,
     seed: int = 0,
     threshold: float | None = None,
+    reference: ReferenceForm | None = None,
 ) -> TimeVerdict:
     """Judge a change in time from the residual differences `d` (one row per pair of `rp`, one column per
     vector component, the later sample minus the earlier). With a `threshold`, permutations are added up to
-    MAX_PERMUTATIONS while the p-value cannot yet say on which side of it the exact one lies."""
+    MAX_PERMUTATIONS while the p-value cannot yet say on which side of it the exact one lies. With a
+    `reference`, its station's prediction is one more form, judged with the others."""
     d = np.asarray(d, float).reshape(len(rp.pairs), -1)
     rms = float(np.sqrt(np.mean((d * d).sum(axis=1))))
     proj = Projector(nuisance(rp, xy, heading))
@@ -179,37 +190,22 @@ def judge_time(
     span = float(np.ptp(rp.t))
     ladder = FormLadder(span, rp.stretch_s)
     ta, tb = rp.times()
-    obs = ladder.shares(d, ta, tb, proj)
-    rng = np.random.default_rng(seed)
-    pt = PermutedTimes(rp, ladder, proj)
-    orders = np.array([rng.permutation(rp.n_stretches) for _ in range(permutations)])
-    null = pt.null(d, orders)
-    per_form, p = permutation_p(obs, null)
-    while threshold is not None and undecided(p, len(null), threshold):
-        more = min(BATCH, MAX_PERMUTATIONS - len(null))
-        orders = np.array([rng.permutation(rp.n_stretches) for _ in range(more)])
-        null = np.concatenate([null, pt.null(d, orders)])
-        per_form, p = permutation_p(obs, null)
-    best_i = best_form(obs, null)
+    forms, best_i, p, drawn = judged_forms(
+        d, rp, ladder, proj, reference, permutations, seed, threshold
+    )
     n_eff = max(rp.crossings, 2)
-    forms = [form_at(ladder, i, float(obs[i]), float(per_form[i])) for i in range(len(obs))]
-    best, sd = forms[best_i], None
-    if best.period_s is None:
-        columns = ladder.columns(best_i, ta, tb, proj)
-    else:
-        period, sd = refined_period(d, ta, tb, best.period_s, n_eff, proj)
-        if sd is not None:
-            sd = max(sd, bootstrap_period_sd(d, ta, tb, period, rp, proj, seed))
-        best = replace(best, period_s=period)
-        columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
-    best = replace(best, name=kind_of(best, span, sd) if determined(best, sd) else "drift")
+    best, sd, columns = best_columns(d, rp, forms[best_i], best_i, ladder, proj, reference, seed)
     n_evidence, at = evidence(d, rp, columns)
     covered = (float(min(ta.min(), tb.min())), float(max(ta.max(), tb.max())))
-    fitted = FittedChange(best.name, best.period_s, span, covered)
+    basis = reference.basis if best.name == "reference" else None
+    fitted = FittedChange(best.name, best.period_s, span, covered, basis)
     change = fitted(d, columns)
     change_sd = fitted.sd(d, columns, rp, seed) if change else 0.0
-    turns = best.name == "drift" and best.period_s is not None and fitted.turns(d, columns, rp, seed)
+    turns = (
+        best.name == "drift" and best.period_s is not None and fitted.turns(d, columns, rp, seed)
+    )
     share, share_sd = cv_share(d, rp, columns)
+    station, ratio, offset = followed_station(best, reference, columns, d)
     return TimeVerdict(
         pairs=len(rp.pairs),
         crossings=rp.crossings,
@@ -220,7 +216,7 @@ def judge_time(
         share=share,
         improvement_sd=share_sd,
         p_value=p,
-        permutations=len(null),
+        permutations=drawn,
         best=best,
         forms=forms,
         period_sd_s=sd,
@@ -233,7 +229,77 @@ def judge_time(
         departure_sd=fitted.sd(d, columns, rp, seed, of=fitted.departure_of) if turns else 0.0,
         change_span_s=(covered[0] + rp.start_s, covered[1] + rp.start_s),
         start_s=rp.start_s,
+        station=station,
+        ratio=ratio,
+        offset_s=offset,
     )
+
+
+def best_columns(d, rp: RevisitPairs, best: Form, i: int, ladder, proj, reference, seed: int):
+    """The best form named by its kind, its period refined with its sd (None for a form without one, or a
+    period the record leaves open: then a drift), and its columns at the revisit pairs."""
+    ta, tb = rp.times()
+    sd = None
+    if best.name == "reference":
+        return best, None, np.column_stack(reference.columns(ta, tb, proj))
+    if best.period_s is None:
+        columns = ladder.columns(i, ta, tb, proj)
+    else:
+        period, sd = refined_period(d, ta, tb, best.period_s, max(rp.crossings, 2), proj)
+        if sd is not None:
+            sd = max(sd, bootstrap_period_sd(d, ta, tb, period, rp, proj, seed))
+        best = replace(best, period_s=period)
+        columns = np.column_stack(periodic_columns(ta, tb, np.array([2 * np.pi / period]), proj))
+    span = float(np.ptp(rp.t))
+    best = replace(best, name=kind_of(best, span, sd) if determined(best, sd) else "drift")
+    return best, sd, columns
+
+
+def followed_station(
+    best: Form, reference, columns: np.ndarray, d: np.ndarray
+) -> tuple[str, float, float]:
+    """A reference best form's station, and the place's ratio to it and offset (s) that its coefficients
+    give; ("", 0, 0) for another best."""
+    if best.name != "reference":
+        return "", 0.0, 0.0
+    ratio, offset = ratio_and_offset(np.linalg.lstsq(columns, d, rcond=None)[0])
+    return reference.station.id, ratio, offset
+
+
+def judged_forms(d, rp, ladder, proj, reference, permutations: int, seed: int, threshold):
+    """Every form (the ladder's, then a `reference`'s) with its share at the observed times and its p-value
+    against `permutations` draws of whole stretches' times exchanged (more while a `threshold` is
+    `undecided`); the best form's index, the forms' p-value together, and the draws made. A reference
+    form whose own p-value is as small as the forms' together is the best."""
+    ta, tb = rp.times()
+    obs = ladder.shares(d, ta, tb, proj)
+    pt = PermutedTimes(rp, ladder, proj)
+
+    def draws(orders: np.ndarray) -> np.ndarray:
+        if reference is None:
+            return pt.null(d, orders)
+        return np.column_stack([pt.null(d, orders), reference.null(d, orders, proj)])
+
+    if reference is not None:
+        obs = np.append(obs, reference.share(d, ta, tb, proj))
+    rng = np.random.default_rng(seed)
+    orders = np.array([rng.permutation(rp.n_stretches) for _ in range(permutations)])
+    null = draws(orders)
+    per_form, p = permutation_p(obs, null)
+    while threshold is not None and undecided(p, len(null), threshold):
+        more = min(BATCH, MAX_PERMUTATIONS - len(null))
+        orders = np.array([rng.permutation(rp.n_stretches) for _ in range(more)])
+        null = np.concatenate([null, draws(orders)])
+        per_form, p = permutation_p(obs, null)
+    best_i = best_form(obs, null)
+    if reference is not None and per_form[-1] <= p:
+        # a prediction given beforehand that alone carries the evidence for time is the cause to name: it
+        # predicts beyond the survey, and what the ladder's best fits beyond it is left for the next round
+        best_i = len(obs) - 1
+    forms = [form_at(ladder, i, obs[i], per_form[i]) for i in range(len(ladder.omega) + 1)]
+    if reference is not None:
+        forms.append(Form("reference", None, float(obs[-1]), float(per_form[-1])))
+    return forms, best_i, p, len(null)
 
 
 def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tuple[float, float]]:
@@ -327,7 +393,7 @@ def indistinct(forms: list[Form], best: Form, n_eff: int) -> list[str]:
     tell from it."""
     top = log_lik(best.share, n_eff)
     out = []
-    for kind in ("drift", "tide", "periodic"):
+    for kind in ("drift", "tide", "periodic", "reference"):
         members = [f for f in forms if f.name == kind]
         if kind == best.name or not members:
             continue
@@ -351,4 +417,6 @@ def cv_share(d: np.ndarray, rp: RevisitPairs, A: np.ndarray, k: int = 5) -> tupl
         w, *_ = np.linalg.lstsq(A[~test], d[~test], rcond=None)
         resid[test] = d[test] - A[test] @ w
     base_sq, cand_sq = (d * d).sum(axis=1), (resid * resid).sum(axis=1)
-    return float(1.0 - cand_sq.sum() / base_sq.sum()), gain_sd(base_sq, cand_sq, rp.crossing_index())
+    return float(1.0 - cand_sq.sum() / base_sq.sum()), gain_sd(
+        base_sq, cand_sq, rp.crossing_index()
+    )
