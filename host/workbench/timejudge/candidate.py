@@ -10,6 +10,8 @@ was at each time: the radius is kept to half the map's length scale, where the m
 
 from __future__ import annotations
 
+import hashlib
+import weakref
 from typing import NamedTuple
 
 import numpy as np
@@ -35,6 +37,8 @@ STATION_M = 10.0
 # what a change that follows the reference station advises: its ratio and offset mapped (`fit --effects
 # tide` with a reference fits the same)
 REFERENCE_TERM = "tide(reference, position)"
+# each live model's judged values (`judged_values_once`), with a digest of the residuals they were judged on
+_JUDGED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def judged_values(sm) -> np.ndarray:
@@ -52,6 +56,17 @@ def judged_values(sm) -> np.ndarray:
         m = SurveyModel(sm.survey, sm.vector.column(aspect), terms, max_basis=sm.max_basis).fit()
         cols.append(m.y_primary - m.primary.predict(m.X))
     return np.column_stack(cols)
+
+
+def judged_values_once(sm, resid: np.ndarray) -> np.ndarray:
+    """`judged_values(sm)`, computed once while the model lives and leaves the residuals `resid`: diagnose
+    judges a model's revisits, then again with its threshold when the p-value lies near it, and a vector's
+    values are two models fitted anew."""
+    digest = hashlib.sha1(np.ascontiguousarray(resid, float).tobytes()).hexdigest()
+    kept = _JUDGED.get(sm)
+    if kept is None or kept[0] != digest:
+        kept = _JUDGED[sm] = (digest, judged_values(sm))
+    return kept[1]
 
 
 def under_way(xy: np.ndarray, t: np.ndarray, radius: float, stretch_s: float) -> np.ndarray:
@@ -97,7 +112,7 @@ def every_revisit(sm, radius_m: float | None = None, judged: bool = True) -> Rev
     stretch = stretch_length(t, resid)
     radius_m = max(target_radius(sm) if radius_m is None else radius_m, MIN_RADIUS_M)
     moving = under_way(s.xy, t, radius_m, stretch)
-    values = judged_values(sm) if judged else resid[:, None]
+    values = judged_values_once(sm, resid) if judged else resid[:, None]
     keep = moving & np.isfinite(values).all(axis=1)
     if keep.sum() < 2 * MIN_PAIRS:
         return None

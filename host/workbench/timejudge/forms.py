@@ -152,13 +152,43 @@ class PermutedTimes:
         )
         return sparse.csr_matrix((vals, (rows, cols)), shape=(p, 2 * ns))
 
+    def _drift_null(self, d: np.ndarray, shifts: np.ndarray) -> np.ndarray:
+        """The drift's share for each permutation (a column of `shifts`, stretches x permutations).
+
+        With u = t / span and each stretch moved by delta = Delta / span, a pair's differenced columns are
+        u_b - u_a + delta_sb - delta_sa and u_b^2 - u_a^2 + 2 (u_b delta_sb - u_a delta_sa) + delta_sb^2 -
+        delta_sa^2: F z for a fixed F (pairs x 2 + 2 stretches: the pair's own u difference and u^2 difference,
+        +-1 at its two stretches, +-u at its two stretches) and z1 = [1, 0, delta, 0], z2 = [0, 1, delta^2,
+        2 delta]. The products the share needs are quadratic forms in F' P F (P the projector off the
+        nuisance) and F'd, as the periods'; the numbers are those of the columns formed in full, to rounding."""
+        from scipy import sparse
+
+        ns, span = self.rp.n_stretches, self.ladder.span
+        ua, ub = self.ta / span, self.tb / span
+        p = len(ua)
+        rows = np.concatenate([np.arange(p)] * 6)
+        sa, sb = 2 + self.sa, 2 + self.sb
+        cols = np.concatenate([np.zeros(p, int), np.ones(p, int), sb, sa, ns + sb, ns + sa])
+        vals = np.concatenate([ub - ua, ub * ub - ua * ua, np.ones(p), -np.ones(p), ub, -ua])
+        F = sparse.csr_matrix((vals, (rows, cols)), shape=(p, 2 + 2 * ns))
+        G = (F.T @ F).toarray()
+        if self.proj.Q is not None:
+            FQ = F.T @ self.proj.Q
+            G -= FQ @ FQ.T
+        g = F.T @ d
+        delta = shifts / span
+        ones, zeros = np.ones((1, delta.shape[1])), np.zeros((1, delta.shape[1]))
+        Z1 = np.vstack([ones, zeros, delta, np.zeros_like(delta)])
+        Z2 = np.vstack([zeros, ones, delta * delta, 2.0 * delta])
+        GZ1, GZ2 = G @ Z1, G @ Z2
+        cc, ss, cs = (Z1 * GZ1).sum(0), (Z2 * GZ2).sum(0), (Z1 * GZ2).sum(0)
+        return quadratic_shares(cc, ss, cs, g.T @ Z1, g.T @ Z2) / max(float((d * d).sum()), 1e-300)
+
     def null(self, d: np.ndarray, orders: np.ndarray) -> np.ndarray:
         """[drift, each period...] shares for each permutation of the stretches (a row of `orders`)."""
         out = np.empty((len(orders), 1 + len(self.ladder.omega)))
-        for j, order in enumerate(orders):
-            ta, tb = self.rp.times(order)
-            out[j, 0] = share_of(d, drift_columns(ta, tb, self.ladder.span, self.proj))
         shifts = self.rp.shifts(orders).T  # stretches x permutations
+        out[:, 0] = self._drift_null(d, shifts)
         dd = max(float((d * d).sum()), 1e-300)
         Q = self.proj.Q
         for i, w in enumerate(self.ladder.omega):

@@ -25,6 +25,7 @@ at set times would otherwise look like a change in time).
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field, replace
 
@@ -60,6 +61,9 @@ BOOTSTRAP = 200
 TIDAL_BANDS = ((12.0 * 3600, 12.66 * 3600), (23.93 * 3600, 25.82 * 3600))
 # forms closer than this in log-likelihood cannot be told apart (a likelihood ratio of e^2)
 TELL_APART = 2.0
+# the first draws of the last few judgements (`first_draws`), by a digest of what they were drawn for
+DRAWN_KEPT = 4
+_DRAWN: dict[str, tuple[np.ndarray, dict]] = {}
 
 
 @dataclass
@@ -282,9 +286,7 @@ def judged_forms(d, rp, ladder, proj, reference, permutations: int, seed: int, t
 
     if reference is not None:
         obs = np.append(obs, reference.share(d, ta, tb, proj))
-    rng = np.random.default_rng(seed)
-    orders = np.array([rng.permutation(rp.n_stretches) for _ in range(permutations)])
-    null = draws(orders)
+    null, rng = first_draws(draws, d, rp, proj, permutations, seed, keep=reference is None)
     per_form, p = permutation_p(obs, null)
     while threshold is not None and undecided(p, len(null), threshold):
         more = min(BATCH, MAX_PERMUTATIONS - len(null))
@@ -300,6 +302,33 @@ def judged_forms(d, rp, ladder, proj, reference, permutations: int, seed: int, t
     if reference is not None:
         forms.append(Form("reference", None, float(obs[-1]), float(per_form[-1])))
     return forms, best_i, p, len(null)
+
+
+def first_draws(
+    draws, d: np.ndarray, rp: RevisitPairs, proj: Projector, permutations: int, seed: int, keep: bool
+) -> tuple[np.ndarray, np.random.Generator]:
+    """`draws(orders)` of the first `permutations` exchanges of the stretches, and the generator that drew
+    them (to draw more from). With `keep`, drawn once for the same differences, pairs, projector and seed:
+    diagnose judges a model's revisits, then again with its threshold when the p-value lies near it
+    (`undecided`), and the second judgement begins with the same draws (the last few kept in `_DRAWN`, with
+    the generator's state after them). A reference's form is made anew for each judgement: not kept."""
+    what = (permutations, seed, d.shape, rp.n_stretches, rp.stretch_s)
+    key = hashlib.sha1(repr(what).encode())
+    for a in (d, rp.pairs, rp.stretch, rp.t, proj.Q):
+        if a is not None:
+            key.update(np.ascontiguousarray(a, float).tobytes())
+    rng = np.random.default_rng(seed)
+    hit = _DRAWN.get(key.hexdigest()) if keep else None
+    if hit is not None:
+        null, rng.bit_generator.state = hit[0], hit[1]
+        return null.copy(), rng
+    orders = np.array([rng.permutation(rp.n_stretches) for _ in range(permutations)])
+    null = draws(orders)
+    if keep:
+        _DRAWN[key.hexdigest()] = (null.copy(), rng.bit_generator.state)
+        while len(_DRAWN) > DRAWN_KEPT:
+            _DRAWN.pop(next(iter(_DRAWN)))
+    return null, rng
 
 
 def evidence(d: np.ndarray, rp: RevisitPairs, A: np.ndarray) -> tuple[float, tuple[float, float]]:
