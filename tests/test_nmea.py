@@ -138,3 +138,32 @@ def test_depth_below_surface():
     assert depth_below_surface(p.parse(cs("SDDBT,10.0,f,,M,,F")), 0.0) == pytest.approx(3.048)
     assert depth_below_surface(p.parse(cs("SDDBT,,f,,M,,F")), 0.0) is None
     assert depth_below_surface(p.parse(cs("SDMTW,18.5,C")), 0.0) is None
+
+
+def _read(parser: NmeaParser, lines: list, times: int = 1) -> tuple[list, tuple]:
+    """Each line parsed, `times` over, and the parser's counts."""
+    out = [parser.parse(ln) for _ in range(times) for ln in lines]
+    names = ("accepted", "rejected", "variants", "variant_addresses", "lines")
+    return out, tuple(getattr(parser, n) for n in names)
+
+
+def test_a_line_parsed_once_reads_and_counts_as_parsed_anew():
+    """Within `parsed_once` (an import's passes over one capture) a parser gives each line as a parser
+    without it does: equal sentences, new objects (a consumer may change one), the same counts by type,
+    reason and checksum variant, whichever parser saw the line first and however often."""
+    from forcemap.host.decode.nmea import parsed_once
+    from forcemap.host.decode.nmea_checksum import xor
+
+    lines = [cs("SDDPT,2.56,0.30"), cs("SDDBT,8.46,f,2.58,M,1.41,F"), cs("PGRMT,GPS17x,,,,,,,")]
+    lines += ["$SDDPT,2.56GPRMC*00", "Initializing..", "   ", "# a comment"]
+    lines.append(f"$IIHDG,229.8,,,1.3,E*{xor('IIHDG'):02X}")  # a bus's checksum over the address only
+    lines += [ln.encode() for ln in lines] + [bytearray(b"\xff$SDDPT*00")]
+    for mode in ("strict", "lenient"):
+        once, twice = _read(NmeaParser(mode), lines), _read(NmeaParser(mode), lines, 2)
+        assert once[1][2] and once[1][0] and once[1][1]  # a variant, accepted and rejected lines
+        with parsed_once():
+            first = _read(NmeaParser(mode), lines)
+            again = _read(NmeaParser(mode), lines, 2)
+        assert first == once and again == twice, mode
+        got = [s for s in first[0] + again[0] if s is not None]
+        assert len({id(s) for s in got}) == len(got)  # every sentence its own object

@@ -33,7 +33,7 @@ from pathlib import Path
 
 from forcemap.host.convert.capture_file import capture_lines
 from forcemap.host.decode import nmea_checksum
-from forcemap.host.decode.nmea import NmeaParser
+from forcemap.host.decode.nmea import NmeaParser, parsed_once
 from forcemap.host.fuse.position_jumps import track_seed
 from forcemap.host.log.qa_records import QaFinding
 
@@ -71,7 +71,8 @@ def kept() -> Iterator[None]:
     global _kept
     outer, _kept = _kept, ({} if _kept is None else _kept)
     try:
-        yield
+        with parsed_once():  # and each line parsed once
+            yield
     finally:
         _kept = outer
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -14,6 +16,22 @@ from forcemap.host.decode.nmea_fields import KNOT, SPECS, extract
 __all__ = ["KNOT", "LineSplitter", "NmeaParser", "Sentence", "depth_below_surface", "extract"]
 
 MAX_LINE = 120  # NMEA allows 82 characters; real talkers overrun a little
+# the lines parsed in the current `parsed_once()` block: (checksum mode, line) -> (sentence, its counts)
+_memo: dict | None = None
+_COUNTERS = ("accepted", "rejected", "variants", "variant_addresses")
+
+
+@contextlib.contextmanager
+def parsed_once() -> Iterator[None]:
+    """Within it, a parser made there parses each distinct line once per checksum mode: an import reads
+    its capture in a pre-pass and then twice (forcemap.host.convert.nmea_prepass ``kept``). A line parsed
+    again gives a new Sentence equal to the first and counts in its parser as the first did."""
+    global _memo
+    outer, _memo = _memo, ({} if _memo is None else _memo)
+    try:
+        yield
+    finally:
+        _memo = outer
 
 
 def _xor(body: str) -> int:
@@ -142,9 +160,38 @@ class NmeaParser:
         self.variants: Counter[str] = Counter()  # lines whose checksum is a variant's, by variant
         self.variant_addresses: Counter[str] = Counter()  # ... by "variant address"
         self.lines = 0
+        self._memo = _memo
 
     def parse(self, raw: bytes | str) -> Sentence | None:
         """One line. Returns None for a blank line or a ``#`` comment; never raises."""
+        if self._memo is None:
+            return self._parse_safely(raw)
+        key = (self.checksum, bytes(raw) if isinstance(raw, bytearray) else raw)
+        hit = self._memo.get(key)
+        if hit is None:
+            hit = self._memo[key] = self._recorded(raw)
+        s, lines, counts = hit
+        self.lines += lines
+        for name, c in counts:
+            getattr(self, name).update(c)
+        return None if s is None else Sentence(s.text, s.valid, s.reason, s.talker, s.type, dict(s.data))
+
+    def _recorded(self, raw: bytes | str) -> tuple[Sentence | None, int, tuple]:
+        """`raw` parsed, and what it added to the parser's counts (`parsed_once`)."""
+        kept = [getattr(self, name) for name in _COUNTERS], self.lines
+        for name in _COUNTERS:
+            setattr(self, name, Counter())
+        self.lines = 0
+        try:
+            s = self._parse_safely(raw)
+            counts = tuple((n, dict(getattr(self, n))) for n in _COUNTERS if getattr(self, n))
+            return s, self.lines, counts
+        finally:
+            for name, c in zip(_COUNTERS, kept[0], strict=True):
+                setattr(self, name, c)
+            self.lines = kept[1]
+
+    def _parse_safely(self, raw: bytes | str) -> Sentence | None:
         try:
             return self._parse(raw)
         except Exception:  # pynmea2 and our converters must never take the daemon down
