@@ -24,8 +24,10 @@ from forcemap.host.vessel.geodesy import LocalFrame
 from forcemap.sim_devices.engine import Simulation
 from forcemap.sim_devices.offline import make_survey
 
+SURVEY_S = 1200.0  # the survey's length: the looping lawnmower over the reach
 
-def survey(scenario: str, seed: int, out: Path, duration_s: float = 1200.0) -> Path:
+
+def survey(scenario: str, seed: int, out: Path, duration_s: float = SURVEY_S) -> Path:
     """A measured samples table of a looping lawnmower survey (reused if already made in ``out``)."""
     table = out / "samples.csv"
     if not table.exists():

@@ -108,9 +108,8 @@ class World:
                 -(((n - nt) / self.d_width) ** 2)
             )
         r2 = (x - self.deep[0]) ** 2 + (y - self.deep[1]) ** 2
-        return np.clip(
-            self.d_centre - (self.d_centre - self.d_edge) * r2 / self.radius**2, 0.5, None
-        )
+        d = self.d_centre - (self.d_centre - self.d_edge) * r2 / self.radius**2
+        return max(d, 0.5) if isinstance(d, float) else np.clip(d, 0.5, None)
 
     def depth(self, x: ArrayLike, y: ArrayLike) -> ArrayLike:
         """Water depth below the surface at rest (m): the bed; a sounding adds `water_level(t)`."""
@@ -120,6 +119,8 @@ class World:
         d = ds
         for xb, yb, rb, hb in self.bars:
             d = d - hb * np.exp(-((x - xb) ** 2 + (y - yb) ** 2) / (rb * rb))
+        if isinstance(d, float):  # one place (the boat loop's every step): np.clip's own arithmetic
+            return min(max(d, self.d_min), self.d_max)
         return np.clip(d, self.d_min, self.d_max)
 
     # ---- the water surface --------------------------------------------------------------

@@ -40,7 +40,7 @@ class ReferenceStream:
         self.t0 = float(t0)
         self.centre, self.half = float(centre_x), max(float(half_span_x), 1.0)
         self.station: Station = shipped().stations[shipped().choose(str(params["station"])).chosen]
-        self._tables: dict[int, np.ndarray] = {}
+        self._tables: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def truth(self, x) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
         """(ratio, offset in s) at east positions `x` (m)."""
@@ -49,23 +49,40 @@ class ReferenceStream:
         offset = 60.0 * (self.p["offset_min"] + self.p["offset_east_min"] * xi)
         return ratio, offset
 
+    def _table(self, hour: int) -> tuple[np.ndarray, np.ndarray]:
+        """The hour's grid of UNIX times (every TABLE_STEP_S, both ends) and the station's prediction on it."""
+        got = self._tables.get(hour)
+        if got is None:
+            grid = 3600.0 * hour + np.arange(0.0, 3600.0 + TABLE_STEP_S + 1e-9, TABLE_STEP_S)
+            got = self._tables[hour] = (grid, self.station.speed(grid))
+        return got
+
     def _r(self, unix: np.ndarray) -> np.ndarray:
         """The station's prediction at UNIX times, read from hour-long tables."""
         out = np.empty(unix.shape)
         hours = np.floor(unix / 3600.0).astype(np.int64)
         for h in np.unique(hours):
-            table = self._tables.get(int(h))
-            grid = 3600.0 * h + np.arange(0.0, 3600.0 + TABLE_STEP_S + 1e-9, TABLE_STEP_S)
-            if table is None:
-                table = self._tables[int(h)] = self.station.speed(grid)
+            grid, table = self._table(int(h))
             m = hours == h
             out[m] = np.interp(unix[m], grid, table)
         return out
 
     def __call__(self, x, t):  # type: ignore[no-untyped-def]
         """The stream (m/s, positive with the flow) at east positions `x` and run times `t`."""
+        if np.ndim(x) == 0 and np.ndim(t) == 0:
+            return self._at(float(x), float(t))
         xa, ta = np.broadcast_arrays(np.asarray(x, float), np.asarray(t, float))
         ratio, offset = self.truth(xa)
         unix = self.t0 + ta - offset
         out = ratio * self._r(unix.ravel()).reshape(unix.shape)
         return float(out) if not np.ndim(out) else out
+
+    def _at(self, x: float, t: float) -> float:
+        """`__call__` at one place and time (the boat loop's every step), with the same arithmetic
+        without numpy's array machinery: the same numbers, bit for bit."""
+        xi = min(max((x - self.centre) / self.half, -1.0), 1.0)
+        ratio = self.p["ratio"] + self.p["ratio_east"] * xi
+        offset = 60.0 * (self.p["offset_min"] + self.p["offset_east_min"] * xi)
+        unix = self.t0 + t - offset
+        grid, table = self._table(int(np.floor(unix / 3600.0)))
+        return float(ratio * np.interp(unix, grid, table))

@@ -8,6 +8,7 @@ written waypoint files, with another seed, and scored with the true track on the
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +19,11 @@ from forcemap.host.report.mission_section import mission_section
 from forcemap.host.vessel import waypoints as wp
 from forcemap.host.workbench.survey.table import load_survey
 
-from bench.closed_loop import fly, low_discharge_scenario, plan_files, survey
+from bench.closed_loop import SURVEY_S, fly, low_discharge_scenario, plan_files, survey
+from tests.sim_surveys import private_copy, simulated
 
 SEED_A, SEED_B = 1, 2
+Measured = Callable[[str], Path]
 pytestmark = pytest.mark.slow
 
 
@@ -29,8 +32,22 @@ def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("plan")
 
 
-def flights(work: Path, scenario: str):  # type: ignore[no-untyped-def]
-    table = survey(scenario, SEED_A, work / f"survey-{scenario}")
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory: pytest.TempPathFactory, work: Path) -> Measured:
+    """``measured(scenario)``: bench/closed_loop.py's survey of the scenario (seed A), made once per run
+    (tests/sim_surveys.py: test_terms_doc and test_workbench_effects map the same river) and copied
+    into this module's folder, where the plan writes beside it."""
+
+    def get(scenario: str) -> Path:
+        folder = work / f"survey-{scenario}"
+        if not (folder / "samples.csv").exists():
+            private_copy(simulated(tmp_path_factory, scenario, [], SEED_A, SURVEY_S), folder)
+        return folder / "samples.csv"
+
+    return get
+
+
+def flights(work: Path, table: Path, scenario: str):  # type: ignore[no-untyped-def]
     result, orig, planned = plan_files(table, "lawnmower", work / f"plan-{scenario}", scenario)
     dur = 1.5 * max(result.original.track.duration, result.planned.track.duration) + 120
     return (
@@ -42,8 +59,8 @@ def flights(work: Path, scenario: str):  # type: ignore[no-untyped-def]
     )
 
 
-def test_river_plan_holds_the_lines_the_original_misses(work: Path) -> None:
-    result, orig, planned, fo, fp = flights(work, "river")
+def test_river_plan_holds_the_lines_the_original_misses(work: Path, measured: Measured) -> None:
+    result, orig, planned, fo, fp = flights(work, measured("river"), "river")
     # the original blows its downstream turns out by 7-25 m (the paper's Fig. 2) and leaves lines uncovered
     assert 7.0 <= fo.summary["miss"] <= 25.0
     assert fo.turn_errors.min() > 5.0 and fo.summary["coverage"] < 0.9
@@ -59,8 +76,8 @@ def test_river_plan_holds_the_lines_the_original_misses(work: Path) -> None:
     assert planned.with_suffix(".json").exists() and not result.unchanged
 
 
-def test_lake_plan_changes_nothing_and_loses_nothing(work: Path) -> None:
-    result, orig, planned, fo, fp = flights(work, "lake")
+def test_lake_plan_changes_nothing_and_loses_nothing(work: Path, measured: Measured) -> None:
+    result, orig, planned, fo, fp = flights(work, measured("lake"), "lake")
     assert result.unchanged
     _, a = wp.read_wpl(orig)
     _, b = wp.read_wpl(planned)
@@ -97,8 +114,10 @@ def test_wrong_map_is_reported_honestly(work: Path) -> None:
     assert flown <= 3.0 and fp.summary["coverage"] >= 0.95
 
 
-def test_plan_command_and_report_section(work: Path, capsys) -> None:  # type: ignore[no-untyped-def]
-    table = survey("river", SEED_A, work / "survey-river")
+def test_plan_command_and_report_section(
+    work: Path, measured: Measured, capsys: pytest.CaptureFixture[str]
+) -> None:
+    table = measured("river")
     out = work / "cli" / "planned"
     out.parent.mkdir()
     args = ["plan", str(table), "--mission", "lawnmower", "-o", str(out), "--json", "-", "--quiet"]
