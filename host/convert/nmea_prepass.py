@@ -27,13 +27,13 @@ from __future__ import annotations
 import contextlib
 import time
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from forcemap.host.convert.capture_file import capture_lines
 from forcemap.host.decode import nmea_checksum
-from forcemap.host.decode.nmea import NmeaParser, parsed_once
+from forcemap.host.decode.nmea import NmeaParser, Sentence, parsed_once
 from forcemap.host.fuse.position_jumps import track_seed
 from forcemap.host.log.qa_records import QaFinding
 
@@ -85,8 +85,9 @@ def prepass(path: str | Path, checksum: str = "strict", day: float | None = None
         return _kept[key]
     notes: list[str] = []
     lines = capture_lines(path, notes)
-    times, how, found = line_times(lines, checksum, day)
-    seed = position_seed(lines, checksum) if not how.startswith("no UTC") else None
+    parsed = _time_lines(lines, checksum)  # read once for the times and the track
+    times, how, found = line_times(lines, checksum, day, parsed)
+    seed = track_seed(_fixes(s for _, s in parsed)) if not how.startswith("no UTC") else None
     out = Prepass(lines, notes, times, how, seed, found)
     if _kept is not None:
         _kept[key] = out
@@ -123,21 +124,29 @@ def _fix_state(s) -> bool | None:  # type: ignore[no-untyped-def]
     return None
 
 
-def _time_sentences(
-    lines: list[bytes], checksum: str
-) -> tuple[list[tuple[int, float]], list[tuple[int, float, str, str]]]:
-    """(line, time of day) of every time sentence, and (index into the first, UTC, kind, type) of
-    those that carry a date."""
+def _time_lines(lines: list[bytes], checksum: str) -> list[tuple[int, Sentence]]:
+    """(line, sentence) of every valid sentence read from a line naming a time type (TIME_TYPES,
+    which hold the POSITION_TYPES)."""
     parser = NmeaParser(checksum)
-    tods: list[tuple[int, float]] = []
-    dated: list[tuple[int, float, str, str]] = []
-    has_fix: dict[str, bool] = {}  # talker -> whether its last position sentence had a fix
+    out = []
     for i, line in enumerate(lines):
         if not any(k in line for k in TIME_TYPES):
             continue
         s = parser.parse(line)
-        if s is None or not s.valid:
-            continue
+        if s is not None and s.valid:
+            out.append((i, s))
+    return out
+
+
+def _time_sentences(
+    parsed: list[tuple[int, Sentence]],
+) -> tuple[list[tuple[int, float]], list[tuple[int, float, str, str]]]:
+    """(line, time of day) of every time sentence, and (index into the first, UTC, kind, type) of
+    those that carry a date (``parsed``: ``_time_lines``)."""
+    tods: list[tuple[int, float]] = []
+    dated: list[tuple[int, float, str, str]] = []
+    has_fix: dict[str, bool] = {}  # talker -> whether its last position sentence had a fix
+    for i, s in parsed:
         fix = _fix_state(s)
         if fix is not None:
             has_fix[s.talker] = fix
@@ -155,10 +164,14 @@ def _time_sentences(
 
 
 def line_times(
-    lines: list[bytes], checksum: str = "strict", day: float | None = None
+    lines: list[bytes],
+    checksum: str = "strict",
+    day: float | None = None,
+    parsed: list[tuple[int, Sentence]] | None = None,
 ) -> tuple[list[float], str, QaFinding | None]:
-    """``nmea_line_times`` and the ``qa.time.date`` finding of what the log's day overruled."""
-    tods, past_at, dated = _dated(lines, checksum)
+    """``nmea_line_times`` and the ``qa.time.date`` finding of what the log's day overruled
+    (``parsed``: the lines' ``_time_lines``, when the caller has them)."""
+    tods, past_at, dated = _dated(lines, checksum, parsed)
     n = len(lines)
     if not tods:
         return [float(i) for i in range(n)], "no UTC in the file: 1 s per line from 1970-01-01", None
@@ -175,11 +188,11 @@ def line_times(
 
 
 def _dated(
-    lines: list[bytes], checksum: str
+    lines: list[bytes], checksum: str, parsed: list[tuple[int, Sentence]] | None = None
 ) -> tuple[list[tuple[int, float]], list[float], list[Dated]]:
     """(line, time of day) of every time sentence, the days gone by since the first one at each
     (midnights crossed), and every dated sentence as a Dated."""
-    tods, dated_at = _time_sentences(lines, checksum)
+    tods, dated_at = _time_sentences(_time_lines(lines, checksum) if parsed is None else parsed)
     past_at: list[float] = []
     past, prev_tod = 0.0, None
     for _, tod in tods:
@@ -329,19 +342,23 @@ def position_seed(
 ) -> tuple[float, float, float] | None:
     """(lat, lon, radius m) of the boat's track from every valid fix in ``lines``, or None."""
     parser = NmeaParser(checksum)
+    sentences = (parser.parse(line) for line in lines if any(k in line for k in POSITION_TYPES))
+    return track_seed(_fixes(s for s in sentences if s is not None and s.valid))
+
+
+def _fixes(sentences: Iterable[Sentence]) -> list[tuple[float, float]]:
+    """(lat, lon) of each valid sentence that is a position with a fix (RMC, GGA, GLL: the only
+    types with a position), in order."""
     fixes = []
-    for line in lines:
-        if not any(k in line for k in POSITION_TYPES):
-            continue
-        s = parser.parse(line)
-        if s is None or not s.valid or s.data.get("lat") is None or s.data.get("lon") is None:
+    for s in sentences:
+        if s.data.get("lat") is None or s.data.get("lon") is None:
             continue
         if s.type == "GGA" and not s.data.get("quality"):
             continue
         if s.type != "GGA" and s.data.get("status") != "A":
             continue
         fixes.append((s.data["lat"], s.data["lon"]))
-    return track_seed(fixes)
+    return fixes
 
 
 def why_no_time(lines: list[bytes], name: str, checksum: str = "strict") -> str:

@@ -254,14 +254,19 @@ class NmeaParser:
         if addr[2:] not in SPECS:  # well-formed, but a type we don't use: not checked further
             self.accepted["other"] += 1
             return Sentence(text, True, "", addr[:2], addr[2:], {})
-        try:
-            # the checksum is already checked above (pynmea2 would refuse a variant's)
-            msg = pynmea2.parse(text[:star] if lenient else text)
-        except (pynmea2.ParseError, ValueError, TypeError, AttributeError):
-            return self._reject(text, "parse_error")
-        talker = getattr(msg, "talker", "") or ""
-        stype = getattr(msg, "sentence_type", "") or ""
-        data = list(getattr(msg, "data", []))
+        if comma > 0 and addr[0] not in "Pp" and text.count("*") == 1:
+            # what pynmea2.parse gives for such a line (one "*", a talker sentence of a type it
+            # knows), without its regular expression and sentence object: the bulk of a log
+            talker, stype, data = addr[:2].upper(), addr[2:], text[comma + 1 : star].split(",")
+        else:
+            try:
+                # the checksum is already checked above (pynmea2 would refuse a variant's)
+                msg = pynmea2.parse(text[:star] if lenient else text)
+            except (pynmea2.ParseError, ValueError, TypeError, AttributeError):
+                return self._reject(text, "parse_error")
+            talker = getattr(msg, "talker", "") or ""
+            stype = getattr(msg, "sentence_type", "") or ""
+            data = list(getattr(msg, "data", []))
         spec = SPECS.get(stype)
         if spec is None:
             return self._reject(text, "parse_error")
