@@ -26,28 +26,41 @@ from tests.sim_surveys import simulated
 DURATION_S = 1200.0
 HEADING = {"heading", "heading_rel_current", "heading_rel_wind"}
 
-# effect, target, covariates accepted as the first-ranked explanation
+# effect, target, covariates accepted as the first-ranked explanation, survey length (s). Each effect has the
+# shortest of 600, 900 and 1200 s where both seeds pass with room; the margins there, seeds 1 and 2 (gain >=
+# 0.30; p under its threshold, about 2e-3; fixed/base RMSE <= 0.70):
+# - 600 s: depth_current gain 0.67 and 0.67, p 4e-10 and 6e-11, ratio 0.37 and 0.31; wheel_misalignment
+#   0.60 and 0.63, 2e-8 and 4e-10, 0.38 and 0.35; anemometer_upwash 0.63 and 0.64, 3e-11 both, 0.37 both;
+#   gusts 0.46 and 0.39, 7e-8 and 2e-8, 0.50 and 0.59 (at 900 s: 0.55 and 0.53, ratio 0.41 and 0.47).
+# - 900 s: bank_shelter 0.41 and 0.49, 2e-7 and 1e-10, 0.60 and 0.51 (at 600 s seed 1's gain falls to
+#   0.23); clock_offset 0.51 and 0.50, 2.5e-4 and 1e-6, 0.49 and 0.50 (at 600 s seed 1's p is 7e-3).
+# - 1200 s: dam_release and compass_deviation: at 900 s the release on seed 2 and the deviation on both
+#   seeds are not found (the ramp and the heading dependence need the lines run again).
 EFFECTS = [
-    ("depth_current", "current_speed", {"depth"}),
-    ("dam_release", "current_speed", {"t"}),
-    ("gusts", "wind_speed", {"t"}),
-    ("bank_shelter", "wind_speed", {"wind_dir"}),
-    ("wheel_misalignment", "current_speed", HEADING),
-    ("anemometer_upwash", "wind_speed", {"stw"}),
-    ("compass_deviation", "current_dir", HEADING),
+    ("depth_current", "current_speed", {"depth"}, 600.0),
+    ("dam_release", "current_speed", {"t"}, DURATION_S),
+    ("gusts", "wind_speed", {"t"}, 600.0),
+    ("bank_shelter", "wind_speed", {"wind_dir"}, 900.0),
+    ("wheel_misalignment", "current_speed", HEADING, 600.0),
+    ("anemometer_upwash", "wind_speed", {"stw"}, 600.0),
+    ("compass_deviation", "current_dir", HEADING, DURATION_S),
     # the offset turns the wind in every turn; diagnose scans for it directly (host.workbench.terms.clock_offset)
-    ("clock_offset", "wind_dir", {"clock_offset"}),
+    ("clock_offset", "wind_dir", {"clock_offset"}, 900.0),
 ]
 SEEDS = (1, 2)
-CASES = [(e, t, x, s) for e, t, x in EFFECTS for s in SEEDS]
+CASES = [(e, t, x, d, s) for e, t, x, d in EFFECTS for s in SEEDS]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("effect", "target", "expected", "seed"), CASES, ids=[f"{c[0]}-{c[3]}" for c in CASES]
+    ("effect", "target", "expected", "duration_s", "seed"),
+    CASES,
+    ids=[f"{c[0]}-{c[4]}" for c in CASES],
 )
-def test_hidden_effect_is_found_and_fixes_the_error(tmp_path, effect, target, expected, seed):
-    table = make_survey("river", [effect], seed=seed, duration_s=DURATION_S, out_dir=tmp_path)
+def test_hidden_effect_is_found_and_fixes_the_error(
+    tmp_path, effect, target, expected, duration_s, seed
+):
+    table = make_survey("river", [effect], seed=seed, duration_s=duration_s, out_dir=tmp_path)
     survey = load_survey(table)
     d = diagnose(survey, target, rounds=1, progress=False)
     best = d.candidates[0]
