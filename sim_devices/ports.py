@@ -44,18 +44,20 @@ class PortSet:
     def clock_path(self) -> str:
         return str(self.dir / "clock")
 
-    def write(self, source: str, data: bytes) -> None:
+    def write(self, source: str, data: bytes, settle: bool = True) -> None:
+        """Write a chunk to a port; ``settle=False`` when its reader has read every earlier byte."""
         port = self.ports.get(source)
         if port is None:
             return
+        before = port.bytes_written
         try:
-            n = port.write(data)
-        except BlockingIOError:  # nobody is reading: the bytes are lost, as on a real port
+            n = port.write(data, settle)
+        except BlockingIOError:  # the bridge's pty full: nobody is reading, as on a real port
             n = None
         if n is None:
             self.dropped[source] += 1
-        else:
-            self.bytes_written[source] += n
+        # what reached the port, a cut frame's head included: the reader sees (and acknowledges) it
+        self.bytes_written[source] += port.bytes_written - before
 
     def read(self, source: str) -> bytes:
         """What the host wrote to a port (the ground station's MAVLink to the autopilot), without waiting."""
@@ -68,9 +70,11 @@ class PortSet:
             return b""
 
     def bridge_writable(self) -> bool:
-        """False while the host is not reading the bridge port, so the firmware drops frames itself."""
+        """False while the host is not reading the bridge port, so the firmware drops frames itself.
+
+        A host that reads, only slower than the simulator writes, is waited for (``writable_soon``)."""
         port = self.ports.get("bridge")
-        return True if port is None else port.writable()
+        return True if port is None else port.writable_soon()
 
     def unplug(self, source: str) -> None:
         """The cable is pulled: the pty and its symlink disappear (a reader gets an error)."""
