@@ -232,7 +232,8 @@ def _evaluate(ev: Evaluator, name: str) -> Candidate:
         gain, p = min(gain_b, gain_r), max(p_b, p_r)
         sd = sd_r if gain_r < gain_b else sd_b
     spec = str(parse_term(name, is_circular))
-    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence, gain_sd=sd, blocked_sd=sd_b)
+    c = Candidate(name, spec, cv.rmse, gain, p, gain_b, gain_r, is_consequence, gain_sd=sd)
+    c.blocked_sd = sd_b
     c.hypers = model.theta_
     if name == "t":
         _judged_at_revisits(ev, c)

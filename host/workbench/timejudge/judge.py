@@ -109,9 +109,8 @@ class TimeVerdict:
     departure: float = 0.0
     departure_sd: float = 0.0
     change_span_s: tuple[float, float] = (0.0, 0.0)
-    start_s: float = (
-        0.0  # the first judged row's time (every time here is in s since the survey's start)
-    )
+    # the first judged row's time (every time here is in s since the survey's start)
+    start_s: float = 0.0
     unit: str = ""  # of the differences and the change (time_candidate.time_verdict sets it)
     improvement_sd: float = 0.0  # the sd of `improvement`, a crossing the paired unit (`cv_share`)
     # a best form that follows the reference station (`reference_form`): the station, and the place's ratio
@@ -446,6 +445,5 @@ def cv_share(d: np.ndarray, rp: RevisitPairs, A: np.ndarray, k: int = 5) -> tupl
         w, *_ = np.linalg.lstsq(A[~test], d[~test], rcond=None)
         resid[test] = d[test] - A[test] @ w
     base_sq, cand_sq = (d * d).sum(axis=1), (resid * resid).sum(axis=1)
-    return float(1.0 - cand_sq.sum() / base_sq.sum()), gain_sd(
-        base_sq, cand_sq, rp.crossing_index()
-    )
+    share = float(1.0 - cand_sq.sum() / base_sq.sum())
+    return share, gain_sd(base_sq, cand_sq, rp.crossing_index())

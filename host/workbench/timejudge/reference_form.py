@@ -37,10 +37,9 @@ class ReferenceForm:
         utc = utc0 + self.grid
         self.speed = np.nan_to_num(np.array([s.speed(utc) for s in stations]))
         self.rate = np.nan_to_num(np.array([s.rate(utc) for s in stations])) / OMEGA
-        counts = np.bincount(self.row_station)
-        self.station = stations[int(np.argmax(counts))]
-        self._top = int(np.argmax(counts))
-        self.utc0 = utc0
+        top = int(np.argmax(np.bincount(self.row_station)))
+        self.station = stations[top]  # the most used
+        self._top_row = int(np.flatnonzero(self.row_station == top)[0])
 
     def _at(self, table: np.ndarray, rows: np.ndarray, t: np.ndarray) -> np.ndarray:
         """`table`'s value at each row's station and time t (s since the judged start)."""
@@ -70,7 +69,7 @@ class ReferenceForm:
 
     def basis(self, t: np.ndarray) -> np.ndarray:
         """The form's functions of time (s since the judged start), undifferenced, at the most used station."""
-        rows = np.full(len(t), int(np.flatnonzero(self.row_station == self._top)[0]))
+        rows = np.full(len(t), self._top_row)
         return np.column_stack([self._at(self.speed, rows, t), self._at(self.rate, rows, t)])
 
 
